@@ -1,0 +1,86 @@
+# jointid workflow: joint-surface identification by FE model updating (see README.md).
+#
+# Path convention: results/<stage>/..., logs/<rule>/..., benchmarks/out/<rule>/...
+# Config reaches every rule through `params: cfg=` holding only the sections that rule uses, so a
+# changed value reruns exactly the stages that depend on it.
+
+import sys
+from jointid.workflowconfig import validated, sections
+from jointid.stages import doe_sheet
+
+configfile: "config.yaml"
+config = validated(config)
+SHEET = doe_sheet(config)
+POINTS = list(SHEET["point"])
+STATES = list(config["states"])
+R = "results"
+
+
+rule all:
+    input:
+        f"{R}/modal/all.csv",
+
+
+rule mesh:
+    output:
+        matrices=f"{R}/model/matrices.npz",
+        points=f"{R}/model/measuring_points.csv",
+        vtu=f"{R}/model/mesh.vtu",
+    params:
+        cfg=sections(config, "materials", "rig", "mesh"),
+    log:
+        "logs/mesh.log",
+    benchmark:
+        "benchmarks/out/mesh.tsv"
+    resources:
+        mem_mb=3000,
+        runtime=10,
+    script:
+        "workflow/scripts/mesh.py"
+
+
+rule doe:
+    output:
+        sheet=f"{R}/doe/points.csv",
+    params:
+        cfg=sections(config, "joints", "doe"),
+    log:
+        "logs/doe.log",
+    script:
+        "workflow/scripts/doe.py"
+
+
+rule modal:
+    input:
+        matrices=rules.mesh.output.matrices,
+        sheet=rules.doe.output.sheet,
+    output:
+        modes=f"{R}/modal/points/{{point}}.npz",
+    params:
+        cfg=sections(config, "rig", "joints", "solver"),
+        theta=lambda wc: {n: float(SHEET.set_index("point").loc[wc.point, n]) for n in config["joints"]["parameters"]},
+    log:
+        "logs/modal/{point}.log",
+    benchmark:
+        "benchmarks/out/modal/{point}.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=10,
+    script:
+        "workflow/scripts/modal.py"
+
+
+rule gather_modal:
+    input:
+        sheet=rules.doe.output.sheet,
+        modes=expand(f"{R}/modal/points/{{point}}.npz", point=POINTS),
+    output:
+        table=f"{R}/modal/all.csv",
+        arrays=f"{R}/modal/all.npz",
+    params:
+        cfg={},
+    log:
+        "logs/gather_modal.log",
+    script:
+        "workflow/scripts/gather.py"

@@ -1,0 +1,205 @@
+"""Build the affine FE model of the rig from the configuration, and cache it on disk.
+
+``build_model(cfg)`` runs rig geometry -> mesh -> assembly and returns a :class:`jointid.fem.Model`
+whose named terms are:
+
+===============  ==============================================================================
+``K0``           solids (elasticity)
+``K_top_<d>``    unit spring layer on the rail-top contact faces, direction d in x, y, z
+``K_flank_<d>``  unit spring layer on the rail-flank contact strips
+``K_mount``      base mounts to ground, unit stiffness per area (all directions)
+``M0``           solids (consistent mass)
+``M_motor``      1 kg spread over the table-underside motor patch
+===============  ==============================================================================
+
+``joint_terms(cfg)`` maps a joint parameter (``k_normal_N_per_m3`` ...) to the terms it multiplies.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import Basis
+
+from . import fem
+from .mesh import build_mesh
+from .points import measuring_points
+from .rig import PART_IDS, build_rig
+
+FACE_FOR_PARAMETER = {"normal": "top"}  # lateral face from config (flanks or top)
+
+
+def joint_terms(joints_cfg: dict) -> dict[str, list[str]]:
+    """Stiffness terms multiplied by each joint parameter (identified and fixed ones).
+
+    A parameter ``k_<kind>_N_per_m3`` with direction d acts on the face of its kind: ``normal`` on the
+    rail top; ``lateral`` on the flanks (or the top for a flat joint); ``feed`` and any other kind on
+    every contact face (top and flanks).
+    """
+    params = dict(joints_cfg.get("parameters", {}))
+    dirs = {name: spec["direction"] for name, spec in params.items()}
+    for name in joints_cfg.get("fixed", {}):
+        dirs.setdefault(name, {"normal": "y", "lateral": "x", "feed": "z"}.get(_kind(name), "z"))
+    lateral_face = "flank" if joints_cfg.get("lateral_face", "flanks") == "flanks" else "top"
+    out = {}
+    for name, d in dirs.items():
+        kind = _kind(name)
+        if kind == "normal":
+            faces = ["top"]
+        elif kind == "lateral":
+            faces = [lateral_face]
+        else:
+            faces = ["top", "flank"]
+        out[name] = [f"K_{face}_{d}" for face in faces]
+    return out
+
+
+def _kind(name: str) -> str:
+    return name.split("_")[1] if name.startswith("k_") else name
+
+
+def build_model(cfg: dict, *, refine: int | None = None, progress=None) -> fem.Model:
+    """Assemble the rig model described by ``cfg`` (the whole validated configuration)."""
+    say = progress or (lambda msg: None)
+    rig_cfg, mesh_cfg = cfg["rig"], cfg["mesh"]
+    rig = build_rig(rig_cfg)
+    rmesh = build_mesh(rig, mesh_cfg["max_cell_size_m"], refine or mesh_cfg.get("refine", 1))
+    elem_cls, intorder = fem.ELEMENTS[mesh_cfg["element"]]
+    elem = elem_cls()
+    basis = Basis(rmesh.mesh, elem, intorder=intorder)
+    say(f"mesh: {rmesh.mesh.t.shape[1]} {mesh_cfg['element']} elements, {3 * basis.N} DOFs")
+    mats = cfg["materials"]
+    inv_parts = {v: k for k, v in PART_IDS.items()}
+    lam = np.empty(len(rmesh.part))
+    mu = np.empty(len(rmesh.part))
+    rho = np.empty(len(rmesh.part))
+    for pid in np.unique(rmesh.part):
+        m = mats[rig.materials[inv_parts[pid]]]
+        sel = rmesh.part == pid
+        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
+        rho[sel] = m["density_kg_per_m3"]
+    K0, M0 = fem.assemble_elasticity(basis, lam, mu, rho)
+    stiffness = {"K0": K0}
+    doflocs = basis.doflocs
+    for face in ("top", "flank"):
+        S = fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder)
+        for d, i in fem.DIRS.items():
+            stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, doflocs, i)
+    support = rig_cfg["support"]["kind"]
+    fixed = np.array([], dtype=np.int64)
+    if support == "mounts":
+        stiffness["K_mount"] = fem.ground_springs(
+            fem.facet_mass(rmesh.mesh, elem, rmesh.facets["mount"], intorder))
+    elif support == "clamped":
+        sdofs = basis.get_dofs(facets=rmesh.facets["bottom"]).all()
+        fixed = np.sort(np.concatenate([3 * sdofs + c for c in range(3)]))
+    mass = {"M0": M0, "M_motor": fem.surface_mass(
+        fem.facet_mass(rmesh.mesh, elem, rmesh.facets["motor"], intorder))}
+    pts = measuring_points(rig_cfg, rig.dims)
+    xyz = pts[["x_m", "y_m", "z_m"]].to_numpy().T.copy()
+    xyz[1] -= 1e-7  # nudge onto the solid side of the top surfaces
+    P = basis.probes(xyz)  # (n_pts, N) scalar
+    P = sp.csr_matrix(P)
+    Pc = P.tocoo()
+    probe = sp.csr_matrix(
+        (np.tile(Pc.data, 3),
+         (np.concatenate([3 * Pc.row + c for c in range(3)]), np.concatenate([3 * Pc.col + c for c in range(3)]))),
+        shape=(3 * len(pts), 3 * basis.N))
+    dof_part = -np.ones(basis.N, dtype=int)
+    for pid in np.unique(rmesh.part):
+        dof_part[np.unique(basis.element_dofs[:, rmesh.part == pid])] = pid
+    areas = {face: float(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder).sum())
+             for face in ("top", "flank", "motor", "mount")}
+    meta = {"n_elements": int(rmesh.mesh.t.shape[1]), "n_dofs": int(3 * basis.N),
+            "element": mesh_cfg["element"], "support": support,
+            "contact_area_m2": {"top": areas["top"], "flank": areas["flank"]},
+            "mount_area_m2": areas["mount"], "motor_patch_area_m2": areas["motor"],
+            "motor_mass_kg": rig_cfg["motors"]["count"] * rig_cfg["motors"]["mass_each_kg"],
+            "mount_area_each_m2": areas["mount"] / 4 if support == "mounts" else 0.0,
+            "carriage_centres_m": rig.carriage_centres.tolist(), "dims_m": rig.dims,
+            "points": pts.to_dict(orient="list")}
+    model = fem.Model(stiffness=stiffness, mass=mass, fixed=fixed, probe=probe, doflocs=doflocs,
+                      dof_part=dof_part, meta=meta)
+    model.meta["mesh"] = {"p": rmesh.mesh.p, "t": rmesh.mesh.t, "part": rmesh.part}
+    return model
+
+
+def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | None = None,
+                      extra_k: dict[str, float] | None = None):
+    """Stiffness and mass coefficients of the rig at joint parameters ``theta``.
+
+    ``theta`` maps joint parameter names to N/m^3 (defaults: the geometric mean of the bounds for
+    identified parameters, the configured value for fixed ones).  Returns ``(k_coeffs, m_coeffs)``
+    for :meth:`Model.K` and :meth:`Model.M`.
+    """
+    jcfg = cfg["joints"]
+    values = {name: float(np.sqrt(s["lower"] * s["upper"])) for name, s in jcfg["parameters"].items()}
+    values.update({k: float(v) for k, v in jcfg.get("fixed", {}).items()})
+    if theta:
+        values.update(theta)
+    kc: dict[str, float] = {}
+    for name, terms in joint_terms(jcfg).items():
+        for term in terms:
+            kc[term] = kc.get(term, 0.0) + values.get(name, 0.0)
+    if "K_mount" in model.stiffness:
+        kc["K_mount"] = cfg["rig"]["support"]["k_mount_N_per_m"] / model.meta["mount_area_each_m2"]
+    for name, v in (extra_k or {}).items():
+        kc[name] = kc.get(name, 0.0) + v
+    mc = {"M_motor": model.meta["motor_mass_kg"]}
+    return kc, mc
+
+
+# ---------------------------------------------------------------- cache
+def save_model(model: fem.Model, path: str | Path) -> None:
+    """Write the model to one ``.npz`` file atomically (temporary file + rename)."""
+    path = Path(path)
+    arrays = {}
+    for group in ("stiffness", "mass"):
+        for name, A in getattr(model, group).items():
+            A = A.tocsr()
+            for part in ("data", "indices", "indptr"):
+                arrays[f"{group}/{name}/{part}"] = getattr(A, part)
+            arrays[f"{group}/{name}/shape"] = np.array(A.shape)
+    P = model.probe.tocsr()
+    for part in ("data", "indices", "indptr"):
+        arrays[f"probe/{part}"] = getattr(P, part)
+    arrays["probe/shape"] = np.array(P.shape)
+    arrays["fixed"] = model.fixed
+    arrays["doflocs"] = model.doflocs
+    arrays["dof_part"] = model.dof_part
+    mesh = model.meta.get("mesh", {})
+    for k, v in mesh.items():
+        arrays[f"mesh/{k}"] = v
+    meta = {k: v for k, v in model.meta.items() if k != "mesh"}
+    arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
+    os.close(fd)
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def load_model(path: str | Path) -> fem.Model:
+    """Read a model written by :func:`save_model`."""
+    z = np.load(path, allow_pickle=False)
+    groups: dict[str, dict[str, sp.csr_matrix]] = {"stiffness": {}, "mass": {}}
+    names = {(k.split("/")[0], k.split("/")[1]) for k in z.files if k.startswith(("stiffness/", "mass/"))}
+    for group, name in sorted(names):
+        pre = f"{group}/{name}/"
+        groups[group][name] = sp.csr_matrix((z[pre + "data"], z[pre + "indices"], z[pre + "indptr"]),
+                                            shape=tuple(z[pre + "shape"]))
+    probe = sp.csr_matrix((z["probe/data"], z["probe/indices"], z["probe/indptr"]), shape=tuple(z["probe/shape"]))
+    meta = json.loads(bytes(z["meta"]).decode())
+    meta["mesh"] = {k.split("/")[1]: z[k] for k in z.files if k.startswith("mesh/")}
+    return fem.Model(stiffness=groups["stiffness"], mass=groups["mass"], fixed=z["fixed"], probe=probe,
+                     doflocs=z["doflocs"], dof_part=z["dof_part"], meta=meta)

@@ -1,0 +1,5 @@
+"""Snakemake adapter: gather the per-point modal results."""
+from jointid.workflow import run_script
+from jointid import stages
+
+run_script(snakemake, lambda cfg, inp, out: stages.run_gather(inp.sheet, list(inp.modes), out.table, out.arrays))
