@@ -18,7 +18,8 @@ R = "results"
 
 rule all:
     input:
-        f"{R}/modal/all.csv",
+        f"{R}/tables/table2_power_off.csv",
+        f"{R}/tables/table3_power_on.csv",
 
 
 rule mesh:
@@ -84,3 +85,67 @@ rule gather_modal:
         "logs/gather_modal.log",
     script:
         "workflow/scripts/gather.py"
+
+
+rule fit_surface:
+    input:
+        sheet=rules.doe.output.sheet,
+        arrays=rules.gather_modal.output.arrays,
+    output:
+        model=f"{R}/surface/model.json",
+        diagnostics=f"{R}/surface/diagnostics.csv",
+    params:
+        cfg=sections(config, "joints", "surface", "solver", "harmonic"),
+    log:
+        "logs/fit_surface.log",
+    script:
+        "workflow/scripts/fit_surface.py"
+
+
+rule identify:
+    input:
+        surface=rules.fit_surface.output.model,
+        points=rules.mesh.output.points,
+        dataset=lambda wc: config["states"][wc.state].get("dataset") or config["measurements"]["dataset"],
+    output:
+        params=f"{R}/identify/{{state}}/params.json",
+    params:
+        cfg=sections(config, "joints", "identify", "states", "measurements"),
+    log:
+        "logs/identify/{state}.log",
+    script:
+        "workflow/scripts/identify.py"
+
+
+rule verify:
+    input:
+        params=rules.identify.output.params,
+        surface=rules.fit_surface.output.model,
+        matrices=rules.mesh.output.matrices,
+    output:
+        table=f"{R}/identify/{{state}}/verify.csv",
+    params:
+        cfg=sections(config, "rig", "joints", "solver"),
+    log:
+        "logs/verify/{state}.log",
+    benchmark:
+        "benchmarks/out/verify/{state}.tsv"
+    resources:
+        mem_mb=3000,
+    script:
+        "workflow/scripts/verify.py"
+
+
+rule tables:
+    input:
+        verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
+        paper="data/paper/paper_tables.csv",
+    output:
+        power_off=f"{R}/tables/table2_power_off.csv",
+        power_on=f"{R}/tables/table3_power_on.csv",
+    params:
+        cfg={},
+    log:
+        "logs/tables.log",
+    script:
+        "workflow/scripts/tables.py"

@@ -26,7 +26,8 @@ class RigMesh:
     part : (n_elements,) int, part id of each element (``jointid.rig.PART_IDS``)
     facets : dict name -> (n,) facet indices; ``top`` / ``flank`` are the body-1 side of the joint
         faces, ``motor`` the table-underside patch, ``mount`` the base-bottom mount pads,
-        ``bottom`` the whole base bottom.
+        ``bottom`` the whole base bottom, ``railfix`` the rail bottoms (rail side), ``table_edge``
+        the table's +X side face, ``table_top`` the table's top face.
     """
 
     mesh: MeshHex
@@ -52,18 +53,21 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1) -> RigMesh:
     t = full.t[:, keep]
     part = part[keep]
     body = np.vectorize(BODY_OF_PART.get)(part)
-    # duplicate the nodes used by both bodies; body 1 gets the copies
-    used0 = np.zeros(full.p.shape[1], bool)
-    used1 = np.zeros(full.p.shape[1], bool)
-    used0[np.unique(t[:, body == 0])] = True
-    used1[np.unique(t[:, body == 1])] = True
-    shared = np.flatnonzero(used0 & used1)
+    # every body after the first gets its own copies of the nodes it shares with earlier bodies
     p = full.p
-    new_index = np.arange(p.shape[1])
-    new_index[shared] = p.shape[1] + np.arange(len(shared))
-    p = np.hstack([p, p[:, shared]])
     t = t.copy()
-    t[:, body == 1] = new_index[t[:, body == 1]]
+    taken = np.zeros(p.shape[1], bool)
+    for b in np.unique(body):
+        nodes = np.unique(t[:, body == b])
+        shared = nodes[taken[nodes]]
+        if len(shared):
+            new_index = np.arange(p.shape[1])
+            new_index[shared] = p.shape[1] + np.arange(len(shared))
+            p = np.hstack([p, p[:, shared]])
+            taken = np.concatenate([taken, np.zeros(len(shared), bool)])
+            t[:, body == b] = new_index[t[:, body == b]]
+            nodes = np.unique(t[:, body == b])
+        taken[nodes] = True
     # drop unused nodes, renumber
     used = np.unique(t)
     remap = -np.ones(p.shape[1], int)
@@ -80,8 +84,12 @@ def _tag_facets(mesh: MeshHex, part: np.ndarray, rig: Rig) -> dict[str, np.ndarr
     out = {}
     for name in ("top", "flank"):
         out[name] = bnd[body1 & _in_patch(mid, rig.contact[name])]
-    out["motor"] = bnd[body1 & _in_patch(mid, rig.patches["motor"])]
-    body0 = ~body1
-    out["mount"] = bnd[body0 & _in_patch(mid, rig.patches["mount"])] if rig.patches["mount"] else bnd[:0]
-    out["bottom"] = bnd[body0 & (np.abs(mid[:, 1]) < _TOL)]
+    out["motor"] = bnd[body1 & _in_patch(mid, rig.patches.get("motor", []))]
+    base = part[owner] == 0
+    rail = part[owner] == 1
+    out["mount"] = bnd[base & _in_patch(mid, rig.patches.get("mount", []))]
+    out["bottom"] = bnd[base & (np.abs(mid[:, 1]) < _TOL)]
+    out["railfix"] = bnd[rail & _in_patch(mid, rig.patches.get("railfix", []))]
+    out["table_edge"] = bnd[body1 & _in_patch(mid, rig.patches.get("table_edge", []))]
+    out["table_top"] = bnd[body1 & _in_patch(mid, rig.patches.get("table_top", []))]
     return out

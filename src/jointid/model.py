@@ -8,8 +8,12 @@ whose named terms are:
 ``K_top_<d>``    unit spring layer on the rail-top contact faces, direction d in x, y, z
 ``K_flank_<d>``  unit spring layer on the rail-flank contact strips
 ``K_mount``      base mounts to ground, unit stiffness per area (all directions)
+``K_railfix``    rail-bottom to base-top layer, unit stiffness per area (all directions)
+``K_foundation`` base bottom to ground, unit stiffness per area (all directions)
 ``M0``           solids (consistent mass)
 ``M_motor``      1 kg spread over the table-underside motor patch
+``M_table_top``  1 kg spread over the table top (e.g. a fixture or workpiece)
+``M_table_edge`` 1 kg spread over the table's +X side face (e.g. cable chain, encoder head)
 ===============  ==============================================================================
 
 ``joint_terms(cfg)`` maps a joint parameter (``k_normal_N_per_m3`` ...) to the terms it multiplies.
@@ -31,7 +35,7 @@ from .mesh import build_mesh
 from .points import measuring_points
 from .rig import PART_IDS, build_rig
 
-FACE_FOR_PARAMETER = {"normal": "top"}  # lateral face from config (flanks or top)
+RAIL_BONDED_N_PER_M3 = 1.0e15  # rail-to-base layer standing in for a bonded (consolidated) fixing
 
 
 def joint_terms(joints_cfg: dict) -> dict[str, list[str]]:
@@ -90,6 +94,10 @@ def build_model(cfg: dict, *, refine: int | None = None, progress=None) -> fem.M
         S = fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder)
         for d, i in fem.DIRS.items():
             stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, doflocs, i)
+    S_fix = fem.facet_mass(rmesh.mesh, elem, rmesh.facets["railfix"], intorder)
+    stiffness["K_railfix"] = sum(fem.spring_layer(S_fix, doflocs, i) for i in range(3)).tocsr()
+    stiffness["K_foundation"] = fem.ground_springs(
+        fem.facet_mass(rmesh.mesh, elem, rmesh.facets["bottom"], intorder))
     support = rig_cfg["support"]["kind"]
     fixed = np.array([], dtype=np.int64)
     if support == "mounts":
@@ -98,8 +106,9 @@ def build_model(cfg: dict, *, refine: int | None = None, progress=None) -> fem.M
     elif support == "clamped":
         sdofs = basis.get_dofs(facets=rmesh.facets["bottom"]).all()
         fixed = np.sort(np.concatenate([3 * sdofs + c for c in range(3)]))
-    mass = {"M0": M0, "M_motor": fem.surface_mass(
-        fem.facet_mass(rmesh.mesh, elem, rmesh.facets["motor"], intorder))}
+    mass = {"M0": M0}
+    for name, facets in (("motor", "motor"), ("table_top", "table_top"), ("table_edge", "table_edge")):
+        mass[f"M_{name}"] = fem.surface_mass(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[facets], intorder))
     pts = measuring_points(rig_cfg, rig.dims)
     xyz = pts[["x_m", "y_m", "z_m"]].to_numpy().T.copy()
     xyz[1] -= 1e-7  # nudge onto the solid side of the top surfaces
@@ -146,6 +155,7 @@ def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | Non
     for name, terms in joint_terms(jcfg).items():
         for term in terms:
             kc[term] = kc.get(term, 0.0) + values.get(name, 0.0)
+    kc["K_railfix"] = float(cfg["rig"]["rails"].get("fixing_stiffness_N_per_m3", RAIL_BONDED_N_PER_M3))
     if "K_mount" in model.stiffness:
         kc["K_mount"] = cfg["rig"]["support"]["k_mount_N_per_m"] / model.meta["mount_area_each_m2"]
     for name, v in (extra_k or {}).items():

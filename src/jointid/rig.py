@@ -3,10 +3,12 @@
 The rig is a set of axis-aligned boxes, so one tensor grid whose lines pass through every part
 boundary meshes all of it.  Parts and the two bodies they form:
 
-* body 0 (bonded, the paper's "consolidation"): ``base`` plate and two ``rail`` s bolted on it;
-* body 1 (bonded): four ``carriage`` blocks that wrap the rails and the ``table`` on top of them.
+* body 0: the ``base`` plate;
+* body 1 (bonded): four ``carriage`` blocks that wrap the rails and the ``table`` on top of them;
+* body 2: the two ``rail`` s, fixed to the base through a stiff spring layer on their bottom faces
+  (bonded, the paper's "consolidation", unless the rail-fixing compliance is of interest).
 
-The bodies meet only at the carriage/rail contact faces, where the joint springs act:
+The carriages meet the rails only at the contact faces, where the joint springs act:
 ``top`` (rail top under each carriage: normal, Y) and ``flank`` (upper strip of each rail side under
 each carriage: lateral, X).  Axes: X lateral, Y up, Z feed; origin at the base's bottom centre.
 """
@@ -18,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 PART_IDS = {"void": -1, "base": 0, "rail": 1, "carriage": 2, "table": 3}
-BODY_OF_PART = {0: 0, 1: 0, 2: 1, 3: 1}
+BODY_OF_PART = {0: 0, 1: 2, 2: 1, 3: 1}  # base | carriages + table | rails
 
 
 @dataclass(frozen=True)
@@ -120,12 +122,19 @@ def build_rig(rig_cfg: dict) -> Rig:
                 mounts.append(Box("mount", (xm - a, 0.0, zm - a), (xm + a, 0.0, zm + a)))
                 xs.update((xm - a, xm + a))
                 zs.update((zm - a, zm + a))
+    railfix = [Box("railfix", (sx * half_s - r["width_m"] / 2, H, -r["length_m"] / 2),
+                   (sx * half_s + r["width_m"] / 2, H, r["length_m"] / 2)) for sx in (-1, 1)]
+    edge = [Box("edge", (t["width_m"] / 2, c_top, zt - t["length_m"] / 2),
+                (t["width_m"] / 2, t_top, zt + t["length_m"] / 2))]
+    top = [Box("table_top", (-t["width_m"] / 2, t_top, zt - t["length_m"] / 2),
+               (t["width_m"] / 2, t_top, zt + t["length_m"] / 2))]
     materials = {"base": b["material"], "rail": r["material"], "carriage": c["material"],
                  "table": t["material"]}
     dims = {"base_top_m": H, "rail_top_m": rail_top, "carriage_top_m": c_top, "table_top_m": t_top,
             "table_z_m": zt}
     return Rig(boxes=boxes, contact={"top": top_faces, "flank": flank_faces},
-               patches={"motor": motor, "mount": mounts}, carriage_centres=np.array(centres),
+               patches={"motor": motor, "mount": mounts, "railfix": railfix, "table_edge": edge,
+                        "table_top": top}, carriage_centres=np.array(centres),
                breakpoints=(np.array(sorted(xs)), np.array(sorted(ys)), np.array(sorted(zs))),
                materials=materials, dims=dims)
 

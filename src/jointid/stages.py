@@ -28,11 +28,23 @@ def run_mesh(cfg: dict, matrices: str, points_csv: str, vtu: str | None = None) 
     save_model(model, matrices)
     pts = pd.DataFrame(model.meta["points"])
     io.write_csv(pts, points_csv)
+    io.write_json(str(points_csv).replace("measuring_points.csv", "summary.json"), model_summary(model))
     if vtu:
         from .vtk import write_mesh_vtu
 
         write_mesh_vtu(model, vtu)
     _log(f"mesh: wrote {matrices} ({model.n_dofs} DOFs), {points_csv}")
+
+
+def model_summary(model) -> dict:
+    """Sizes and areas of the model (for per-carriage conversions and reports)."""
+    m = model.meta
+    per = {face: a / 4 for face, a in m["contact_area_m2"].items()}
+    per["flank+top"] = per["top"] + per["flank"]
+    return {"n_dofs": m["n_dofs"], "n_elements": m["n_elements"], "element": m["element"],
+            "support": m["support"], "contact_area_m2": m["contact_area_m2"],
+            "contact_area_per_carriage_m2": per, "motor_mass_kg": m["motor_mass_kg"],
+            "dims_m": m["dims_m"], "carriage_centres_m": m["carriage_centres_m"]}
 
 
 # ------------------------------------------------------------------ doe
@@ -100,15 +112,140 @@ def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str) -
 def run_gather(sheet_csv: str, npz_paths: list[str], out_csv: str, out_npz: str) -> None:
     """Gather per-point modal results into one long table and one array file."""
     sheet = pd.read_csv(sheet_csv)
-    rows, freqs, shapes = [], [], []
+    rows, freqs, shapes, descr = [], [], [], []
     for point, path in zip(sheet["point"], npz_paths):
         z = np.load(path)
         freqs.append(z["freqs_Hz"])
         shapes.append(z["shapes"])
+        descr.append(z["description"])
         for j, f in enumerate(z["freqs_Hz"]):
             rows.append({"point": point, "mode": j + 1, "freq_Hz": float(f),
                          "description": str(z["description"][j]), "strain_joints": float(z["strain_joints"][j])})
     io.write_csv(pd.DataFrame(rows), out_csv)
     io.write_npz(out_npz, points=sheet["point"].to_numpy().astype(str), freqs_Hz=np.array(freqs),
-                 shapes=np.array(shapes), labels=np.load(npz_paths[0])["labels"])
+                 shapes=np.array(shapes), labels=np.load(npz_paths[0])["labels"],
+                 descriptions=np.array(descr))
     _log(f"gather: {len(npz_paths)} points -> {out_csv}")
+
+
+# ------------------------------------------------------------------ surfaces
+def tracked_band(cfg: dict) -> tuple[float, float]:
+    """Modes of the reference point inside this band are tracked and fitted (Hz)."""
+    return float(cfg["solver"]["min_freq_Hz"]), 1.25 * float(cfg["harmonic"]["band_Hz"][1])
+
+
+def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, out_csv: str) -> None:
+    from .updating import fit_surfaces
+
+    sheet = pd.read_csv(sheet_csv)
+    z = np.load(arrays_npz)
+    descr = z["descriptions"]
+    names = parameter_names(cfg)
+    doc, diag = fit_surfaces(sheet, z["freqs_Hz"], z["shapes"], descr, names, tracked_band(cfg),
+                             kind=cfg["surface"]["kind"])
+    doc["lower"] = [cfg["joints"]["parameters"][n]["lower"] for n in names]
+    doc["upper"] = [cfg["joints"]["parameters"][n]["upper"] for n in names]
+    io.write_json(out_json, doc)
+    io.write_csv(diag, out_csv)
+    worst = diag["verify_max_error_pct"].max()
+    _log(f"surface: {len(doc['tracked_modes'])} tracked modes, worst verification error {worst:.3f} %")
+    limit = cfg["surface"]["max_verification_error_pct"]
+    if worst > limit:
+        import warnings
+
+        from .errors import NumericalWarning
+
+        warnings.warn(f"surface: verification error {worst:.2f} % exceeds "
+                      f"surface.max_verification_error_pct = {limit} %; the final FE verification "
+                      "shows its effect on the identified frequencies", NumericalWarning)
+
+
+# ------------------------------------------------------------------ identification
+def _dataset_for(cfg: dict, state: str) -> str:
+    return cfg["states"][state].get("dataset") or cfg["measurements"]["dataset"]
+
+
+def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str) -> None:
+    from .measured import read_dataset
+    from .points import dof_labels
+    from .updating import identify_state
+
+    doc = io.read_json(surface_json)
+    pts = pd.read_csv(points_csv)
+    ds = read_dataset(_dataset_for(cfg, state), measuring_points=pts)
+    f_meas = ds.freqs(state)
+    shapes = None
+    if ds.shapes is not None and state in set(ds.shapes["state"]):
+        shapes = ds.shape_matrix(state, dof_labels(pts))
+    ic = cfg["identify"]
+    weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
+    sigma_pct = ds.conditions.get("frequency_uncertainty_pct", ic["frequency_uncertainty_pct"])
+    lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
+    res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
+                                        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100)
+    areas = io.read_json(points_csv.replace("measuring_points.csv", "summary.json"))["contact_area_per_carriage_m2"]
+    per_carriage = {}
+    for n, th, lo, hi in zip(doc["names"], res.theta, res.ci_lower, res.ci_upper):
+        a = areas.get(_face_of(cfg, n), 0.0)
+        per_carriage[n.replace("_N_per_m3", "_per_carriage_N_per_um")] = {
+            "value": th * a * 1e-6, "ci95_low": lo * a * 1e-6, "ci95_high": hi * a * 1e-6}
+    out = {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
+                                          for n, th, lo, hi in zip(doc["names"], res.theta, res.ci_lower,
+                                                                   res.ci_upper)},
+           "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
+               doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
+           "paired_by": "mac" if shapes is not None else "frequency",
+           "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model, "residual_pct": res.residual_pct,
+           "cost": res.cost, "condition_number": res.condition_number,
+           "weak_combination": res.weak_combination, "on_bound": res.on_bound,
+           "n_starts_agreeing": res.n_starts_agreeing, "warnings": msgs,
+           "frequency_uncertainty_pct": sigma_pct}
+    io.write_json(out_json, out)
+    _log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.3g}" for n, t in zip(doc["names"], res.theta))
+         + f"; max |error| (surface) {np.abs(res.residual_pct).max():.2f} %")
+    for m in msgs:
+        _log("warning: " + m)
+
+
+def _face_of(cfg: dict, name: str) -> str:
+    from .model import joint_terms
+
+    terms = joint_terms(cfg["joints"])[name]
+    return "+".join(sorted({t.split("_")[1] for t in terms}))
+
+
+def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str) -> None:
+    from .updating import verify_pairing
+
+    par = io.read_json(params_json)
+    doc = io.read_json(surface_json)
+    theta = {n: v["value"] for n, v in par["parameters"].items()}
+    model = load_model(matrices)
+    freqs, shapes, desc, _ = solve_point(cfg, model, theta)
+    index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
+    f_meas = np.asarray(par["f_meas_Hz"])
+    fe = np.where(index >= 0, freqs[np.clip(index, 0, None)], np.nan)
+    rows = pd.DataFrame({
+        "order": np.arange(1, len(f_meas) + 1), "experimental_Hz": f_meas, "simulation_Hz": fe,
+        "relative_error_pct": 100 * (fe - f_meas) / f_meas,
+        "surface_Hz": par["f_surface_Hz"], "surface_vs_fe_pct": 100 * (np.asarray(par["f_surface_Hz"]) - fe) / fe,
+        "fe_mode": index + 1, "mac_to_tracked": macs,
+        "description": [desc["description"][i] if i >= 0 else "unpaired" for i in index],
+        "strain_joints": [float(desc["strain_joints"][i]) if i >= 0 else np.nan for i in index]})
+    io.write_csv(rows, out_csv)
+    _log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
+         f"surface vs FE max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
+
+
+# ------------------------------------------------------------------ tables
+def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, str]) -> None:
+    """Tables 2 and 3: our FE-verified frequencies beside the paper's."""
+    from .report_tables import frequency_table, markdown_table
+
+    paper = pd.read_csv(paper_csv)
+    for state, path in verify_csvs.items():
+        tab = frequency_table(pd.read_csv(path), paper, state)
+        io.write_csv(tab, outputs[state])
+        io.write_text(outputs[state].replace(".csv", ".md"), markdown_table(tab, state))
+        _log(f"table[{state}]: max |error| {tab.relative_error_pct.abs().max():.2f} % "
+             f"(paper {tab.paper_relative_error_pct.abs().max():.1f} %)")

@@ -1,0 +1,158 @@
+"""Response-surface model updating: surfaces over the DOE, identification per state, FE verification.
+
+Stages (each reads and writes files, see ``jointid.stages`` for the workflow wiring):
+
+1. :func:`fit_surfaces` — track the modes through the DOE by MAC, fit one surface per tracked mode
+   to ``ln f`` over the coded log-parameters, and check it at fresh verification points solved by FE.
+2. :func:`identify_state` — pair measured and tracked modes (MAC when shapes are measured, else
+   order-preserving frequency assignment, re-paired at each optimum until stable), then bounded
+   multi-start least squares on the weighted relative frequency error.
+3. :func:`verify_state` — re-solve the full FE model at the optimum and report FE, surface and
+   measured frequencies side by side (the table values are the FE ones).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+
+from .doe import to_coded, to_physical
+from .errors import DataError, NumericalWarning
+from .identify import identify
+from .surface import Surface, diagnostics, fit_surface
+from .tracking import pair_by_frequency, pair_by_shapes, track_doe
+
+
+class LogFrequencyModel:
+    """Natural frequencies ``exp(surface(x))`` of the tracked modes, with their Jacobian."""
+
+    def __init__(self, surface: Surface, select: np.ndarray | None = None):
+        self.surface = surface
+        self.select = select
+
+    def __call__(self, x):
+        f = np.exp(self.surface(np.asarray(x, float)))
+        return f if self.select is None else f[self.select]
+
+    def jacobian(self, x):
+        x = np.asarray(x, float)
+        f = np.exp(self.surface(x))
+        J = f[:, None] * self.surface.jacobian(x)
+        return J if self.select is None else J[self.select]
+
+
+# ------------------------------------------------------------------ 1. surfaces
+def fit_surfaces(sheet: pd.DataFrame, freqs: np.ndarray, shapes: np.ndarray, descriptions: np.ndarray,
+                 names: list[str], band_Hz: tuple[float, float], kind: str = "quadratic"):
+    """Track modes through the DOE and fit one surface per tracked mode.
+
+    Returns ``(surface_doc, diagnostics DataFrame)``; ``surface_doc`` is JSON-serialisable.
+    """
+    X = sheet[[f"x_{n}" for n in names]].to_numpy()
+    design = (sheet["role"] == "design").to_numpy()
+    ref = int(np.argmin(np.where(design, np.abs(X).sum(axis=1), np.inf)))
+    ref_modes, tf, tm = track_doe(freqs, shapes, ref, band_Hz)
+    lost = np.isnan(tf[design]).any(axis=0)
+    keep = np.flatnonzero(~lost)
+    if len(keep) == 0:
+        raise DataError("surface: no mode could be tracked through the whole DOE — narrow the "
+                        "joints.parameters bounds or raise solver.n_modes")
+    Y = np.log(tf[design][:, keep])
+    surf = fit_surface(X[design], Y, kind=kind)
+    diag = diagnostics(surf, X[design], Y).reset_index(drop=True)
+    verify = ~design & ~np.isnan(tf[:, keep]).any(axis=1)
+    rows = []
+    for col, r in enumerate(keep):
+        row = {"tracked_mode": int(r + 1), "ref_freq_Hz": float(freqs[ref, ref_modes[r]]),
+               "description": str(descriptions[ref][ref_modes[r]]),
+               "min_mac_in_doe": float(tm[design, r].min())}
+        row.update({k: float(diag.loc[col, k]) for k in ("r2", "r2_adj", "r2_pred", "rmse")})
+        if verify.any():
+            pred = np.exp(surf.predict(X[verify])[:, col])
+            err = 100 * np.abs(pred - tf[verify, r]) / tf[verify, r]
+            row["verify_max_error_pct"] = float(err.max())
+        else:
+            row["verify_max_error_pct"] = float("nan")
+        rows.append(row)
+    for r in np.flatnonzero(lost):
+        rows.append({"tracked_mode": int(r + 1), "ref_freq_Hz": float(freqs[ref, ref_modes[r]]),
+                     "description": str(descriptions[ref][ref_modes[r]]) + " (lost in DOE: not fitted)",
+                     "min_mac_in_doe": float(np.nanmin(tm[design, r]))})
+    diag_df = pd.DataFrame(rows)
+    doc = {"names": names, "kind": kind, "ref_point": str(sheet["point"].iloc[ref]),
+           "tracked_modes": [int(r + 1) for r in keep],
+           "ref_freqs_Hz": [float(freqs[ref, ref_modes[r]]) for r in keep],
+           "descriptions": [str(descriptions[ref][ref_modes[r]]) for r in keep],
+           "ref_shapes": shapes[ref][:, ref_modes[keep]].tolist(),
+           "surface": surf.to_dict()}
+    return doc, diag_df
+
+
+# ------------------------------------------------------------------ 2. identification
+def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
+                   meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
+                   seed: int = 0, sigma_rel: float = 0.01):
+    """Identify the joint parameters of one state from measured frequencies.
+
+    Returns ``(result, pairing, warnings list)`` where ``pairing[i]`` is the column of the tracked
+    mode paired with measured mode ``i``.
+    """
+    surf = Surface.from_dict(doc["surface"])
+    names = doc["names"]
+    full = LogFrequencyModel(surf)
+    n_track = len(doc["tracked_modes"])
+    if len(f_meas) > n_track:
+        raise DataError(f"measurement: {len(f_meas)} measured modes but only {n_track} model modes are "
+                        "tracked in the band — raise solver.n_modes or widen the tracked band")
+    caught: list[str] = []
+
+    def run(pairing):
+        model = LogFrequencyModel(surf, pairing)
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always", NumericalWarning)
+            res = identify(model, f_meas, weights=weights, jacobian=model.jacobian, n_starts=n_starts,
+                           seed=seed, sigma_rel=sigma_rel, names=names, lower=lower, upper=upper)
+        return res, [str(x.message) for x in w]
+
+    if meas_shapes is not None:
+        ref_shapes = np.asarray(doc["ref_shapes"])
+        pairing, macs = pair_by_shapes(meas_shapes, ref_shapes)
+        if np.any(pairing < 0):
+            bad = ", ".join(str(i + 1) for i in np.flatnonzero(pairing < 0))
+            raise DataError(f"measurement: measured mode(s) {bad} have no model mode with MAC >= 0.5 — "
+                            "check the shapes or the model")
+        res, caught = run(pairing)
+        return res, pairing, caught
+    rng = np.random.default_rng(seed)
+    k = len(names)
+    starts = np.vstack([np.zeros(k), rng.uniform(-1, 1, size=(8, k))])
+    best = None
+    for x0 in starts:
+        pairing = pair_by_frequency(f_meas, full(x0))
+        for _ in range(10):
+            res, msgs = run(pairing)
+            new = pair_by_frequency(f_meas, full(res.x_coded))
+            if np.array_equal(new, pairing):
+                break
+            pairing = new
+        if best is None or res.cost < best[0].cost - 1e-12:
+            best = (res, pairing, msgs)
+    return best
+
+
+# ------------------------------------------------------------------ 3. verification
+def verify_pairing(doc: dict, pairing: np.ndarray, fe_shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """FE mode index for each paired tracked mode, by MAC with the tracked reference shapes."""
+    ref_shapes = np.asarray(doc["ref_shapes"])[:, pairing]
+    index, macs = pair_by_shapes(ref_shapes, fe_shapes, threshold=0.3)
+    return index, macs
+
+
+def coded(theta: dict, names: list[str], lower, upper) -> np.ndarray:
+    return to_coded(np.array([theta[n] for n in names]), lower, upper)
+
+
+def physical(x, lower, upper) -> np.ndarray:
+    return to_physical(np.asarray(x, float), lower, upper)
