@@ -16,10 +16,14 @@ STATES = list(config["states"])
 R = "results"
 
 
+EXTRA_TARGETS = []  # rule files included below append their final outputs here
+
+
 rule all:
     input:
         f"{R}/tables/table2_power_off.csv",
         f"{R}/tables/table3_power_on.csv",
+        EXTRA_TARGETS,
 
 
 rule mesh:
@@ -149,3 +153,7 @@ rule tables:
         "logs/tables.log",
     script:
         "workflow/scripts/tables.py"
+
+
+include: "workflow/rules/report.smk"
+include: "workflow/rules/diagnosis.smk"

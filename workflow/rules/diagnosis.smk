@@ -1,0 +1,1 @@
+# rules for the diagnosis stage (see README)
