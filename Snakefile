@@ -110,11 +110,12 @@ rule identify:
     input:
         surface=rules.fit_surface.output.model,
         points=rules.mesh.output.points,
+        matrices=rules.mesh.output.matrices,
         dataset=lambda wc: config["states"][wc.state].get("dataset") or config["measurements"]["dataset"],
     output:
         params=f"{R}/identify/{{state}}/params.json",
     params:
-        cfg=sections(config, "joints", "identify", "states", "measurements"),
+        cfg=sections(config, "rig", "joints", "identify", "states", "measurements", "solver"),
     log:
         "logs/identify/{state}.log",
     script:

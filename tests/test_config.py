@@ -272,7 +272,7 @@ BAD = [
      "rig.rails.spacing_m: spacing 0.2 + carriage width 0.048 = 0.248 exceeds the table width 0.24 — "
      "the carriages must fit under the table; reduce spacing_m or widen the table"),
     ("table off rails", lambda c: c["rig"]["table"].update(position_m=-0.4),
-     "rig.table.position_m: -0.4 moves the carriages off the rails — keep |position_m| <= 0.383 "
+     "rig.table.position_m: -0.4 moves the carriages off the rails — keep |position_m| <= 0.348 "
      "(half rail length minus half the carriage span)"),
     ("tiny mesh", lambda c: c["mesh"].update(max_cell_size_m=0.0004),
      "mesh.max_cell_size_m: 0.0004 is too small (with refine: 1): about 5.6e9 nodes, above the limit of 2e6 — "

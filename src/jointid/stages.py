@@ -84,7 +84,7 @@ def run_doe(cfg: dict, out_csv: str) -> None:
 
 
 # ------------------------------------------------------------------ modal
-def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None = None):
+def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True):
     """Modal solve of the cached model at joint parameters ``theta`` (N/m^3).
 
     Returns ``(freqs_Hz, shapes at measuring points (n_labels, n_modes), description table, modes)``.
@@ -94,7 +94,7 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
     modes = solve_modes(model.K(kc), model.M(mc), n_modes or s["n_modes"], shift_Hz=s["shift_Hz"],
                         fixed=model.fixed, backend=s["backend"])
     shapes = model.probe @ modes.phi
-    desc = describe_modes(model, modes.phi, kc, mc)
+    desc = describe_modes(model, modes.phi, kc, mc) if describe else None
     return modes.freqs_Hz, shapes, desc, modes
 
 
@@ -165,7 +165,8 @@ def _dataset_for(cfg: dict, state: str) -> str:
     return cfg["states"][state].get("dataset") or cfg["measurements"]["dataset"]
 
 
-def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str) -> None:
+def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
+                 matrices: str | None = None) -> None:
     from .measured import read_dataset
     from .points import dof_labels
     from .updating import identify_state
@@ -183,28 +184,61 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
     res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100)
+    surface_theta = np.asarray(res.theta, float)
+    theta, ci_lo, ci_hi = surface_theta, res.ci_lower, res.ci_upper
+    f_final, polish = res.f_model, None
+    if matrices and cfg["identify"].get("fe_polish", True):
+        polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, lower, upper)
+        theta, f_final = polish["theta"], polish["f_fe"]
+        sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
+        ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
+        for n in polish["on_bound"]:
+            msgs.append(f"{n} sits on a bound of joints.parameters.{n} after the FE polish — widen the bounds")
     areas = io.read_json(points_csv.replace("measuring_points.csv", "summary.json"))["contact_area_per_carriage_m2"]
     per_carriage = {}
-    for n, th, lo, hi in zip(doc["names"], res.theta, res.ci_lower, res.ci_upper):
+    for n, th, lo, hi in zip(doc["names"], theta, ci_lo, ci_hi):
         a = areas.get(_face_of(cfg, n), 0.0)
         per_carriage[n.replace("_N_per_m3", "_per_carriage_N_per_um")] = {
             "value": th * a * 1e-6, "ci95_low": lo * a * 1e-6, "ci95_high": hi * a * 1e-6}
     out = {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
-                                          for n, th, lo, hi in zip(doc["names"], res.theta, res.ci_lower,
-                                                                   res.ci_upper)},
+                                          for n, th, lo, hi in zip(doc["names"], theta, ci_lo, ci_hi)},
+           "surface_optimum": {n: float(t) for n, t in zip(doc["names"], surface_theta)},
+           "fe_polish": None if polish is None else {
+               "iterations": polish["iterations"], "cost_history": polish["cost_history"],
+               "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
                doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
            "paired_by": "mac" if shapes is not None else "frequency",
-           "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model, "residual_pct": res.residual_pct,
+           "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model,
+           "residual_pct": 100 * (np.asarray(f_final) - f_meas) / f_meas,
            "cost": res.cost, "condition_number": res.condition_number,
            "weak_combination": res.weak_combination, "on_bound": res.on_bound,
            "n_starts_agreeing": res.n_starts_agreeing, "warnings": msgs,
            "frequency_uncertainty_pct": sigma_pct}
     io.write_json(out_json, out)
-    _log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.3g}" for n, t in zip(doc["names"], res.theta))
-         + f"; max |error| (surface) {np.abs(res.residual_pct).max():.2f} %")
+    _log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(doc["names"], theta))
+         + f"; max |error| {np.abs(out['residual_pct']).max():.2f} %")
     for m in msgs:
         _log("warning: " + m)
+
+
+def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper):
+    """Gauss-Newton refinement of the surface optimum on the full FE model."""
+    from .model import joint_terms
+    from .updating import fe_polish
+
+    model = load_model(matrices)
+    names = doc["names"]
+    jt = joint_terms(cfg["joints"])
+
+    def solve(theta):
+        freqs, shapes, _, modes = solve_point(cfg, model, dict(zip(names, theta)), describe=False)
+        return freqs, shapes, modes.phi, model.stiffness
+
+    terms = [{t: 1.0 for t in jt[n]} for n in names]
+    ref = np.asarray(doc["ref_shapes"])[:, pairing]
+    return fe_polish(solve, theta0, names, lower, upper, f_meas, ref, terms, weights=weights,
+                     sigma_rel=sigma_rel, log=_log)
 
 
 def _face_of(cfg: dict, name: str) -> str:

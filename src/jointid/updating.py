@@ -156,3 +156,56 @@ def coded(theta: dict, names: list[str], lower, upper) -> np.ndarray:
 
 def physical(x, lower, upper) -> np.ndarray:
     return to_physical(np.asarray(x, float), lower, upper)
+
+
+# ------------------------------------------------------------------ FE polish
+def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
+              target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
+              max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print):
+    """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
+
+    ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms)`` gives the FE modes;
+    each measured mode follows the FE mode with the highest MAC to its current shape (starting from
+    ``target_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
+    exact modal sensitivities ``d lambda / d theta_i = phi^T K_i phi`` (mass-normalised phi).
+    ``terms[i]`` maps stiffness term names to the coefficient per unit of parameter i.
+
+    Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations)``.
+    """
+    lo, hi = np.log10(lower), np.log10(upper)
+    y = np.log10(np.asarray(theta0, float))
+    w = np.ones(len(f_meas)) if weights is None else np.asarray(weights, float)
+    shapes_now = np.asarray(target_shapes)
+    history = []
+    for it in range(max_iter + 1):
+        freqs, shapes, phi, stiff = solve(10 ** y)
+        index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
+        if np.any(index < 0):
+            raise DataError("FE polish: a paired mode could not be followed by MAC — widen the DOE "
+                            "or check the pairing in results/identify/<state>/params.json")
+        f = freqs[index]
+        r = np.sqrt(w) * (f - f_meas) / f_meas
+        J = np.empty((len(f), len(y)))
+        for i in range(len(y)):
+            ph = phi[:, index]
+            dlam = sum(c * np.einsum("ij,ij->j", ph, stiff[t] @ ph) for t, c in terms[i].items())
+            dlam_dlog10 = dlam * (10 ** y[i]) * np.log(10)
+            J[:, i] = np.sqrt(w) * dlam_dlog10 / (8 * np.pi**2 * f) / f_meas
+        history.append(float(r @ r))
+        log(f"  FE polish it {it}: max |error| {100 * np.abs(r / np.sqrt(w)).max():.3f} %, "
+            + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
+        shapes_now = shapes[:, index]
+        if it == max_iter:
+            break
+        # Levenberg-Marquardt step, clipped to the bounds
+        lam = 1e-3 * np.trace(J.T @ J) / len(y)
+        step = -np.linalg.solve(J.T @ J + lam * np.eye(len(y)), J.T @ r)
+        y_new = np.clip(y + step, lo, hi)
+        if np.max(np.abs(y_new - y)) < tol:
+            y = y_new
+            break
+        y = y_new
+    cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
+    return {"theta": 10 ** y, "f_fe": f, "index": index, "mac": macs, "jacobian_log10": J,
+            "cov_log10": cov, "iterations": it, "cost_history": history,
+            "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}
