@@ -188,7 +188,8 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     theta, ci_lo, ci_hi = surface_theta, res.ci_lower, res.ci_upper
     f_final, polish = res.f_model, None
     if matrices and cfg["identify"].get("fe_polish", True):
-        polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, lower, upper)
+        polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, lower, upper,
+                         repair=shapes is None)
         theta, f_final = polish["theta"], polish["f_fe"]
         sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
         ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
@@ -222,7 +223,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
         _log("warning: " + m)
 
 
-def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper):
+def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False):
     """Gauss-Newton refinement of the surface optimum on the full FE model."""
     from .model import joint_terms
     from .updating import fe_polish
@@ -238,7 +239,8 @@ def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, low
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     ref = np.asarray(doc["ref_shapes"])[:, pairing]
     return fe_polish(solve, theta0, names, lower, upper, f_meas, ref, terms, weights=weights,
-                     sigma_rel=sigma_rel, log=_log)
+                     sigma_rel=sigma_rel, log=_log,
+                     repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None)
 
 
 def _face_of(cfg: dict, name: str) -> str:

@@ -22,7 +22,12 @@ from .doe import to_coded, to_physical
 from .errors import DataError, NumericalWarning
 from .identify import identify
 from .surface import Surface, diagnostics, fit_surface
+from .modal import mac
 from .tracking import pair_by_frequency, pair_by_shapes, track_doe
+
+
+def mac_one(a: np.ndarray, b: np.ndarray) -> float:
+    return float(mac(a, b)[0, 0])
 
 
 class LogFrequencyModel:
@@ -161,7 +166,8 @@ def physical(x, lower, upper) -> np.ndarray:
 # ------------------------------------------------------------------ FE polish
 def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
               target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
-              max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print):
+              max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print,
+              repair_min_Hz: float | None = None):
     """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
 
     ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms)`` gives the FE modes;
@@ -169,6 +175,9 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
     ``target_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
     exact modal sensitivities ``d lambda / d theta_i = phi^T K_i phi`` (mass-normalised phi).
     ``terms[i]`` maps stiffness term names to the coefficient per unit of parameter i.
+    With ``repair_min_Hz`` (frequency-only data) the measured modes are re-paired at every iterate by
+    the order-preserving frequency assignment among FE modes above that frequency, the same rule as
+    on the surfaces; the best iterate is kept.
 
     Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations)``.
     """
@@ -177,9 +186,15 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
     w = np.ones(len(f_meas)) if weights is None else np.asarray(weights, float)
     shapes_now = np.asarray(target_shapes)
     history = []
+    best = None
     for it in range(max_iter + 1):
         freqs, shapes, phi, stiff = solve(10 ** y)
-        index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
+        if repair_min_Hz is not None:
+            cand = np.flatnonzero(freqs >= repair_min_Hz)
+            index = cand[pair_by_frequency(f_meas, freqs[cand])]
+            macs = np.array([mac_one(shapes_now[:, i], shapes[:, j]) for i, j in enumerate(index)])
+        else:
+            index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
         if np.any(index < 0):
             raise DataError("FE polish: a paired mode could not be followed by MAC — widen the DOE "
                             "or check the pairing in results/identify/<state>/params.json")
@@ -192,6 +207,8 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
             dlam_dlog10 = dlam * (10 ** y[i]) * np.log(10)
             J[:, i] = np.sqrt(w) * dlam_dlog10 / (8 * np.pi**2 * f) / f_meas
         history.append(float(r @ r))
+        if best is None or history[-1] < best[0]:
+            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy())
         log(f"  FE polish it {it}: max |error| {100 * np.abs(r / np.sqrt(w)).max():.3f} %, "
             + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
         shapes_now = shapes[:, index]
@@ -205,6 +222,7 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
             y = y_new
             break
         y = y_new
+    _, y, f, index, macs, J = best
     cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
     return {"theta": 10 ** y, "f_fe": f, "index": index, "mac": macs, "jacobian_log10": J,
             "cov_log10": cov, "iterations": it, "cost_history": history,
