@@ -166,16 +166,3 @@ def pair_by_mac(mac_matrix: np.ndarray, threshold: float = 0.5) -> list[tuple[in
     rows, cols = linear_sum_assignment(-mac_matrix)
     return [(int(r), int(c), float(mac_matrix[r, c])) for r, c in zip(rows, cols)
             if mac_matrix[r, c] >= threshold]
-
-
-def track_modes(ref_shapes: np.ndarray, shapes: np.ndarray, threshold: float = 0.5):
-    """Indices of the modes in ``shapes`` that continue each reference mode, and their MAC.
-
-    Returns ``(index (n_ref,), mac (n_ref,))``; index is -1 where no mode reaches ``threshold``.
-    """
-    m = mac(ref_shapes, shapes)
-    index = -np.ones(m.shape[0], dtype=int)
-    value = np.zeros(m.shape[0])
-    for r, c, v in pair_by_mac(m, threshold):
-        index[r], value[r] = c, v
-    return index, value
