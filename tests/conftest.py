@@ -1,0 +1,179 @@
+"""Shared helpers for the workflow tests: run Snakemake on a copy of the workflow in a temp folder.
+
+The workflow (Snakefile, config.yaml, workflow/, data/) is copied into a fresh folder and Snakemake
+runs there with ``--configfile config.yaml <repo>/tests/coarse_config.yaml`` (plus any extra config
+files a test adds), never in the repository's own ``results/``.  The Snakemake executable is the
+one next to ``sys.executable`` (the test venv).
+
+Fixtures
+--------
+coarse_run (session)
+    A folder holding one complete, uninterrupted coarse run (``snakemake -j2``).  Tests must not
+    modify it: clone it with :func:`clone_run` first.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+COARSE_CONFIG = REPO / "tests" / "coarse_config.yaml"
+SNAKEMAKE = Path(sys.executable).with_name("snakemake")
+WORKFLOW_ITEMS = ("Snakefile", "config.yaml", "workflow", "data")
+CORE_RULES = ("mesh", "doe", "modal", "gather_modal", "fit_surface", "identify", "verify", "tables")
+STATES = ("power_off", "power_on")
+TABLES = ("results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv")
+TABLE_COLUMNS = ["order", "experimental_Hz", "simulation_Hz", "relative_error_pct",
+                 "paper_simulation_Hz", "paper_relative_error_pct"]
+RUN_TIMEOUT_S = 900
+
+
+# ------------------------------------------------------------------ workflow copies
+def copy_workflow(dest: Path) -> Path:
+    """Copy Snakefile, config.yaml, workflow/ and data/ of the repository into ``dest``."""
+    dest = Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".snakemake")
+    for item in WORKFLOW_ITEMS:
+        src = REPO / item
+        if src.is_dir():
+            shutil.copytree(src, dest / item, ignore=ignore)
+        else:
+            shutil.copy2(src, dest / item)
+    return dest
+
+
+def clone_run(src: Path, dest: Path) -> Path:
+    """Copy a whole run folder (results, logs, .snakemake metadata), keeping file times."""
+    shutil.copytree(src, dest, symlinks=True)
+    return Path(dest)
+
+
+def write_config(path: Path, text: str) -> Path:
+    """Write an extra YAML config file (merged after the coarse config)."""
+    path = Path(path)
+    path.write_text(text)
+    return path
+
+
+def snakemake_cmd(*args: str, configs=()) -> list[str]:
+    """``snakemake <args> --configfile config.yaml <coarse> <configs...>`` (configfile last)."""
+    return [str(SNAKEMAKE), *args, "--configfile", "config.yaml", str(COARSE_CONFIG),
+            *[str(c) for c in configs]]
+
+
+def run_snakemake(workdir: Path, *args: str, configs=(), timeout: float = RUN_TIMEOUT_S,
+                  check: bool = False) -> subprocess.CompletedProcess:
+    """Run Snakemake in ``workdir``; returns the completed process (text stdout/stderr).
+
+    With ``check=True`` a non-zero exit fails the test, showing the end of the output.
+    """
+    proc = subprocess.run(snakemake_cmd(*args, configs=configs), cwd=workdir, capture_output=True,
+                          text=True, timeout=timeout, env=workflow_env())
+    if check and proc.returncode != 0:
+        pytest.fail(f"snakemake {' '.join(args)} failed (exit {proc.returncode}) in {workdir}:\n"
+                    + tail(proc.stdout + proc.stderr))
+    return proc
+
+
+def workflow_env() -> dict:
+    env = dict(os.environ)
+    env["PATH"] = str(SNAKEMAKE.parent) + os.pathsep + env.get("PATH", "")
+    return env
+
+
+def tail(text: str, n: int = 40) -> str:
+    return "\n".join(text.splitlines()[-n:])
+
+
+# ------------------------------------------------------------------ dry-run parsing
+_STATS_ROW = re.compile(r"^\s*([A-Za-z_][\w]*)\s+(\d+)\s*$")
+
+
+def scheduled_jobs(output: str) -> dict[str, int]:
+    """Jobs per rule from the first ``Job stats:`` table of a (dry-)run's output; {} if none.
+
+    The ``all`` and ``total`` rows are dropped.
+    """
+    lines = output.splitlines()
+    try:
+        start = next(i for i, line in enumerate(lines) if line.strip() == "Job stats:")
+    except StopIteration:
+        return {}
+    jobs: dict[str, int] = {}
+    for line in lines[start + 1:]:
+        if not line.strip():
+            if jobs:
+                break
+            continue
+        m = _STATS_ROW.match(line)
+        if m and m.group(1) not in ("job", "total", "all"):
+            jobs[m.group(1)] = int(m.group(2))
+        elif jobs and not m and not set(line.strip()) <= set("- "):
+            break
+    return jobs
+
+
+def extra_rule_names(workdir: Path = REPO) -> set[str]:
+    """Rules defined in the included rule files ``workflow/rules/*.smk``."""
+    names = set()
+    for smk in sorted(Path(workdir, "workflow", "rules").glob("*.smk")):
+        names.update(re.findall(r"^rule\s+(\w+)\s*:", smk.read_text(), flags=re.M))
+    return names
+
+
+# ------------------------------------------------------------------ file checks
+def file_hashes(root: Path, patterns=("results/**/*",)) -> dict[str, str]:
+    """{relative path: sha256} of the files under ``root`` matching the glob patterns."""
+    root = Path(root)
+    out = {}
+    for pat in patterns:
+        for p in sorted(root.glob(pat)):
+            if p.is_file():
+                out[p.relative_to(root).as_posix()] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+def temporary_files(root: Path) -> list[str]:
+    """Leftover temporary files (``*.tmp`` names, e.g. from ``jointid.io.atomic_path``) below root."""
+    root = Path(root)
+    return sorted(p.relative_to(root).as_posix() for p in root.rglob("*")
+                  if p.is_file() and (p.name.endswith(".tmp") or ".tmp." in p.name))
+
+
+def incomplete_markers(workdir: Path) -> list[str]:
+    """Snakemake's incomplete-output markers left in ``.snakemake/incomplete``."""
+    d = Path(workdir, ".snakemake", "incomplete")
+    return sorted(p.name for p in d.rglob("*") if p.is_file()) if d.is_dir() else []
+
+
+def npz_arrays(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def assert_npz_equal(a: Path, b: Path) -> None:
+    """Same array names, dtypes, shapes and values (bit for bit)."""
+    za, zb = npz_arrays(a), npz_arrays(b)
+    assert sorted(za) == sorted(zb), f"{a.name}: arrays {sorted(za)} != {sorted(zb)}"
+    for k in za:
+        assert za[k].dtype == zb[k].dtype and za[k].shape == zb[k].shape, f"{a.name}:{k} differs in shape/dtype"
+        assert np.array_equal(za[k], zb[k]), f"{a.name}:{k} values differ"
+
+
+# ------------------------------------------------------------------ the reference run
+@pytest.fixture(scope="session")
+def coarse_run(tmp_path_factory) -> Path:
+    """One complete coarse run of the whole workflow (``snakemake -j2``); read-only for tests."""
+    wd = copy_workflow(tmp_path_factory.mktemp("coarse_reference"))
+    run_snakemake(wd, "-j2", check=True)
+    return wd

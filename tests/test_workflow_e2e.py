@@ -1,0 +1,118 @@
+"""End-to-end workflow on the coarse config: the job graph, a full run, and a failing stage.
+
+The full run is the session fixture ``coarse_run`` (conftest.py), shared with the interruption,
+determinism and rerun tests.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from conftest import (CORE_RULES, REPO, STATES, TABLE_COLUMNS, TABLES, clone_run, copy_workflow,
+                      extra_rule_names, file_hashes, run_snakemake, scheduled_jobs, temporary_files,
+                      write_config)
+from jointid.config import load_config
+from jointid.stages import doe_sheet
+
+pytestmark = pytest.mark.slow
+
+
+def coarse_config() -> dict:
+    overrides = yaml.safe_load((REPO / "tests" / "coarse_config.yaml").read_text())
+    return load_config(REPO / "config.yaml", overrides=overrides)
+
+
+def measured(state: str) -> pd.DataFrame:
+    modes = pd.read_csv(REPO / "data" / "paper" / "modes.csv")
+    return modes[modes.state == state].sort_values("mode")
+
+
+def test_dry_run_lists_every_stage_once_per_point_and_state(tmp_path):
+    wd = copy_workflow(tmp_path / "wf")
+    proc = run_snakemake(wd, "-j2", "-n")
+    assert proc.returncode == 0, proc.stderr
+    jobs = scheduled_jobs(proc.stdout + proc.stderr)
+    n_points = len(doe_sheet(coarse_config()))
+    assert n_points == 15 + 2  # face-centred CCF in 3 factors + 1 centre, 2 verification points
+    expected = {"mesh": 1, "doe": 1, "modal": n_points, "gather_modal": 1, "fit_surface": 1,
+                "identify": len(STATES), "verify": len(STATES), "tables": 1}
+    assert {r: n for r, n in jobs.items() if r in CORE_RULES} == expected
+    unknown = set(jobs) - set(CORE_RULES) - extra_rule_names(wd)
+    assert not unknown, f"jobs of rules defined nowhere: {unknown}"
+    assert not (wd / "results").exists(), "a dry run must not write results"
+
+
+def test_full_coarse_run_writes_both_tables(coarse_run):
+    wd = coarse_run
+    for path, state in zip(TABLES, STATES):
+        tab = pd.read_csv(wd / path)
+        assert list(tab.columns) == TABLE_COLUMNS, path
+        meas = measured(state)
+        assert len(tab) == len(meas), f"{path}: one row per measured mode"
+        assert tab["order"].tolist() == list(range(1, len(meas) + 1))
+        np.testing.assert_allclose(tab["experimental_Hz"], meas["freq_Hz"], rtol=1e-9)
+        sim = tab["simulation_Hz"].to_numpy()
+        assert np.all(np.isfinite(sim)) and np.all(sim > 0), f"{path}: every measured mode is paired"
+        np.testing.assert_allclose(tab["relative_error_pct"],
+                                   100 * (sim - tab["experimental_Hz"]) / tab["experimental_Hz"],
+                                   rtol=1e-6, atol=1e-6)  # CSV keeps 10 digits
+        # the coarse model is stiff and crude, but must land in the right range (not a pairing mix-up)
+        assert np.abs(tab["relative_error_pct"]).max() < 50.0
+        md = (wd / path).with_suffix(".md").read_text()
+        assert md.count("\n|") >= len(meas) + 1, f"{path}: markdown table has one line per mode"
+
+
+def test_full_coarse_run_params_within_bounds_and_clean(coarse_run):
+    wd = coarse_run
+    cfg = coarse_config()
+    for state in STATES:
+        par = json.loads((wd / "results" / "identify" / state / "params.json").read_text())
+        assert par["state"] == state
+        assert set(par["parameters"]) == set(cfg["joints"]["parameters"])
+        for name, p in par["parameters"].items():
+            b = cfg["joints"]["parameters"][name]
+            assert b["lower"] * (1 - 1e-9) <= p["value"] <= b["upper"] * (1 + 1e-9), name
+            assert p["ci95_low"] <= p["value"] <= p["ci95_high"], name
+        verify = pd.read_csv(wd / "results" / "identify" / state / "verify.csv")
+        assert len(verify) == len(measured(state))
+    assert temporary_files(wd) == []
+    for log in (wd / "logs").rglob("*.log"):
+        assert "Traceback" not in log.read_text(), f"{log.name} holds a traceback"
+
+
+def test_failing_stage_leaves_no_partial_output_and_keeps_earlier_results(coarse_run, tmp_path):
+    wd = clone_run(coarse_run, tmp_path / "wf")
+    bad = wd / "data" / "bad"
+    bad.mkdir()
+    (bad / "conditions.yaml").write_text((wd / "data" / "paper" / "conditions.yaml").read_text())
+    modes = (wd / "data" / "paper" / "modes.csv").read_text().splitlines()
+    assert modes[2].startswith("power_off,2,1416.1")
+    modes[2] = modes[2].replace(",1416.1", ",-1416.1")  # file line 3: a negative frequency
+    (bad / "modes.csv").write_text("\n".join(modes) + "\n")
+    override = write_config(wd / "bad_dataset.yaml", "measurements:\n  dataset: data/bad\n")
+
+    upstream = ("results/model/*", "results/doe/*", "results/modal/**/*", "results/surface/*")
+    before = file_hashes(wd, upstream)
+    mtimes = {p: (wd / p).stat().st_mtime_ns for p in before}
+    downstream_before = file_hashes(wd, ("results/tables/*",))
+
+    proc = run_snakemake(wd, "-j2", "--keep-going", configs=[override])
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "Error in rule identify" in out
+    for state in STATES:
+        assert not (wd / "results" / "identify" / state / "params.json").exists(), \
+            f"{state}: the failed identify must not leave params.json"
+        log = (wd / "logs" / "identify" / f"{state}.log").read_text()
+        assert "Traceback" not in log, "a DataError is reported without a traceback"
+        assert "data/bad/modes.csv:3" in log and "freq_Hz" in log, log
+    # earlier results untouched (bytes and times), no stray temporary files
+    assert file_hashes(wd, upstream) == before
+    assert {p: (wd / p).stat().st_mtime_ns for p in before} == mtimes
+    assert file_hashes(wd, ("results/tables/*",)) == downstream_before
+    assert temporary_files(wd / "results") == []
