@@ -1,1 +1,89 @@
-# rules for the report stage (see README)
+# Report stage: harmonic response per state -> Table 1 -> one self-contained HTML page.
+#   results/harmonic/{state}/{frf.csv, dynamic_stiffness.json, modes.npz}
+#   results/tables/table1_dynamic_stiffness.{csv,md}
+#   results/report/index.html (+ figures/*.png, wrapped for `snakemake --report report.html`)
+# Captions of the figures: workflow/report/*.rst (paths relative to this file).
+
+from jointid.frf import dataset_folder as _dataset_folder
+
+FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
+
+
+rule harmonic:
+    input:
+        params=rules.identify.output.params,
+        matrices=rules.mesh.output.matrices,
+        verify=rules.verify.output.table,
+        dataset=lambda wc: _dataset_folder(config, wc.state),
+    output:
+        frf=f"{R}/harmonic/{{state}}/frf.csv",
+        stiffness=f"{R}/harmonic/{{state}}/dynamic_stiffness.json",
+        modes=f"{R}/harmonic/{{state}}/modes.npz",
+    params:
+        cfg=sections(config, "rig", "joints", "solver", "harmonic", "states", "measurements", "datasets"),
+    log:
+        "logs/harmonic/{state}.log",
+    benchmark:
+        "benchmarks/out/harmonic/{state}.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+    script:
+        "../scripts/harmonic.py"
+
+
+rule table1:
+    input:
+        stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
+        paper="data/paper/paper_table1.csv",
+    output:
+        csv=report(f"{R}/tables/table1_dynamic_stiffness.csv", caption="../report/table1.rst",
+                   category="Tables"),
+        md=f"{R}/tables/table1_dynamic_stiffness.md",
+    params:
+        cfg={},
+    log:
+        "logs/table1.log",
+    script:
+        "../scripts/table1.py"
+
+
+rule report:
+    input:
+        table1=rules.table1.output.csv,
+        table2=rules.tables.output.power_off,
+        table3=rules.tables.output.power_on,
+        paper_table1="data/paper/paper_table1.csv",
+        verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
+        params=expand(f"{R}/identify/{{state}}/params.json", state=STATES),
+        frf=expand(f"{R}/harmonic/{{state}}/frf.csv", state=STATES),
+        stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
+        modes=expand(f"{R}/harmonic/{{state}}/modes.npz", state=STATES),
+        diagnostics=rules.fit_surface.output.diagnostics,
+        sheet=rules.doe.output.sheet,
+        points=rules.mesh.output.points,
+    output:
+        html=report(f"{R}/report/index.html", caption="../report/index.rst", category="Report"),
+        frf=report(f"{R}/report/figures/frf.png", caption="../report/frf.rst", category="Harmonic response"),
+        errors=report(f"{R}/report/figures/errors.png", caption="../report/errors.rst",
+                      category="Natural frequencies"),
+        parameters=report(f"{R}/report/figures/parameters.png", caption="../report/parameters.rst",
+                          category="Identification"),
+        surface=report(f"{R}/report/figures/surface.png", caption="../report/surface.rst",
+                       category="Identification"),
+        doe=report(f"{R}/report/figures/doe.png", caption="../report/doe.rst", category="Identification"),
+        mode_shapes=report(f"{R}/report/figures/mode_shapes.png", caption="../report/mode_shapes.rst",
+                           category="Natural frequencies"),
+    params:
+        cfg=config,
+    log:
+        "logs/report.log",
+    script:
+        "../scripts/report.py"
+
+
+EXTRA_TARGETS += [
+    f"{R}/tables/table1_dynamic_stiffness.csv",
+    f"{R}/tables/table1_dynamic_stiffness.md",
+    f"{R}/report/index.html",
+]

@@ -1,0 +1,149 @@
+"""Table 1, its CI check, provenance, figures, and (slow) harmonic -> table1 -> report on the coarse run."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from jointid import figures as fg
+from jointid import report as rp
+from jointid.config import config_hash, load_config
+
+from conftest import REPO, STATES, clone_run, run_snakemake
+
+PAPER_T1 = REPO / "data" / "paper" / "paper_table1.csv"
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def stiffness_doc(state, k_N_per_m, f=1400.0, static=9e8, fe_mode=4, order=2):
+    return {"state": state, "drive_point": "T05", "direction": "y", "band_Hz": [300.0, 3500.0],
+            "dynamic_stiffness_N_per_m": k_N_per_m, "f_at_min_Hz": f,
+            "static_stiffness_N_per_m": static,
+            "governing_mode": {"fe_mode": fe_mode, "freq_Hz": f * 1.001, "description": "table bounce",
+                               "damping_ratio": 0.03, "measured_order": order, "modal_stiffness_N_per_m": 1e9,
+                               "two_zeta_k_N_per_m": 6e7, "strain_joints": 0.5},
+            "damping": {"config": {"model": "modal", "damping_ratio": 0.03}, "measured": "", "why": ""}}
+
+
+def write_table1(tmp_path, k_off, k_on):
+    df = rp.table1_frame([stiffness_doc("power_off", k_off), stiffness_doc("power_on", k_on, order=None)],
+                         pd.read_csv(PAPER_T1))
+    path = tmp_path / "table1.csv"
+    df.to_csv(path, index=False)
+    return df, path
+
+
+# ------------------------------------------------------------------ Table 1
+def test_table1_columns_values_and_increase(tmp_path):
+    df, _ = write_table1(tmp_path, 1.0e8, 1.3e8)
+    assert list(df.columns[:5]) == rp.TABLE1_COLUMNS
+    assert df.state.tolist() == ["power_off", "power_on"]
+    np.testing.assert_allclose(df.dynamic_stiffness_N_per_mm, [1.0e5, 1.3e5])
+    np.testing.assert_allclose(df.paper_dynamic_stiffness_N_per_mm, [104547, 148551])
+    np.testing.assert_allclose(df.static_stiffness_N_per_mm, [9e5, 9e5])
+    assert df.governing_mode.tolist() == [4, 4]
+    assert np.isnan(df.increase_pct[0]) and df.increase_pct[1] == pytest.approx(30.0)
+    assert df.paper_increase_pct[1] == pytest.approx(42.09, abs=0.01)  # 148551 / 104547 - 1
+    md = rp.table1_markdown(df)
+    assert "this model +30.0 %, paper +42.1 %" in md
+    assert "| power_on | 130,000 | 148,551 | 0.88 |" in md
+
+
+def test_table1_static_stiffness_missing_when_K_singular(tmp_path):
+    docs = [stiffness_doc("power_off", 1e8, static=None), stiffness_doc("power_on", 1.2e8, static=None)]
+    df = rp.table1_frame(docs, pd.read_csv(PAPER_T1))
+    assert df.static_stiffness_N_per_mm.isna().all()
+    assert "n/a (K singular)" in rp.table1_markdown(df)
+
+
+def test_check_table1_reports_each_problem(tmp_path):
+    assert rp.check_table1(tmp_path / "nope.csv") == [f"{tmp_path / 'nope.csv'}: missing — run "
+                                                      f"`snakemake -j2 {tmp_path / 'nope.csv'}` (rule table1)"]
+    _, good = write_table1(tmp_path, 1.0e8, 1.3e8)
+    assert rp.check_table1(good) == []
+    _, bad = write_table1(tmp_path, 1.0e8, 0.9e8)
+    problems = rp.check_table1(bad)
+    assert len(problems) == 1 and "-10.0 %" in problems[0] and "not positive" in problems[0]
+    df = pd.read_csv(bad)
+    df.drop(columns=["governing_mode"]).to_csv(tmp_path / "cols.csv", index=False)
+    assert "governing_mode missing" in rp.check_table1(tmp_path / "cols.csv")[0]
+    df[df.state == "power_off"].to_csv(tmp_path / "rows.csv", index=False)
+    assert "no row for state power_on" in rp.check_table1(tmp_path / "rows.csv")[0]
+    df.assign(dynamic_stiffness_N_per_mm=[np.nan, 5.0]).to_csv(tmp_path / "nan.csv", index=False)
+    assert "not a positive number" in rp.check_table1(tmp_path / "nan.csv")[0]
+
+
+def test_provenance_has_hash_versions_and_commit():
+    cfg = load_config(REPO / "config.yaml")
+    prov = rp.provenance(cfg, REPO)
+    assert prov["config_hash"] == config_hash(cfg) and re.fullmatch(r"[0-9a-f]{12}", prov["config_hash"])
+    assert re.match(r"[0-9a-f]{40}", prov["package_commit"])
+    assert prov["versions"]["numpy"] == np.__version__
+
+
+# ------------------------------------------------------------------ figures
+def test_figures_render_to_png():
+    f = np.linspace(300, 3500, 50)
+    h = 1e-8 / np.abs(1 - (f / 1500) ** 2 + 0.06j)
+    frf = pd.DataFrame({"freq_Hz": f, "H_abs_m_per_N": h, "dynamic_stiffness_N_per_m": 1 / h})
+    docs = {"power_off": stiffness_doc("power_off", float((1 / h).min()))}
+    assert fg.png_bytes(fg.frf_overlay({"power_off": frf}, docs, {"power_off": 104547},
+                                       {"power_off": [344.3, 1416.1]})).startswith(PNG)
+    tab = pd.DataFrame({"order": [1, 2], "relative_error_pct": [1.0, -2.0], "paper_relative_error_pct": [3.0, 0.5]})
+    assert fg.png_bytes(fg.frequency_errors({"power_off": tab, "power_on": tab}, {"power_off": 1.0})).startswith(PNG)
+    points = pd.DataFrame({"point": ["T01", "T02", "T03", "T04", "B01", "B02"],
+                           "part": ["table"] * 4 + ["base"] * 2,
+                           "x_m": [0, 0.1, 0, 0.1, 0, 0.2], "y_m": [0.15] * 4 + [0.08] * 2,
+                           "z_m": [0, 0, 0.1, 0.1, -0.5, -0.5]})
+    lines = fg._grid_lines(points)
+    assert sorted(len(i) for i in lines) == [2, 2, 2, 2, 2]  # 2 + 2 table lines, 1 base line
+    u = np.zeros((6, 3))
+    u[:4, 1] = 1.0
+    assert fg.png_bytes(fg.mode_shapes(points, {"power_off": [{"title": "bounce", "u": u}]})).startswith(PNG)
+
+
+# ------------------------------------------------------------------ the workflow (coarse)
+@pytest.mark.slow
+def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
+    wd = clone_run(coarse_run, tmp_path / "wf")
+    t1 = "results/tables/table1_dynamic_stiffness.csv"
+    run_snakemake(wd, "-j2", t1, "results/report/index.html", check=True)
+    docs = {}
+    for state in STATES:
+        d = json.loads((wd / "results" / "harmonic" / state / "dynamic_stiffness.json").read_text())
+        frf = pd.read_csv(wd / "results" / "harmonic" / state / "frf.csv")
+        assert frf.freq_Hz.min() == 300.0 and frf.freq_Hz.max() == 3500.0 and frf.freq_Hz.is_monotonic_increasing
+        assert d["dynamic_stiffness_N_per_m"] == pytest.approx(frf.dynamic_stiffness_N_per_m.min(), rel=1e-9)
+        assert d["damping"]["config"] == {"model": "modal", "damping_ratio": 0.03}
+        assert d["residual"]["used"] is True  # the default model is clamped: K nonsingular
+        assert d["modes"]["highest_Hz"] >= 2.0 * 3500.0
+        assert 0 < d["dynamic_stiffness_N_per_m"] < d["static_stiffness_N_per_m"]
+        docs[state] = d
+    tab = pd.read_csv(wd / t1)
+    assert list(tab.columns[:5]) == rp.TABLE1_COLUMNS
+    for state in STATES:
+        row = tab[tab.state == state].iloc[0]
+        assert row.dynamic_stiffness_N_per_mm == pytest.approx(docs[state]["dynamic_stiffness_N_per_m"] / 1e3, rel=1e-9)
+    inc = 100 * (docs["power_on"]["dynamic_stiffness_N_per_m"] / docs["power_off"]["dynamic_stiffness_N_per_m"] - 1)
+    assert tab.increase_pct.iloc[1] == pytest.approx(inc, rel=1e-6)
+    problems = rp.check_table1(wd / t1)
+    assert bool(problems) == (inc <= 0) and all("increase" in p for p in problems)
+    assert "paper +42.1 %" in (wd / t1).with_suffix(".md").read_text()
+
+    page = (wd / "results" / "report" / "index.html").read_text()
+    assert page.count("src='data:image/png;base64,") == 6
+    assert not re.search(r"""(src|href)=['"](?!data:|#)""", page), "the page must not link external files"
+    cfg = load_config(REPO / "config.yaml", overrides=__import__("yaml").safe_load(
+        (REPO / "tests" / "coarse_config.yaml").read_text()))
+    assert config_hash(cfg) in page
+    for key in ("Table 1", "Table 2", "Table 3", "104,547", f"{tab.dynamic_stiffness_N_per_mm.iloc[0]:,.0f}",
+                "numpy", "k_normal_N_per_m3"):
+        assert key in page, key
+    for name in ("frf", "errors", "parameters", "surface", "doe", "mode_shapes"):
+        assert (wd / "results" / "report" / "figures" / f"{name}.png").read_bytes().startswith(PNG)
+    proc = run_snakemake(wd, "--report", "smk_report.html", check=True)
+    assert (wd / "smk_report.html").stat().st_size > 10_000, proc.stdout

@@ -1,0 +1,7 @@
+"""Snakemake adapter: drive-point FRF and dynamic stiffness of one state at its identified parameters."""
+from jointid.workflow import run_script
+from jointid import frf
+
+run_script(snakemake, lambda cfg, inp, out: frf.run_harmonic(
+    cfg, snakemake.wildcards.state, inp.params, inp.matrices, out.frf, out.stiffness,
+    out_modes=out.modes, verify_csv=inp.verify))

@@ -1,0 +1,6 @@
+"""Snakemake adapter: Table 1 (dynamic stiffness in Y, power-off vs power-on) beside the paper's."""
+from jointid.workflow import run_script
+from jointid import report
+
+run_script(snakemake, lambda cfg, inp, out: report.run_table1(
+    list(inp.stiffness), inp.paper, out.csv, out.md))
