@@ -155,6 +155,7 @@ def test_damping_choices():
 
 def test_run_harmonic_stage(tmp_path, rig):
     cfg, model, *_ = rig
+    cfg = dict(cfg, measurements={"dataset": str(CONFIG.parent / "data" / "paper")})  # independent of the cwd
     save_model(model, tmp_path / "matrices.npz")
     params = {"parameters": {n: {"value": v, "ci95_low": v, "ci95_high": v} for n, v in THETA.items()}}
     (tmp_path / "params.json").write_text(json.dumps(params))
