@@ -1,0 +1,16 @@
+"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e] [--quick]``.
+
+=====  =======================================================================================
+``a``  default-model assembly + 12-mode modal solve: jointid vs idiomatic scikit-fem, the ratio
+``b``  reduced-order model evaluation vs full solve: speed ratio and max frequency error
+``c``  full ``snakemake -j2`` from a clean results directory (tmp copy): wall time, peak memory
+``d``  scaling of a full solve with DOFs (20k, 75k, 150k, 300k): time, peak RSS, fitted exponent
+``e``  mesh convergence: first 12 frequencies of the default model vs a once-refined mesh
+=====  =======================================================================================
+
+Every measurement that matters for memory runs in its own subprocess (``benchmarks.worker``), which
+reports its own peak RSS (``resource.getrusage``).  Results go to ``benchmarks/out/`` (git-ignored):
+one JSON per benchmark and ``summary.md`` with the table that is printed.
+"""
+
+BENCHMARKS = ("a", "b", "c", "d", "e")

@@ -1,0 +1,52 @@
+"""``python -m benchmarks [a b c d e] [--quick] [--blas-threads N]``: run, print one table, save.
+
+Without names every benchmark runs.  ``--quick`` uses the coarse test mesh and small sizes (a few
+minutes in all); the full run builds models up to ~360k DOFs and runs the whole workflow once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+
+from . import BENCHMARKS
+from .common import OUT, format_table, write_result
+
+MODULES = {"a": "bench_a_solve", "b": "bench_b_rom", "c": "bench_c_workflow", "d": "bench_d_scaling",
+           "e": "bench_e_convergence"}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("names", nargs="*", choices=[[], *BENCHMARKS], metavar="NAME",
+                    help="benchmarks to run: " + ", ".join(BENCHMARKS) + " (default: all)")
+    ap.add_argument("--quick", action="store_true", help="coarse mesh and small sizes (smoke test)")
+    ap.add_argument("--blas-threads", type=int, default=1,
+                    help="OPENBLAS/OMP threads per worker process (0 = library default; default 1)")
+    a = ap.parse_args(argv)
+    names = [n for n in BENCHMARKS if n in (a.names or BENCHMARKS)]
+    results = []
+    for name in names:
+        t0 = time.perf_counter()
+        print(f"[benchmarks] running ({name}) ...", file=sys.stderr, flush=True)
+        mod = importlib.import_module(f".{MODULES[name]}", __package__)
+        res = mod.run(quick=a.quick, blas_threads=a.blas_threads or None)
+        res.data["benchmark_wall_s"] = time.perf_counter() - t0
+        write_result(res, a.quick)
+        results.append(res)
+        print(f"[benchmarks] ({name}) done in {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    table = format_table(results)
+    header = (f"jointid benchmarks{' (--quick)' if a.quick else ''}, {time.strftime('%Y-%m-%d %H:%M')}, "
+              f"BLAS threads per process: {a.blas_threads or 'default'}\n\n")
+    print(header + table)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / f"summary{'_quick' if a.quick else ''}{'_' + ''.join(names) if a.names else ''}.md").write_text(
+        header + table + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,171 @@
+"""Shared helpers of the benchmarks: configs, subprocess workers, memory sampling, the table."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "out"
+PYTHON = sys.executable
+
+# coarse settings used by --quick (same as tests/coarse_config.yaml)
+COARSE = {"mesh": {"element": "hex2", "max_cell_size_m": 0.12, "refine": 1}}
+
+
+def worker_env(blas_threads: int | None) -> dict:
+    """Environment of a worker: the BLAS thread count pinned (the 2-core machine is shared, and
+    threaded OpenBLAS on small dense blocks only spins), the venv first on PATH."""
+    env = dict(os.environ)
+    if blas_threads:
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+            env[var] = str(blas_threads)
+    env["PATH"] = str(Path(PYTHON).parent) + os.pathsep + env.get("PATH", "")
+    return env
+
+
+def run_worker(task: str, args: dict, *, timeout: float | None = None, blas_threads: int | None = 1) -> dict:
+    """Run ``python -m benchmarks.worker task args`` in a subprocess; return its JSON result.
+
+    The result holds the worker's own ``peak_rss_MB``; ``wall_s`` (parent-side) is added.
+    Raises ``subprocess.TimeoutExpired`` after ``timeout`` seconds (the worker is killed).
+    """
+    t0 = time.perf_counter()
+    proc = subprocess.run([PYTHON, "-m", "benchmarks.worker", task, json.dumps(args)], cwd=ROOT,
+                          env=worker_env(blas_threads), capture_output=True, text=True, timeout=timeout)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"worker {task} failed (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    out = json.loads(lines[-1])
+    out["wall_s"] = wall
+    return out
+
+
+def _children_map() -> dict[int, list[int]]:
+    kids: dict[int, list[int]] = {}
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as fh:
+                stat = fh.read()
+            ppid = int(stat[stat.rindex(")") + 2:].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        kids.setdefault(ppid, []).append(int(d))
+    return kids
+
+
+def _rss_kB(pid: int) -> int:
+    try:
+        with open(f"/proc/{pid}/status") as fh:
+            for line in fh:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+class TreeMemorySampler:
+    """Samples the summed RSS of a process and all its descendants (``/proc``, no psutil).
+
+    ``peak_MB`` is the largest sum seen; with parallel jobs it is the memory the machine needed,
+    unlike ``ru_maxrss`` (the largest single process).
+    """
+
+    def __init__(self, pid: int, interval_s: float = 0.25):
+        self.pid, self.interval = pid, interval_s
+        self.peak_kB = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self):
+        while not self._stop.is_set():
+            kids = _children_map()
+            todo, total = [self.pid], 0
+            while todo:
+                p = todo.pop()
+                total += _rss_kB(p)
+                todo.extend(kids.get(p, []))
+            self.peak_kB = max(self.peak_kB, total)
+            self._stop.wait(self.interval)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+
+    @property
+    def peak_MB(self) -> float:
+        return self.peak_kB / 1024.0
+
+
+# ------------------------------------------------------------------ results table
+@dataclass
+class Row:
+    bench: str
+    quantity: str
+    measured: str
+    target: str = ""
+    ok: bool | None = None  # None: no target
+
+
+@dataclass
+class Result:
+    """One benchmark's rows, notes and raw data (written to ``benchmarks/out/<name>.json``)."""
+
+    name: str
+    rows: list[Row] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    data: dict = field(default_factory=dict)
+
+    def add(self, quantity: str, measured: str, target: str = "", ok: bool | None = None) -> None:
+        self.rows.append(Row(self.name, quantity, measured, target, ok))
+
+
+def format_table(results: list[Result]) -> str:
+    """One markdown table of all rows, then the notes."""
+    head = ["bench", "quantity", "measured", "target", "met"]
+    body = []
+    for res in results:
+        for r in res.rows:
+            met = "" if r.ok is None else ("yes" if r.ok else "NO")
+            body.append([r.bench, r.quantity, r.measured, r.target, met])
+    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(head)]
+    line = lambda cells: "| " + " | ".join(c.ljust(w) for c, w in zip(cells, widths)) + " |"  # noqa: E731
+    out = [line(head), "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
+    out += [line(b) for b in body]
+    notes = [f"- ({res.name}) {n}" for res in results for n in res.notes]
+    if notes:
+        out += ["", "Notes:"] + notes
+    return "\n".join(out)
+
+
+def write_result(res: Result, quick: bool) -> Path:
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"{res.name}{'_quick' if quick else ''}.json"
+    doc = {"name": res.name, "quick": quick, "rows": [r.__dict__ for r in res.rows], "notes": res.notes,
+           "data": res.data, "written": time.strftime("%Y-%m-%d %H:%M:%S")}
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(doc, indent=2, default=float) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+def fmt_s(t: float) -> str:
+    return f"{t:.3g} s" if t >= 0.1 else f"{t * 1e3:.3g} ms"
+
+
+def fmt_mb(mb: float) -> str:
+    return f"{mb / 1024:.2f} GB" if mb >= 1024 else f"{mb:.0f} MB"
