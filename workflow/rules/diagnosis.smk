@@ -1,1 +1,51 @@
-# rules for the diagnosis stage (see README)
+# rules for the diagnosis stage: which listed physical effect does the model lack? (docs/effects.md)
+#
+# Every dataset registered under `datasets:` in config.yaml is diagnosed by
+#   snakemake -j2 results/diagnosis/<name>/ranking.csv
+# (plus ladder.csv, index.html and the other tables in the same folder); each run appends one row to
+# results/history.csv.  Enabled effects (`effects:`) are part of the diagnosed model, so changing them
+# reruns only this rule.  With no datasets registered, nothing is added to the workflow.
+
+DIAG_DATASETS = dict(config.get("datasets") or {})
+
+
+def _diagnosis_inputs(wc):
+    import os
+
+    path = DIAG_DATASETS[wc.dataset]["path"]
+    names = ("modes.csv", "shapes.csv", "frf.csv", "conditions.yaml")
+    return [os.path.join(path, n) for n in names if os.path.exists(os.path.join(path, n))]
+
+
+def _diagnosis_cfg(wc):
+    cfg = sections(config, "rig", "joints", "solver", "identify", "effects", "states")
+    cfg["dataset"] = {"name": wc.dataset, **DIAG_DATASETS[wc.dataset]}
+    return cfg
+
+
+if DIAG_DATASETS:
+
+    rule diagnose:
+        input:
+            matrices=rules.mesh.output.matrices,
+            dataset=_diagnosis_inputs,
+        output:
+            ranking=f"{R}/diagnosis/{{dataset}}/ranking.csv",
+            ladder=f"{R}/diagnosis/{{dataset}}/ladder.csv",
+            page=f"{R}/diagnosis/{{dataset}}/index.html",
+        params:
+            cfg=_diagnosis_cfg,
+            history=f"{R}/history.csv",
+        wildcard_constraints:
+            dataset="|".join(DIAG_DATASETS),
+        log:
+            "logs/diagnosis/{dataset}.log",
+        benchmark:
+            "benchmarks/out/diagnosis/{dataset}.tsv"
+        threads: 1
+        resources:
+            mem_mb=3000,
+        script:
+            "../scripts/diagnose.py"
+
+    EXTRA_TARGETS.extend(expand(f"{R}/diagnosis/{{dataset}}/ranking.csv", dataset=list(DIAG_DATASETS)))

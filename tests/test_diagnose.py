@@ -1,0 +1,214 @@
+"""Diagnosis numerics: score test, identifiability, correlation, reduced solver, variants, outputs."""
+
+import itertools
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from jointid import correlate
+from jointid import effects as E
+from jointid.diagnose import (ReducedSolver, Variant, EffectSpec, append_history, identifiability, limit_threads,
+                              score_test)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+# ---------------------------------------------------------------- score test (linear reference)
+def _linear_case(seed, b_true):
+    rng = np.random.default_rng(seed)
+    n, p = 20, 3
+    Jx = rng.normal(size=(n, p))
+    jt = rng.normal(size=(n, 1)) + 0.5 * Jx[:, :1]
+    y = Jx @ np.array([1.0, -2.0, 0.5]) + jt[:, 0] * b_true + rng.normal(size=n)
+    a_hat = np.linalg.lstsq(Jx, y, rcond=None)[0]
+    r = Jx @ a_hat - y  # model minus data, as in the diagnosis
+    full = np.linalg.lstsq(np.hstack([Jx, jt]), y, rcond=None)[0]
+    rss_r = float(r @ r)
+    rss_f = float(np.sum((np.hstack([Jx, jt]) @ full - y) ** 2))
+    return r, Jx, jt, full[-1], rss_r, rss_f
+
+
+def test_score_test_equals_the_drop_in_residual_sum_of_squares_for_a_linear_model():
+    r, Jx, jt, b_full, rss_r, rss_f = _linear_case(1, 3.0)
+    st = score_test(r, Jx, jt, np.array([-np.inf]))
+    assert st["score"] == pytest.approx(rss_r - rss_f, rel=1e-10)
+    assert st["t_hat"][0] == pytest.approx(b_full, rel=1e-10)  # Frisch-Waugh-Lovell
+    assert st["explained_fraction"] == pytest.approx((rss_r - rss_f) / rss_r, rel=1e-10)
+    assert st["p_value"] < 1e-6
+
+
+def test_score_test_one_sided_and_collinear():
+    r, Jx, jt, b_full, *_ = _linear_case(2, -3.0)
+    assert b_full < 0
+    st = score_test(r, Jx, jt, np.array([0.0]))  # parameter must be >= 0: the data want < 0
+    assert not st["sign_ok"] and st["explained_fraction"] == 0.0 and st["p_value"] == 1.0
+    r, Jx, jt, b_full, rss_r, rss_f = _linear_case(3, 3.0)
+    st = score_test(r, Jx, jt, np.array([0.0]))
+    from scipy.stats import chi2
+
+    assert st["p_value"] == pytest.approx(0.5 * chi2.sf(rss_r - rss_f, 1), rel=1e-8)
+    coll = Jx @ np.array([[1.0], [2.0], [0.0]])
+    st = score_test(r, Jx, coll, np.array([0.0]))
+    assert st["collinearity"] < 1e-8 and st["score"] == 0.0
+
+
+def test_identifiability_names_the_weak_combination():
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=12)
+    J = np.column_stack([a, 2 * a + 1e-6 * rng.normal(size=12), rng.normal(size=12)])
+    out = identifiability(J, ["k_normal", "k_lateral", "mass"])
+    assert out["flag"] and out["ratio"] < 1e-3
+    assert "k_normal" in out["weak"] and "k_lateral" in out["weak"] and "mass" not in out["weak"]
+    assert not identifiability(rng.normal(size=(12, 3)), list("abc"))["flag"]
+
+
+# ---------------------------------------------------------------- correlation
+def test_mac_pairing_lists_unpaired_modes():
+    rng = np.random.default_rng(4)
+    model = rng.normal(size=(60, 5))
+    meas = model[:, [0, 2, 3]] * np.array([2.0, -1.0, 0.5]) + 0.01 * rng.normal(size=(60, 3))
+    meas = np.hstack([meas, rng.normal(size=(60, 1))])  # a measured mode the model lacks
+    meas[:5, 1] = np.nan  # unmeasured DOFs are ignored
+    f_model = np.array([100.0, 200.0, 300.0, 400.0, 500.0])
+    p = correlate.pair_modes([110, 290, 390, 450], f_model, meas, model, threshold=0.5)
+    assert p.method == "mac"
+    assert p.model_index.tolist() == [0, 2, 3, -1]
+    assert p.unpaired_measured == [3]
+    assert p.unpaired_model == [1]  # 200 Hz lies in the measured band and nobody took it
+    tab = correlate.frequency_errors("s", [110, 290, 390, 450], f_model, p)
+    assert tab.status.tolist() == ["paired"] * 3 + ["unpaired_measured", "unpaired_model"]
+    assert tab.error_pct.iloc[0] == pytest.approx(100 * (100 - 110) / 110)
+    summ = correlate.error_summary(tab)
+    assert summ.n_paired.iloc[0] == 3 and summ.n_unpaired_measured.iloc[0] == 1
+
+
+def test_ordered_assignment_is_optimal():
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        cost = rng.random((3, 6))
+        cols = correlate.ordered_assignment(cost)
+        best = min(itertools.combinations(range(6), 3), key=lambda c: sum(cost[i, j] for i, j in enumerate(c)))
+        assert tuple(cols) == best
+
+
+def test_joint_state_pairing_keeps_one_mode_identity():
+    # state B's model modes 1 and 2 swap order; measured mode 1 is the same physical mode in A and B
+    fa = np.array([100.0, 200.0, 210.0, 400.0])
+    fb = np.array([100.0, 230.0, 205.0, 400.0])
+    tracks = [np.arange(4), np.arange(4)]
+    pa, pb = correlate.pair_states_by_frequency([[198.0, 400.0], [233.0, 401.0]], [fa, fb], tracks)
+    assert pa.model_index.tolist() == [1, 3] and pb.model_index.tolist() == [1, 3]
+
+
+def test_shape_residuals_vanish_for_scaled_shapes_and_rank_points():
+    labels = [f"P{i}:{d}" for i in range(4) for d in "xyz"]
+    rng = np.random.default_rng(6)
+    model = rng.normal(size=(12, 2))
+    meas = -3.0 * model.copy()
+    meas[0:3, 1] += 0.5  # point P0 is off in mode 2
+    p = correlate.pair_modes([1.0, 2.0], [1.0, 2.0], meas, model)
+    res = correlate.shape_residuals("s", meas, model, p, labels)
+    assert np.abs(res[res["mode"] == 1].residual).max() < 1e-12
+    pts = correlate.point_residuals(res)
+    assert pts.point.iloc[0] == "P0"
+
+
+# ---------------------------------------------------------------- reduced solver on the coarse rig
+@pytest.fixture(scope="module")
+def coarse():
+    from jointid.config import load_config
+    from jointid.model import build_model
+
+    limit_threads(1)
+    with open(ROOT / "config.yaml") as fh:
+        cfg = yaml.safe_load(fh)
+    with open(ROOT / "tests/coarse_config.yaml") as fh:
+        for k, v in yaml.safe_load(fh).items():
+            cfg[k] = {**cfg.get(k, {}), **v}
+    cfg = load_config(cfg)
+    model = build_model(cfg)
+    return cfg, E.build_system(model, cfg)
+
+
+def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
+    from jointid.modal import solve_modes
+
+    cfg, system = coarse
+    theta = {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
+    kc, mc = E.baseline_coefficients(system, cfg, theta)
+    solver = ReducedSolver(system, kc, mc, 10, [({f"K_top_y@{c}": 1.0 for c in range(4)}, {})], n_seed=6)
+    far = {"k_normal_N_per_m3": 3e11, "k_lateral_N_per_m3": 3e12, "k_feed_N_per_m3": 2e10}
+    kc2, mc2 = E.baseline_coefficients(system, cfg, far)
+    kc2["K_railfix"] = 2e12
+    mc2["M_table_edge"] = 2.0
+    red = solver.solve(kc2, mc2, 10)
+    full = solve_modes(system.K(kc2), system.M(mc2), 10, fixed=system.fixed)
+    assert np.max(np.abs(red.freqs_Hz / full.freqs_Hz - 1)) < 1e-5
+    # exact sensitivity of the reduced problem vs a central difference of the normal stiffness
+    dk = {f"K_top_y@{c}": 1.0 for c in range(4)}
+    h = 1e-4 * far["k_normal_N_per_m3"]
+    lam = lambda s: solver.solve({**kc2, **{k: kc2[k] + s * h for k in dk}}, mc2, 10, refine=False).lam
+    sol = solver.solve(kc2, mc2, 10, refine=False)
+    fd = (lam(1) - lam(-1)) / (2 * h)
+    assert np.allclose(solver.sensitivity(sol, dk, {}), fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
+
+
+def test_variant_coefficient_derivatives(coarse):
+    cfg, system = coarse
+    var = Variant(system, cfg, [EffectSpec.candidate(E.EFFECTS["em_preload"])])
+    x = var.x_start({"k_normal_N_per_m3": 8e11, "k_lateral_N_per_m3": 6e11, "k_feed_N_per_m3": 1e10})
+    assert var.labels[-1] == "em_preload.beta" and x[-1] == 0.0
+    on = E.StateInfo("on", 1000.0)
+    kc, _ = var.coefficients(x, on)
+    d = var.dcoefficients(x, on)
+    w = system.carried_mass_kg * 9.81
+    ratio = (1000.0 + w) / w
+    assert d[-1][0]["K_top_y@1"] == pytest.approx(kc["K_top_y@1"] * math.log(ratio), rel=1e-6)
+    assert d[0][0]["K_top_y@1"] == pytest.approx(kc["K_top_y@1"], rel=1e-6)  # d k / d ln k
+    assert "K_flank_x@1" not in d[0][0]
+    off = var.dcoefficients(x, E.StateInfo("off", 0.0))
+    assert not off[-1][0]  # no motor force, no sensitivity to beta
+    rail = Variant(system, cfg, [EffectSpec.candidate(E.EFFECTS["rail_fixing"])])
+    xr = rail.x_start()
+    dr = rail.dcoefficients(xr, on)[-1][0]["K_railfix"]
+    p = E.EFFECTS["rail_fixing"].params[0]
+    assert dr == pytest.approx(-E.BONDED_N_PER_M3 ** 2 / p.nominal, rel=1e-4)
+
+
+# ---------------------------------------------------------------- outputs and workflow wiring
+def test_history_appends_one_row_per_run(tmp_path):
+    path = tmp_path / "results" / "history.csv"
+    append_history(path, {"time_utc": "t1", "config_hash": "a", "variant": "baseline", "max_abs_error_pct": 2.0})
+    append_history(path, {"time_utc": "t2", "config_hash": "b", "variant": "+em_preload", "max_abs_error_pct": 0.3})
+    df = pd.read_csv(path)
+    assert df.time_utc.tolist() == ["t1", "t2"] and df.max_abs_error_pct.tolist() == [2.0, 0.3]
+
+
+def _snakemake_dry_run(tmp_path, extra: dict, target=None):
+    for name in ("Snakefile", "config.yaml"):
+        shutil.copy(ROOT / name, tmp_path / name)
+    shutil.copytree(ROOT / "workflow", tmp_path / "workflow")
+    shutil.copytree(ROOT / "data", tmp_path / "data")
+    (tmp_path / "extra.yaml").write_text(yaml.safe_dump(extra))
+    exe = Path(sys.executable).with_name("snakemake")
+    cmd = [str(exe)] + ([target] if target else []) + ["-n", "-j1", "--configfile", "config.yaml", "extra.yaml"]
+    return subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+
+
+def test_workflow_diagnoses_registered_datasets_only(tmp_path):
+    reg = {"datasets": {"paper": {"path": "data/paper", "states": ["power_off", "power_on"]}}}
+    (tmp_path / "a").mkdir()
+    out = _snakemake_dry_run(tmp_path / "a", reg, "results/diagnosis/paper/ranking.csv")
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "rule diagnose" in out.stdout and "results/diagnosis/paper/ranking.csv" in out.stdout
+    (tmp_path / "b").mkdir()
+    out = _snakemake_dry_run(tmp_path / "b", {"datasets": {}})
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "rule diagnose" not in out.stdout and "results/diagnosis/" not in out.stdout
