@@ -12,7 +12,7 @@ import sys
 import time
 
 from . import BENCHMARKS
-from .common import OUT, format_table, write_result
+from .common import OUT, format_table, load_result, write_result
 
 MODULES = {"a": "bench_a_solve", "b": "bench_b_rom", "c": "bench_c_workflow", "d": "bench_d_scaling",
            "e": "bench_e_convergence"}
@@ -24,10 +24,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("names", nargs="*", choices=[[], *BENCHMARKS], metavar="NAME",
                     help="benchmarks to run: " + ", ".join(BENCHMARKS) + " (default: all)")
     ap.add_argument("--quick", action="store_true", help="coarse mesh and small sizes (smoke test)")
+    ap.add_argument("--report", action="store_true",
+                    help="print the table from the saved results in benchmarks/out (run nothing)")
     ap.add_argument("--blas-threads", type=int, default=1,
                     help="OPENBLAS/OMP threads per worker process (0 = library default; default 1)")
     a = ap.parse_args(argv)
     names = [n for n in BENCHMARKS if n in (a.names or BENCHMARKS)]
+    if a.report:
+        results = [r for r in (load_result(n, a.quick) for n in names) if r is not None]
+        print(format_table(results))
+        return 0 if results else 1
     results = []
     for name in names:
         t0 = time.perf_counter()

@@ -6,7 +6,7 @@ import subprocess
 
 import numpy as np
 
-from .common import COARSE, Result, fmt_s
+from .common import COARSE, Result, fmt_s, run_worker
 from .memo import solve
 
 N_MODES = 12
@@ -16,8 +16,6 @@ IDIOMATIC_TIMEOUT_S = 600.0
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     res = Result("a")
     over = COARSE if quick else {}
-    from .common import run_worker
-
     try:
         idio = run_worker("idiomatic", {"overrides": over, "n_modes": N_MODES},
                           timeout=IDIOMATIC_TIMEOUT_S, blas_threads=blas_threads)

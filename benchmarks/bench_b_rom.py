@@ -18,8 +18,11 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
             f"{fmt_s(out['t_rom_build_s'])}, r = {out['rom_size']}, {len(rep['rounds'])} verification round(s), "
             f"verified: {rep['verified']}")
     res.add(f"full solve, {N_MODES} modes (mean of {len(out['checks'])})", fmt_s(out["t_full_mean_s"]))
-    res.add("ROM evaluation (mean of 2000 random points)", fmt_s(out["t_rom_eval_s"]))
-    res.add("ratio full / ROM", f"{ratio:,.0f}x", ">= 10,000x", ratio >= 1e4)
+    ratio_f = out["t_full_mean_s"] / out["t_rom_freq_s"]
+    res.add("ROM evaluation, frequencies + shapes (mean of 2000 random points)", fmt_s(out["t_rom_eval_s"]))
+    res.add("ratio full / ROM (frequencies + shapes: ROM.solve)", f"{ratio:,.0f}x", ">= 10,000x", ratio >= 1e4)
+    res.add("ROM evaluation, frequencies only (ROM.frequencies)", fmt_s(out["t_rom_freq_s"]))
+    res.add("ratio full / ROM (frequencies only)", f"{ratio_f:,.0f}x", ">= 10,000x", ratio_f >= 1e4)
     res.add("max relative frequency error (independent random points)",
             f"{out['max_error']:.1e} (min MAC {min(c['min_mac'] for c in out['checks']):.5f})", "<= 1e-4",
             out["max_error"] <= 1e-4)

@@ -9,7 +9,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .common import PYTHON, ROOT, Result, TreeMemorySampler, fmt_mb, worker_env
+from .common import OUT, PYTHON, ROOT, Result, TreeMemorySampler, fmt_mb, worker_env
 
 COPY = ("Snakefile", "config.yaml", "workflow", "data")
 
@@ -51,10 +51,40 @@ def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False) -
     res.add("peak memory, all processes together (sampled /proc)", fmt_mb(mem.peak_MB), "<= 4 GB",
             ok and mem.peak_MB <= 4096)
     res.add("peak RSS of the largest single process (time -v)", fmt_mb(max_single))
+    per_rule = _rule_times(tmp, quick)
+    if per_rule:
+        top = sorted(per_rule.items(), key=lambda kv: -kv[1]["sum_s"])[:5]
+        res.notes.append("job time by rule (sum over jobs, from the rules' benchmark files): " + ", ".join(
+            f"{rule} {v['sum_s']:.0f} s / {v['n']} job{'s' if v['n'] > 1 else ''}" for rule, v in top))
     res.notes.append(f"temporary copy {tmp}{' (kept)' if keep or not ok else ' (removed)'}; "
                      f"BLAS threads per job: {blas_threads or 'default'}")
     res.data = {"wall_s": wall, "exit": rc, "peak_tree_MB": mem.peak_MB, "max_single_MB": max_single,
-                "n_jobs": n_jobs, "log_tail": text[-4000:]}
+                "n_jobs": n_jobs, "per_rule": per_rule, "log_tail": text[-4000:]}
     if ok and not keep:
         shutil.rmtree(tmp, ignore_errors=True)
     return res
+
+
+def _rule_times(workdir: Path, quick: bool) -> dict[str, dict]:
+    """Sum of the ``s`` column of the rules' Snakemake benchmark files, by rule; the files are
+    copied to ``benchmarks/out/c_rules[_quick]/``."""
+    src = workdir / "benchmarks" / "out"
+    if not src.is_dir():
+        return {}
+    dest = OUT / f"c_rules{'_quick' if quick else ''}"
+    shutil.rmtree(dest, ignore_errors=True)
+    shutil.copytree(src, dest)
+    out: dict[str, dict] = {}
+    for tsv in sorted(src.rglob("*.tsv")):
+        rule = tsv.relative_to(src).parts[0].removesuffix(".tsv")
+        lines = tsv.read_text().splitlines()
+        if len(lines) < 2:
+            continue
+        try:
+            sec = float(lines[1].split("\t")[0])
+        except ValueError:
+            continue
+        v = out.setdefault(rule, {"sum_s": 0.0, "n": 0})
+        v["sum_s"] += sec
+        v["n"] += 1
+    return out

@@ -163,6 +163,17 @@ def write_result(res: Result, quick: bool) -> Path:
     return path
 
 
+def load_result(name: str, quick: bool) -> Result | None:
+    """A result saved by :func:`write_result` (None if there is none); its timestamp becomes a note."""
+    path = OUT / f"{name}{'_quick' if quick else ''}.json"
+    if not path.exists():
+        return None
+    doc = json.loads(path.read_text())
+    res = Result(doc["name"], [Row(**r) for r in doc["rows"]], list(doc["notes"]), doc.get("data", {}))
+    res.notes.append(f"measured {doc.get('written', '?')}")
+    return res
+
+
 def fmt_s(t: float) -> str:
     return f"{t:.3g} s" if t >= 0.1 else f"{t * 1e3:.3g} ms"
 

@@ -160,3 +160,16 @@ def test_residual_indicator_vanishes_at_a_training_point(coarse):
     eta_inside = residual_indicator(model, rom, kc, mc)
     assert eta_corner.shape == (N_MODES,)
     assert eta_corner.max() < 1e-6 and eta_inside.max() > 10 * eta_corner.max()
+
+
+def test_frequencies_only_path_matches_solve(coarse):
+    cfg, model, rom = coarse
+    kc, mc = rom.coefficients(_random_thetas(cfg, 1, seed=13)[0])
+    f, _ = rom.solve(kc, mc)
+    np.testing.assert_allclose(rom.frequencies(kc, mc), f, rtol=1e-10)
+    # a different mass (generalised problem) agrees with the full solve's trend and with solve()
+    mc2 = {**mc, "M_motor": 1.5 * mc["M_motor"]}
+    with pytest.warns(NumericalWarning):
+        f2, _ = rom.solve(kc, mc2)
+    np.testing.assert_allclose(rom.frequencies(kc, mc2, check=False), f2, rtol=1e-10)
+    assert np.all(f2 <= f * (1 + 1e-12)) and np.any(f2 < f * (1 - 1e-4))  # more mass, lower frequencies

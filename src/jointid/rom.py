@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg import lapack
 
 from . import io
 from .doe import to_physical
@@ -175,8 +176,13 @@ class ROM:
         if check:
             self._check_range(k_coeffs, self.m_ref if m_coeffs is None else m_coeffs)
         Kr, Mr = self.reduced_matrices(k_coeffs, m_coeffs)
-        lam, y = sla.eigh(Kr, Mr, subset_by_index=[0, n - 1], check_finite=False,
-                          driver="evr" if Mr is None else "gvx")
+        if Mr is None:  # LAPACK dsyevr directly: the wrapper of scipy.linalg.eigh costs ~15 % here
+            w, z, m, _, info = lapack.dsyevr(Kr, range="I", il=1, iu=n)
+            if info != 0 or m != n:
+                raise ModelError(f"rom: dense eigen-solve failed (LAPACK info {info}) — check the coefficients")
+            lam, y = w[:n], z[:, :n]
+        else:
+            lam, y = sla.eigh(Kr, Mr, subset_by_index=[0, n - 1], check_finite=False, driver="gvx")
         freqs = np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
         shapes = self.probe @ y
         idx = np.argmax(np.abs(shapes), axis=0)
@@ -186,6 +192,22 @@ class ROM:
         if return_coords:
             return freqs, shapes, y * sign
         return freqs, shapes
+
+    def frequencies(self, k_coeffs: dict[str, float], m_coeffs: dict[str, float] | None = None,
+                    n_modes: int | None = None, *, check: bool = True) -> np.ndarray:
+        """Frequencies only (Hz, shape ``(n_modes,)``): the same values as :meth:`solve`, about twice
+        as fast (no eigenvectors; for frequency-only pairing, surfaces and sweeps)."""
+        n = self.n_modes if n_modes is None else int(n_modes)
+        if not 0 < n <= self.size:
+            raise ModelError(f"rom: n_modes = {n} must be between 1 and the basis size {self.size}")
+        if check:
+            self._check_range(k_coeffs, self.m_ref if m_coeffs is None else m_coeffs)
+        Kr, Mr = self.reduced_matrices(k_coeffs, m_coeffs)
+        if Mr is not None:  # standard form L^-1 Kr L^-T with Mr = L L^T
+            L = np.linalg.cholesky(Mr)
+            Kr = sla.solve_triangular(L, sla.solve_triangular(L, Kr, lower=True).T, lower=True)
+        lam = np.linalg.eigvalsh(Kr)[:n]
+        return np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
 
     def coefficients(self, theta: dict[str, float] | None = None) -> tuple[dict, dict]:
         """``(k_coeffs, m_coeffs)`` at joint parameters ``theta`` (N/m^3; missing ones at default).
