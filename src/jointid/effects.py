@@ -30,7 +30,9 @@ Effects (parameters in the config units; ``null`` = value at which the effect is
                       is the baseline.  Options: ``preload_N`` (0), ``force_x_m``, ``force_z_m``
                       (point of action of the attraction relative to the table centre, 0),
                       ``carried_mass_kg`` (default: table + carriages + motors from the model),
-                      ``directions`` (spring directions following the law, default [x, y, z]).
+                      ``directions`` (spring directions following the law, default [x, y]: the
+                      contact directions; the feed direction Z of a guide is held by the servo or
+                      brake, not by contact pressure — add z for a sliding joint that is).
 ``added_mass_table``  mass_kg, null 0, range 0..30 kg: mass spread over the table top (fixture,
                       workpiece, accelerometers).
 ``added_mass_edge``   mass_kg, null 0, range 0..15 kg: mass on the table's +X side face (cable
@@ -333,7 +335,7 @@ def _apply_em(system, kc, mc, state, values, opts):
     if beta == 0.0 or state.em_force_N == 0.0:
         return
     scale = pressure_ratio(system, state, opts) ** beta
-    dirs = set(opts.get("directions") or ("x", "y", "z"))
+    dirs = set(opts.get("directions") or ("x", "y"))
     for name in list(kc):
         if "@" in name and name.split("@")[0].split("_")[2] in dirs:
             kc[name] *= float(scale[int(name.split("@")[1])])
@@ -388,7 +390,7 @@ EFFECTS: dict[str, Effect] = {
                       "exponent of the pressure law k'' = alpha p^beta (Yoshimura: 0.3-0.8 for "
                       "sliding joints; ~0.1 or less for preloaded rolling blocks)"),),
         options={"preload_N": 0.0, "force_x_m": 0.0, "force_z_m": 0.0, "carried_mass_kg": None,
-                 "directions": ["x", "y", "z"]},
+                 "directions": ["x", "y"]},
         apply=_apply_em, requires=_needs_two_forces),
     "added_mass_table": Effect(
         name="added_mass_table", title="added mass on the table top",
@@ -468,6 +470,11 @@ def enabled_effects(effects_cfg: dict | None) -> list[Enabled]:
                     problems.append(f"config.yaml: effects.{name}.{key}: {v:g} is outside the plausible "
                                     f"range {p.lower:g}..{p.upper:g} {p.unit} — give a value inside it")
                 values[key] = v
+            elif key == "directions":
+                if not isinstance(v, list) or not v or any(d not in ("x", "y", "z") for d in v):
+                    problems.append(f"config.yaml: effects.{name}.directions: {v!r} is not a list of x, y, z — "
+                                    "write e.g. directions: [x, y]")
+                opts[key] = v
             elif key in eff.options:
                 opts[key] = v
             else:
