@@ -8,7 +8,8 @@ Numerics (see ``docs/effects.md`` and ``shared/design/PHYSICS.md``)
   every parameter direction; at each new point the residuals ``K phi - lambda M phi`` of the Ritz
   pairs are checked in the full space and, where the estimated eigenvalue error exceeds ``tol``, the
   preconditioned residuals are added to the subspace (Davidson step with the reference
-  factorisation).  The answers are therefore full-FE answers to ``tol`` (1e-7 relative by default), at
+  factorisation, or a factorisation and Lanczos solve at a distant point).  The answers are therefore
+  full-FE answers to ``tol`` (1e-6 relative eigenvalue error by default), at
   the cost of a few dense ``r x r`` eigen-problems; each fitted variant is finally checked against a
   full Lanczos solve (:meth:`ReducedSolver.verify`).
 * Sensitivities are exact for the (converged) subspace: ``dlambda_i/dx = y_i^T (dK - lambda_i dM) y_i``.
@@ -1569,6 +1570,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    import sys
-
     sys.exit(main())

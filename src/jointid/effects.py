@@ -72,7 +72,7 @@ import scipy.sparse as sp
 
 from .errors import ConfigError, ModelError
 from .fem import Model
-from .model import RAIL_BONDED_N_PER_M3, base_coefficients, joint_terms
+from .model import RAIL_BONDED_N_PER_M3, base_coefficients
 from .rig import PART_IDS
 
 __all__ = ["EFFECTS", "Effect", "Param", "StateInfo", "System", "build_system", "baseline_coefficients",

@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from .effects import EFFECTS, StateInfo, apply_effects, baseline_coefficients, build_system, enabled_effects
+from .effects import StateInfo, apply_effects, baseline_coefficients, build_system, enabled_effects
 from .errors import ConfigError, JointidError
 from .modal import solve_modes
 
