@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from .modal import mac, pair_by_mac
-from .tracking import pair_by_frequency
+from .tracking import ordered_assignment, pair_by_frequency  # noqa: F401 (re-exported)
 
 __all__ = ["Pairing", "mac_matrix", "pair_modes", "pair_states_by_frequency", "ordered_assignment",
            "frequency_errors", "shape_residuals", "point_residuals", "error_summary"]
@@ -108,36 +108,6 @@ def pair_modes(f_meas, f_model, meas_shapes=None, model_shapes=None, *, threshol
     return Pairing(model_index=index, mac=macs, method=method,
                    unpaired_measured=[int(i) for i in np.flatnonzero(index < 0)],
                    unpaired_model=unpaired_model)
-
-
-def ordered_assignment(cost: np.ndarray) -> np.ndarray:
-    """Order-preserving assignment of rows to columns minimising the summed cost.
-
-    ``cost`` is ``(m, n)`` with ``n >= m``; returns the column of each row, strictly increasing
-    (dynamic programming, O(m n)).
-    """
-    m, n = cost.shape
-    if n < m:
-        raise ValueError(f"{m} rows but only {n} columns to assign")
-    D = np.full((m + 1, n + 1), np.inf)
-    D[0, :] = 0.0
-    take = np.zeros((m + 1, n + 1), bool)
-    for i in range(1, m + 1):
-        for j in range(i, n + 1):
-            skip = D[i, j - 1]
-            use = D[i - 1, j - 1] + cost[i - 1, j - 1]
-            if use <= skip:
-                D[i, j], take[i, j] = use, True
-            else:
-                D[i, j] = skip
-    out = np.empty(m, dtype=int)
-    i, j = m, n
-    while i > 0:
-        if take[i, j]:
-            out[i - 1] = j - 1
-            i -= 1
-        j -= 1
-    return out
 
 
 def pair_states_by_frequency(f_meas: list, f_model: list, tracks: list, *, min_freq_Hz: float = 0.0) -> list:

@@ -56,10 +56,20 @@ def pair_by_frequency(f_meas: np.ndarray, f_model: np.ndarray) -> np.ndarray:
     fm = np.log(np.asarray(f_meas, float))
     order = np.argsort(f_model)
     fc = np.log(np.asarray(f_model, float)[order])
-    m, n = len(fm), len(fc)
+    if len(fc) < len(fm):
+        raise ValueError(f"{len(fm)} measured modes but only {len(fc)} model modes to pair with")
+    return order[ordered_assignment((fm[:, None] - fc[None, :]) ** 2)]
+
+
+def ordered_assignment(cost: np.ndarray) -> np.ndarray:
+    """Order-preserving assignment of rows to columns minimising the summed cost.
+
+    ``cost`` is ``(m, n)`` with ``n >= m``; returns the column of each row, strictly increasing
+    (dynamic programming, O(m n)).
+    """
+    m, n = cost.shape
     if n < m:
-        raise ValueError(f"{m} measured modes but only {n} model modes to pair with")
-    cost = (fm[:, None] - fc[None, :]) ** 2
+        raise ValueError(f"{m} rows but only {n} columns to assign")
     D = np.full((m + 1, n + 1), np.inf)
     D[0, :] = 0.0
     take = np.zeros((m + 1, n + 1), bool)
@@ -75,7 +85,7 @@ def pair_by_frequency(f_meas: np.ndarray, f_model: np.ndarray) -> np.ndarray:
     i, j = m, n
     while i > 0:
         if take[i, j]:
-            out[i - 1] = order[j - 1]
+            out[i - 1] = j - 1
             i -= 1
         j -= 1
     return out
