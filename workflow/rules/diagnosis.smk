@@ -4,9 +4,29 @@
 #   snakemake -j2 results/diagnosis/<name>/ranking.csv
 # (plus ladder.csv, index.html and the other tables in the same folder); each run appends one row to
 # results/history.csv.  Enabled effects (`effects:`) are part of the diagnosed model, so changing them
-# reruns only this rule.  With no datasets registered, nothing is added to the workflow.
+# reruns only this rule.  With no `datasets:` block the run's measured dataset (measurements.dataset,
+# data/paper by default) is diagnosed under its folder name.
 
-DIAG_DATASETS = dict(config.get("datasets") or {})
+def _registered_datasets(config):
+    """The datasets to diagnose: those under `datasets:`, else the measured dataset of the run.
+
+    Without a `datasets:` block the folder `measurements.dataset` (the paper's data by default) is
+    diagnosed under its folder name, with the states that use it.
+    """
+    import os
+
+    named = dict(config.get("datasets") or {})
+    if named:
+        return named
+    path = config["measurements"]["dataset"]
+    states = [s for s, c in config["states"].items() if not c.get("dataset")]
+    name = os.path.basename(os.path.normpath(path))
+    if not states or not name.isidentifier():
+        return {}
+    return {name: {"path": path, "states": states}}
+
+
+DIAG_DATASETS = _registered_datasets(config)
 
 
 def _diagnosis_inputs(wc):
