@@ -87,7 +87,7 @@ def task_idiomatic(args: dict) -> dict:
     from skfem.models.elasticity import linear_elasticity
 
     from jointid import fem
-    from jointid.mesh import build_mesh
+    from jointid.mesh import mesh_from_config
     from jointid.model import base_coefficients, build_model
     from jointid.rig import build_rig
 
@@ -97,7 +97,7 @@ def task_idiomatic(args: dict) -> dict:
     model = build_model(cfg)
     t_build = time.perf_counter() - t0
     rig = build_rig(cfg["rig"])
-    rmesh = build_mesh(rig, cfg["mesh"]["max_cell_size_m"], cfg["mesh"]["refine"])
+    rmesh = mesh_from_config(rig, cfg["mesh"])
     elem_cls, intorder = fem.ELEMENTS[cfg["mesh"]["element"]]
     lam, mu, rho = _material_groups(cfg, rmesh, rig)
     t0 = time.perf_counter()  # jointid's solid assembly alone (it is part of t_build)

@@ -203,7 +203,7 @@ def test_yaml_file_exponents_duplicates_and_syntax(tmp_path):
 BAD = [
     # (id, change, exact line after 'config.yaml: ')
     ("misspelt key", lambda c: c["mesh"].update(elemnt=c["mesh"].pop("element")),
-     "mesh.elemnt: unknown key — did you mean 'element'? (allowed: element, max_cell_size_m, refine)"),
+     "mesh.elemnt: unknown key — did you mean 'element'? (allowed: element, max_cell_size_m, height_cell_fraction, joint_cell_fraction, refine)"),
     ("negative length", lambda c: c["rig"]["base"].update(length_m=-1.1),
      "rig.base.length_m: -1.1 must be > 0 — give the base length in metres"),
     ("inverted bounds", lambda c: c["joints"]["parameters"]["k_normal_N_per_m3"].update(lower=2e12, upper=1e11),
@@ -275,8 +275,8 @@ BAD = [
      "rig.table.position_m: -0.4 moves the carriages off the rails — keep |position_m| <= 0.348 "
      "(half rail length minus half the carriage span)"),
     ("tiny mesh", lambda c: c["mesh"].update(max_cell_size_m=0.0004),
-     "mesh.max_cell_size_m: 0.0004 is too small (with refine: 1): about 5.6e9 nodes, above the limit of 2e6 — "
-     "use max_cell_size_m >= 0.0059 with refine: 1"),
+     "mesh.max_cell_size_m: 0.0004 is too small (with refine: 1): about 1.1e10 nodes, above the limit of 2e6 — "
+     "use max_cell_size_m >= 0.0073 with refine: 1"),
     ("unknown dataset state", lambda c: c.update(datasets={"rig2": {"path": "data/rig2", "states": ["power_onn"]}}),
      "datasets.rig2.states[0]: 'power_onn' is not in states — did you mean 'power_on'?"),
     ("free and zero shift", lambda c: (c["rig"]["support"].update(kind="free"), c["solver"].update(shift_Hz=0.0)),
@@ -368,7 +368,7 @@ def test_overrides_dotted_nested_and_strings(default):
     with pytest.raises(ConfigError) as info:
         load_config(CONFIG, overrides=["mesh.refin=2"])
     assert info.value.problems == [
-        f"{CONFIG}: mesh.refin: unknown key — did you mean 'refine'? (allowed: element, max_cell_size_m, refine)"
+        f"{CONFIG}: mesh.refin: unknown key — did you mean 'refine'? (allowed: element, max_cell_size_m, height_cell_fraction, joint_cell_fraction, refine)"
     ]
 
 
@@ -414,14 +414,14 @@ def test_section_returns_deep_copy(default):
 
 # ----------------------------------------------------------------------------------- mesh size
 def test_node_estimate_matches_hand_count(default):
-    # hex2, h = 0.04 m: nodes per part = prod(2 * ceil(extent / h) + 1)
-    base = 25 * 5 * 57          # 0.45 x 0.08 x 1.10
-    rail = 3 * 3 * 51           # 0.023 x 0.022 x 1.00
-    carriage = 5 * 3 * 7        # 0.048 x 0.036 x 0.084
-    table = 17 * 3 * 17         # 0.32 x 0.035 x 0.32
+    # hex2, h = 0.04 m (0.02 m along Y): nodes per part = prod(2 * ceil(extent / h) + 1)
+    base = 25 * 9 * 57          # 0.45 x 0.08 x 1.10
+    rail = 3 * 5 * 51           # 0.023 x 0.022 x 1.00
+    carriage = 5 * 5 * 7        # 0.048 x 0.036 x 0.084
+    table = 17 * 5 * 17         # 0.32 x 0.035 x 0.32
     assert estimate_node_count(default) == base + 2 * rail + 4 * carriage + table
     hex1 = modified(default, lambda c: c["mesh"].update(element="hex1"))
-    assert estimate_node_count(hex1) == 13 * 3 * 29 + 2 * 2 * 2 * 26 + 4 * 3 * 2 * 4 + 9 * 2 * 9
+    assert estimate_node_count(hex1) == 13 * 5 * 29 + 2 * 2 * 3 * 26 + 4 * 3 * 3 * 4 + 9 * 3 * 9
 
 
 def test_suggested_cell_size_passes(default):

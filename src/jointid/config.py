@@ -746,7 +746,8 @@ def estimate_node_count(cfg: Mapping) -> int:
     """Lower-bound estimate of the FE node count of the mesh configured in ``cfg``.
 
     Each part is counted as its own box gridded with cells of edge at most
-    ``mesh.max_cell_size_m / mesh.refine`` (at least one cell per direction); hex2 has
+    ``mesh.max_cell_size_m / mesh.refine`` (times ``mesh.height_cell_fraction`` along Y; at least one
+    cell per direction); hex2 has
     ``2 n + 1`` and hex1 ``n + 1`` nodes per direction.  Interface lines added by other parts
     only make the real mesh larger, so this never over-estimates much.
 
@@ -762,12 +763,13 @@ def estimate_node_count(cfg: Mapping) -> int:
     """
     mesh = cfg["mesh"]
     h = mesh["max_cell_size_m"] / mesh["refine"]
+    hs = (h, h * mesh.get("height_cell_fraction", 1.0), h)
     per = 2 if mesh["element"] == "hex2" else 1
     total = 0
     for box in _part_boxes(cfg["rig"]):
         nodes = 1
-        for extent in box:
-            nodes *= per * max(1, math.ceil(extent / h - 1e-9)) + 1
+        for extent, he in zip(box, hs):
+            nodes *= per * max(1, math.ceil(extent / he - 1e-9)) + 1
         total += nodes
     return total
 

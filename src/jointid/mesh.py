@@ -43,9 +43,18 @@ def _in_patch(mid: np.ndarray, boxes: list[Box]) -> np.ndarray:
     return mask
 
 
-def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1) -> RigMesh:
-    """Mesh the rig with hexahedra whose grid lines pass through every part boundary."""
-    x, y, z = (grid_lines(bp, max_cell_m, refine) for bp in rig.breakpoints)
+def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float | None = None,
+               max_height_m: float | None = None) -> RigMesh:
+    """Mesh the rig with hexahedra whose grid lines pass through every part boundary.
+
+    ``max_height_m`` (m) caps the cell edge along Y, through the thickness of the plates, where the
+    bending of base and table converges slowest; ``joint_cell_m`` (m) caps the cell size inside the
+    joint zone (carriage footprints between the base top and the carriage top), where the contact
+    strips load rail and carriage locally.
+    """
+    h_axes = (max_cell_m, min(max_cell_m, max_height_m or max_cell_m), max_cell_m)
+    x, y, z = (grid_lines(bp, h, refine, zones, joint_cell_m)
+               for bp, h, zones in zip(rig.breakpoints, h_axes, rig.joint_zone))
     full = MeshHex.init_tensor(x, y, z)
     centroids = full.p[:, full.t].mean(axis=1).T
     part = rig.part_at(centroids)
@@ -74,6 +83,14 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1) -> RigMesh:
     remap[used] = np.arange(len(used))
     mesh = MeshHex(p[:, used], remap[t])
     return RigMesh(mesh=mesh, part=part, facets=_tag_facets(mesh, part, rig))
+
+
+def mesh_from_config(rig: Rig, mesh_cfg: dict, refine: int | None = None) -> RigMesh:
+    """Mesh the rig as the ``mesh`` section of the configuration asks (``refine`` overrides it)."""
+    h = mesh_cfg["max_cell_size_m"]
+    return build_mesh(rig, h, refine or mesh_cfg.get("refine", 1),
+                      joint_cell_m=h * mesh_cfg.get("joint_cell_fraction", 1.0),
+                      max_height_m=h * mesh_cfg.get("height_cell_fraction", 1.0))
 
 
 def _tag_facets(mesh: MeshHex, part: np.ndarray, rig: Rig) -> dict[str, np.ndarray]:

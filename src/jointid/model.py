@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from skfem import Basis
 
 from . import fem
-from .mesh import build_mesh
+from .mesh import mesh_from_config
 from .points import measuring_points
 from .rig import PART_IDS, build_rig
 
@@ -72,7 +72,7 @@ def build_model(cfg: dict, *, refine: int | None = None, progress=None) -> fem.M
     say = progress or (lambda msg: None)
     rig_cfg, mesh_cfg = cfg["rig"], cfg["mesh"]
     rig = build_rig(rig_cfg)
-    rmesh = build_mesh(rig, mesh_cfg["max_cell_size_m"], refine or mesh_cfg.get("refine", 1))
+    rmesh = mesh_from_config(rig, mesh_cfg, refine)
     elem_cls, intorder = fem.ELEMENTS[mesh_cfg["element"]]
     elem = elem_cls()
     basis = Basis(rmesh.mesh, elem, intorder=intorder)

@@ -53,6 +53,7 @@ class Rig:
     breakpoints: tuple[np.ndarray, np.ndarray, np.ndarray]
     materials: dict[str, str]  # part -> material name
     dims: dict[str, float] = field(default_factory=dict)
+    joint_zone: tuple[list, list, list] = ([], [], [])  # per axis: (lo, hi) intervals around the joints
 
     def part_at(self, pts: np.ndarray) -> np.ndarray:
         """Part id (see ``PART_IDS``) of each point ``(n, 3)``; the first box in the list wins."""
@@ -132,21 +133,33 @@ def build_rig(rig_cfg: dict) -> Rig:
                  "table": t["material"]}
     dims = {"base_top_m": H, "rail_top_m": rail_top, "carriage_top_m": c_top, "table_top_m": t_top,
             "table_z_m": zt}
+    # the joint zone: the carriage footprints (X, Z) from the base top to the carriage top (Y), where the
+    # contact strips load the rail and carriage locally and a finer grid is needed to converge
+    zone_x = [(sx * half_s - c["width_m"] / 2, sx * half_s + c["width_m"] / 2) for sx in (-1, 1)]
+    zone_z = [(zt + sz * c["pitch_m"] / 2 - c["length_m"] / 2, zt + sz * c["pitch_m"] / 2 + c["length_m"] / 2)
+              for sz in (-1, 1)]
+    zone_y = [(H, c_top)]
     return Rig(boxes=boxes, contact={"top": top_faces, "flank": flank_faces},
                patches={"motor": motor, "mount": mounts, "railfix": railfix, "table_edge": edge,
                         "table_top": top}, carriage_centres=np.array(centres),
                breakpoints=(np.array(sorted(xs)), np.array(sorted(ys)), np.array(sorted(zs))),
-               materials=materials, dims=dims)
+               materials=materials, dims=dims, joint_zone=(zone_x, zone_y, zone_z))
 
 
-def grid_lines(breakpoints: np.ndarray, max_cell_m: float, refine: int = 1) -> np.ndarray:
+def grid_lines(breakpoints: np.ndarray, max_cell_m: float, refine: int = 1,
+               zones: list[tuple[float, float]] = (), zone_cell_m: float | None = None) -> np.ndarray:
     """Subdivide sorted breakpoints so that no cell is longer than ``max_cell_m / refine``.
 
-    Breakpoints closer than 1e-9 m are merged.  Returns the sorted grid coordinates.
+    Intervals lying inside one of ``zones`` (``(lo, hi)`` in m) use ``zone_cell_m`` instead of
+    ``max_cell_m`` (when given and smaller).  Breakpoints closer than 1e-9 m are merged.  Returns the
+    sorted grid coordinates.
     """
     bp = np.unique(np.round(np.asarray(breakpoints, float), 9))
     out = [bp[:1]]
     for a, b in zip(bp[:-1], bp[1:]):
-        n = max(1, int(np.ceil((b - a) / max_cell_m - 1e-9))) * int(refine)
+        h = max_cell_m
+        if zone_cell_m is not None and any(lo - 1e-9 <= a and b <= hi + 1e-9 for lo, hi in zones):
+            h = min(h, zone_cell_m)
+        n = max(1, int(np.ceil((b - a) / h - 1e-9))) * int(refine)
         out.append(np.linspace(a, b, n + 1)[1:])
     return np.concatenate(out)
