@@ -1,11 +1,25 @@
 # jointid workflow: joint-surface identification by FE model updating (see README.md).
 #
 # Path convention: results/<stage>/..., logs/<rule>/..., benchmarks/out/<rule>/...
-# Config reaches every rule through `params: cfg=` holding only the sections that rule uses, so a
-# changed value reruns exactly the stages that depend on it.
+# Config reaches every rule through `params: cfg=` holding only the parts that rule uses (whole
+# sections, or single keys such as harmonic.band_Hz, or one state), so a changed value reruns exactly
+# the stages that depend on it.  Rules with nothing of their own (gather_modal, tables, table1) get
+# the union of their upstream rules' parts: it reruns nothing extra and is what their provenance
+# sidecars (<output>.provenance.json) hash.
+#
+# Every job is single-threaded (parallelism comes from the DOE fan-out): Snakemake sets the BLAS
+# thread variables of a job to its `threads`; the defaults below cover this process and anything it
+# starts otherwise.  Light rules run in the main process on a cluster (`localrules`).
+# Jobs inherit a fixed PYTHONHASHSEED: the order of a Python set of strings then no longer changes
+# from process to process, so a sum taken in that order (e.g. in the diagnosis) is bit-reproducible.
 
-import sys
-from jointid.workflowconfig import validated, sections
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # before numpy is imported below
+os.environ.setdefault("PYTHONHASHSEED", "0")
+
+from jointid.workflowconfig import validated, sections, merged
 from jointid.stages import doe_sheet
 
 configfile: "config.yaml"
@@ -15,8 +29,25 @@ POINTS = list(SHEET["point"])
 STATES = list(config["states"])
 R = "results"
 
+# the config parts each rule uses (see the stage functions in src/jointid/stages.py)
+CFG_MESH = sections(config, "materials", "rig", "mesh")
+CFG_DOE = sections(config, "joints", "doe")
+CFG_MODAL = sections(config, "rig", "joints", "solver")
+CFG_FIT_SURFACE = sections(config, "joints", "surface", "solver.min_freq_Hz", "harmonic.band_Hz")
+CFG_VERIFY = sections(config, "rig", "joints", "solver")
+
+
+def cfg_identify(state):
+    """rule identify: the shared sections and this state's settings only."""
+    return sections(config, "rig", "joints", "identify", "solver", "measurements", f"states.{state}")
+
+
+CFG_MODAL_CHAIN = merged(CFG_MESH, CFG_DOE, CFG_MODAL)
+CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, CFG_FIT_SURFACE, CFG_VERIFY, *map(cfg_identify, STATES))
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
+
+localrules: all, doe, gather_modal, tables
 
 
 rule all:
@@ -24,6 +55,7 @@ rule all:
         f"{R}/tables/table2_power_off.csv",
         f"{R}/tables/table3_power_on.csv",
         lambda wc: EXTRA_TARGETS,  # a function: read after the rule files below have appended
+    default_target: True
 
 
 rule mesh:
@@ -32,11 +64,12 @@ rule mesh:
         points=f"{R}/model/measuring_points.csv",
         vtu=f"{R}/model/mesh.vtu",
     params:
-        cfg=sections(config, "materials", "rig", "mesh"),
+        cfg=CFG_MESH,
     log:
         "logs/mesh.log",
     benchmark:
         "benchmarks/out/mesh.tsv"
+    threads: 1
     resources:
         mem_mb=3000,
         runtime=10,
@@ -48,9 +81,13 @@ rule doe:
     output:
         sheet=f"{R}/doe/points.csv",
     params:
-        cfg=sections(config, "joints", "doe"),
+        cfg=CFG_DOE,
     log:
         "logs/doe.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
     script:
         "workflow/scripts/doe.py"
 
@@ -62,7 +99,7 @@ rule modal:
     output:
         modes=f"{R}/modal/points/{{point}}.npz",
     params:
-        cfg=sections(config, "rig", "joints", "solver"),
+        cfg=CFG_MODAL,
         theta=lambda wc: {n: float(SHEET.set_index("point").loc[wc.point, n]) for n in config["joints"]["parameters"]},
     log:
         "logs/modal/{point}.log",
@@ -84,9 +121,13 @@ rule gather_modal:
         table=f"{R}/modal/all.csv",
         arrays=f"{R}/modal/all.npz",
     params:
-        cfg={},
+        cfg=CFG_MODAL_CHAIN,  # nothing of its own: for the provenance
     log:
         "logs/gather_modal.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=2,
     script:
         "workflow/scripts/gather.py"
 
@@ -99,9 +140,15 @@ rule fit_surface:
         model=f"{R}/surface/model.json",
         diagnostics=f"{R}/surface/diagnostics.csv",
     params:
-        cfg=sections(config, "joints", "surface", "solver", "harmonic"),
+        cfg=CFG_FIT_SURFACE,
     log:
         "logs/fit_surface.log",
+    benchmark:
+        "benchmarks/out/fit_surface.tsv"
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
     script:
         "workflow/scripts/fit_surface.py"
 
@@ -115,9 +162,15 @@ rule identify:
     output:
         params=f"{R}/identify/{{state}}/params.json",
     params:
-        cfg=sections(config, "rig", "joints", "identify", "states", "measurements", "solver"),
+        cfg=lambda wc: cfg_identify(wc.state),
     log:
         "logs/identify/{state}.log",
+    benchmark:
+        "benchmarks/out/identify/{state}.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=20,
     script:
         "workflow/scripts/identify.py"
 
@@ -130,13 +183,15 @@ rule verify:
     output:
         table=f"{R}/identify/{{state}}/verify.csv",
     params:
-        cfg=sections(config, "rig", "joints", "solver"),
+        cfg=CFG_VERIFY,
     log:
         "logs/verify/{state}.log",
     benchmark:
         "benchmarks/out/verify/{state}.tsv"
+    threads: 1
     resources:
         mem_mb=3000,
+        runtime=10,
     script:
         "workflow/scripts/verify.py"
 
@@ -149,9 +204,13 @@ rule tables:
         power_off=f"{R}/tables/table2_power_off.csv",
         power_on=f"{R}/tables/table3_power_on.csv",
     params:
-        cfg={},
+        cfg=CFG_TABLES_CHAIN,  # nothing of its own: for the provenance
     log:
         "logs/tables.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
     script:
         "workflow/scripts/tables.py"
 

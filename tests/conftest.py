@@ -10,20 +10,29 @@ Fixtures
 coarse_run (session)
     A folder holding one complete, uninterrupted coarse run (``snakemake -j2``).  Tests must not
     modify it: clone it with :func:`clone_run` first.
+
+BLAS/OpenMP libraries run single-threaded in the tests (set here before numpy is imported, inherited
+by the Snakemake runs): the machine's cores are shared by parallel jobs.
 """
 
 from __future__ import annotations
 
-import hashlib
 import os
-import re
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
-import numpy as np
-import pytest
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import fnmatch  # noqa: E402
+import hashlib  # noqa: E402
+import json  # noqa: E402
+import re  # noqa: E402
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 COARSE_CONFIG = REPO / "tests" / "coarse_config.yaml"
@@ -127,7 +136,7 @@ def extra_rule_names(workdir: Path = REPO) -> set[str]:
     """Rules defined in the included rule files ``workflow/rules/*.smk``."""
     names = set()
     for smk in sorted(Path(workdir, "workflow", "rules").glob("*.smk")):
-        names.update(re.findall(r"^rule\s+(\w+)\s*:", smk.read_text(), flags=re.M))
+        names.update(re.findall(r"^\s*rule\s+(\w+)\s*:", smk.read_text(), flags=re.M))
     return names
 
 
@@ -140,6 +149,44 @@ def file_hashes(root: Path, patterns=("results/**/*",)) -> dict[str, str]:
         for p in sorted(root.glob(pat)):
             if p.is_file():
                 out[p.relative_to(root).as_posix()] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+# Result files that legitimately hold wall-clock time (run time stamps, timings): compared after
+# :func:`normalised` removes it.  Provenance sidecars (``*.provenance.json``) are compared by
+# their reproducible fields (tests/test_determinism.py).
+WALL_CLOCK = ("results/history.csv", "results/diagnosis/*/verdict.json", "results/diagnosis/*/index.html")
+_TIMESTAMP = re.compile(rb"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d+)?Z")
+_SECONDS = re.compile(rb"\b\d+(\.\d+)? s\b")  # durations, e.g. "model 20688 DOFs, 13 s."
+_TIME_KEYS = {"time_utc", "timestamp_utc", "timing_s"}
+
+
+def is_wall_clock(rel: str) -> bool:
+    return any(fnmatch.fnmatch(rel, pat) for pat in WALL_CLOCK)
+
+
+def normalised(path: Path) -> bytes:
+    """A wall-clock file's bytes without time stamps and durations (JSON: without time/timing keys)."""
+    data = Path(path).read_bytes()
+    if Path(path).suffix == ".json":
+        def strip(obj):
+            if isinstance(obj, dict):
+                return {k: strip(v) for k, v in obj.items() if k not in _TIME_KEYS}
+            if isinstance(obj, list):
+                return [strip(v) for v in obj]
+            return obj
+        return json.dumps(strip(json.loads(data)), sort_keys=True).encode()
+    return _SECONDS.sub(b"<seconds>", _TIMESTAMP.sub(b"<time>", data))
+
+
+def comparable_hashes(root: Path, patterns=("results/**/*",)) -> dict[str, str]:
+    """Like :func:`file_hashes` without provenance sidecars, wall-clock files hashed normalised."""
+    root = Path(root)
+    out = {}
+    for rel, digest in file_hashes(root, patterns).items():
+        if rel.endswith(".provenance.json"):
+            continue
+        out[rel] = hashlib.sha256(normalised(root / rel)).hexdigest() if is_wall_clock(rel) else digest
     return out
 
 

@@ -14,11 +14,11 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import REPO, copy_workflow, file_hashes, run_snakemake
+from conftest import REPO, STATES, copy_workflow, file_hashes, is_wall_clock, normalised, run_snakemake
 from jointid.config import config_hash, load_config
 from jointid.provenance import PACKAGES, provenance, provenance_path, write_provenance
 
-BYTE_IDENTICAL = ("results/**/*",)  # every result file, arrays (npz) and mesh (vtu) included
+BYTE_IDENTICAL = ("results/**/*",)  # every result file, arrays (npz), mesh (vtu), figures included
 
 
 @pytest.fixture(scope="module")
@@ -89,6 +89,49 @@ def _reproducible_part(path: Path) -> dict:
     return {k: v for k, v in rec.items() if k not in ("timestamp_utc", "git_commit", "git_dirty")}
 
 
+# outputs of the rules that write provenance sidecars (workflow/scripts: run_script(provenance=True))
+WITH_PROVENANCE = (
+    "results/modal/all.csv", "results/modal/all.npz",
+    "results/surface/model.json", "results/surface/diagnostics.csv",
+    *(f"results/identify/{s}/{f}" for s in STATES for f in ("params.json", "verify.csv")),
+    *(f"results/harmonic/{s}/{f}" for s in STATES for f in ("frf.csv", "dynamic_stiffness.json", "modes.npz")),
+    "results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv",
+    "results/tables/table1_dynamic_stiffness.csv", "results/tables/table1_dynamic_stiffness.md",
+)
+
+
+@pytest.mark.slow
+def test_every_result_table_has_a_matching_provenance_sidecar(coarse_run, cfg):
+    wd = coarse_run
+    for rel in WITH_PROVENANCE:
+        table = wd / rel
+        rec = json.loads(provenance_path(table).read_text())
+        assert rec["table"] == table.name and rec["table_sha256"] == _sha(table), rel
+        assert re.fullmatch(r"[0-9a-f]{12}", rec["config_hash"]) and rec["config_sections"], rel
+        assert rec["git_commit"] != "" and set(rec["packages"]) == set(PACKAGES), rel
+        assert rec["inputs"] and "missing" not in rec["inputs"].values(), rel
+        for path, digest in rec["inputs"].items():  # relative to the working directory
+            assert not Path(path).is_absolute() and digest == _sha(wd / path), f"{rel}: {path}"
+    # the hash is that of the config parts the rule takes: one state's settings for identify,
+    # the union of the chain's parts for the tables (which have no settings of their own)
+    ident = json.loads(provenance_path(wd / "results/identify/power_on/params.json").read_text())
+    assert ident["config_sections"] == ["identify", "joints", "measurements", "rig", "solver", "states"]
+    one_state = {k: cfg[k] for k in ("identify", "joints", "measurements", "rig", "solver")}
+    one_state["states"] = {"power_on": cfg["states"]["power_on"]}
+    assert ident["config_hash"] == config_hash(one_state)
+    tab = json.loads(provenance_path(wd / TABLE2).read_text())
+    assert {"materials", "mesh", "doe", "surface", "identify", "states"} <= set(tab["config_sections"])
+    assert sorted(tab["inputs"]) == ["data/paper/paper_tables.csv", "results/identify/power_off/verify.csv",
+                                     "results/identify/power_on/verify.csv"]
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+TABLE2 = "results/tables/table2_power_off.csv"
+
+
 @pytest.mark.slow
 def test_two_clean_runs_are_byte_identical(coarse_run, tmp_path):
     first = coarse_run
@@ -100,12 +143,22 @@ def test_two_clean_runs_are_byte_identical(coarse_run, tmp_path):
     b = {k: v for k, v in b.items() if not k.endswith(".provenance.json")}
     assert set(a) == set(b)
     assert {"results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv",
+            "results/tables/table1_dynamic_stiffness.csv", "results/report/index.html",
             "results/identify/power_off/params.json", "results/identify/power_on/params.json",
             "results/surface/model.json", "results/surface/diagnostics.csv",
-            "results/modal/all.npz", "results/model/matrices.npz"} <= set(a)
-    differ = sorted(k for k in a if a[k] != b[k])
+            "results/modal/all.npz", "results/model/matrices.npz",
+            "results/diagnosis/paper/ranking.csv"} <= set(a)
+    # byte for byte, except the diagnosis' run records (history.csv, verdict.json, its index.html),
+    # which carry the run's time stamp and timings: those must agree once the times are removed
+    differ = sorted(k for k in a if a[k] != b[k] and not is_wall_clock(k))
     assert not differ, f"not byte-identical between two clean runs: {differ}"
-    # provenance sidecars (once the stages write them) agree except for time stamp and git state
-    for p in sorted(first.glob("results/**/*.provenance.json")):
+    wall = sorted(k for k in a if is_wall_clock(k))
+    assert wall, "the diagnosis ran"
+    differ = [k for k in wall if normalised(first / k) != normalised(second / k)]
+    assert not differ, f"differ beyond their time stamps: {differ}"
+    # provenance sidecars agree except for time stamp and git state
+    sidecars = sorted(first.glob("results/**/*.provenance.json"))
+    assert len(sidecars) >= len(WITH_PROVENANCE)
+    for p in sidecars:
         assert _reproducible_part(p) == _reproducible_part(second / p.relative_to(first)), p.name
     shutil.rmtree(second / "results")  # 30+ MB per run: free the shared disk early

@@ -44,6 +44,9 @@ def test_dry_run_lists_every_stage_once_per_point_and_state(tmp_path):
     assert {r: n for r, n in jobs.items() if r in CORE_RULES} == expected
     unknown = set(jobs) - set(CORE_RULES) - extra_rule_names(wd)
     assert not unknown, f"jobs of rules defined nowhere: {unknown}"
+    # rule all also builds what the rule files append to EXTRA_TARGETS (report, diagnosis)
+    extras = {"harmonic": len(STATES), "table1": 1, "report": 1, "diagnose": 1}
+    assert {r: jobs.get(r, 0) for r in extras} == extras
     assert not (wd / "results").exists(), "a dry run must not write results"
 
 

@@ -30,7 +30,6 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from scipy.stats import qmc
 
 from jointid.errors import ConfigError
 
@@ -52,6 +51,8 @@ _VERIFICATION_STREAM = 0x7E51F1
 
 def _latin_hypercube(n: int, d: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` LHS points in ``[0, 1)^d`` drawn from ``rng`` (works with old and new SciPy)."""
+    from scipy.stats import qmc  # imported here: scipy.stats takes ~0.5 s to import
+
     try:
         sampler = qmc.LatinHypercube(d=d, rng=rng)
     except TypeError:  # SciPy < 1.15 names the argument ``seed``

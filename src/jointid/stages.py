@@ -2,19 +2,22 @@
 
 The Snakemake scripts in ``workflow/scripts`` are adapters around these functions, and every stage
 can be run from a plain Python session as well.
+
+Imports of the numerical modules are inside the functions that need them: every workflow job is a
+fresh Python process, and a job should load only what its stage uses (e.g. the modal fan-out never
+needs ``scipy.stats``, the tables never need the FE code).
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
 
 from . import io
-from .describe import describe_modes
-from .doe import design, to_physical, verification_points
-from .modal import solve_modes
-from .model import base_coefficients, build_model, load_model, save_model
-from .points import dof_labels
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 def _log(msg: str) -> None:
@@ -24,6 +27,10 @@ def _log(msg: str) -> None:
 # ------------------------------------------------------------------ mesh
 def run_mesh(cfg: dict, matrices: str, points_csv: str, vtu: str | None = None) -> None:
     """Build and cache the model matrices, the measuring-point table and a VTK file of the mesh."""
+    import pandas as pd
+
+    from .model import build_model, save_model
+
     model = build_model(cfg, progress=_log)
     save_model(model, matrices)
     pts = pd.DataFrame(model.meta["points"])
@@ -58,6 +65,10 @@ def doe_sheet(cfg: dict) -> pd.DataFrame:
     Columns: ``point, role, x_<param>`` (coded in [-1, 1] over log10 of the parameter) and
     ``<param>`` (physical, N/m^3).
     """
+    import pandas as pd
+
+    from .doe import design, to_physical, verification_points
+
     names = parameter_names(cfg)
     d = cfg["doe"]
     X = design(d["design"], len(names), n_center=d["n_center"], n_samples=d.get("n_samples", 0),
@@ -89,16 +100,28 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
 
     Returns ``(freqs_Hz, shapes at measuring points (n_labels, n_modes), description table, modes)``.
     """
+    from .modal import solve_modes
+    from .model import base_coefficients
+
     s = cfg["solver"]
     kc, mc = base_coefficients(cfg, model, theta)
     modes = solve_modes(model.K(kc), model.M(mc), n_modes or s["n_modes"], shift_Hz=s["shift_Hz"],
                         fixed=model.fixed, backend=s["backend"])
     shapes = model.probe @ modes.phi
-    desc = describe_modes(model, modes.phi, kc, mc) if describe else None
+    desc = None
+    if describe:
+        from .describe import describe_modes
+
+        desc = describe_modes(model, modes.phi, kc, mc)
     return modes.freqs_Hz, shapes, desc, modes
 
 
 def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str) -> None:
+    import pandas as pd
+
+    from .model import load_model
+    from .points import dof_labels
+
     model = load_model(matrices)
     freqs, shapes, desc, _ = solve_point(cfg, model, theta)
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
@@ -111,6 +134,8 @@ def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str) -
 
 def run_gather(sheet_csv: str, npz_paths: list[str], out_csv: str, out_npz: str) -> None:
     """Gather per-point modal results into one long table and one array file."""
+    import pandas as pd
+
     sheet = pd.read_csv(sheet_csv)
     rows, freqs, shapes, descr = [], [], [], []
     for point, path in zip(sheet["point"], npz_paths):
@@ -135,6 +160,8 @@ def tracked_band(cfg: dict) -> tuple[float, float]:
 
 
 def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, out_csv: str) -> None:
+    import pandas as pd
+
     from .updating import fit_surfaces
 
     sheet = pd.read_csv(sheet_csv)
@@ -167,6 +194,8 @@ def _dataset_for(cfg: dict, state: str) -> str:
 
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
                  matrices: str | None = None) -> None:
+    import pandas as pd
+
     from .measured import read_dataset
     from .points import dof_labels
     from .updating import identify_state
@@ -225,7 +254,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
 
 def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False):
     """Gauss-Newton refinement of the surface optimum on the full FE model."""
-    from .model import joint_terms
+    from .model import joint_terms, load_model
     from .updating import fe_polish
 
     model = load_model(matrices)
@@ -251,6 +280,9 @@ def _face_of(cfg: dict, name: str) -> str:
 
 
 def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str) -> None:
+    import pandas as pd
+
+    from .model import load_model
     from .updating import verify_pairing
 
     par = io.read_json(params_json)
@@ -276,6 +308,8 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
 # ------------------------------------------------------------------ tables
 def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, str]) -> None:
     """Tables 2 and 3: our FE-verified frequencies beside the paper's."""
+    import pandas as pd
+
     from .report_tables import frequency_table, markdown_table
 
     paper = pd.read_csv(paper_csv)

@@ -20,5 +20,48 @@ def validated(config: dict) -> dict:
 
 
 def sections(config: dict, *names: str) -> dict:
-    """A deep copy of the named top-level sections (for ``params: cfg=``)."""
-    return {n: copy.deepcopy(config[n]) for n in names if n in config}
+    """A deep copy of the named parts of ``config`` (for ``params: cfg=``), nested as in ``config``.
+
+    A name is a top-level section (``"rig"``) or a dotted path to a key inside one
+    (``"harmonic.band_Hz"``, ``"states.power_on"``): a rule then depends on that key only, so
+    changing another key of the section does not rerun it.  Names that are absent are skipped.
+
+    Examples
+    --------
+    >>> sections({"a": {"x": 1, "y": 2}, "b": 3}, "a.x", "b")
+    {'a': {'x': 1}, 'b': 3}
+    """
+    out: dict = {}
+    for name in names:
+        parts = name.split(".")
+        node = config
+        try:
+            for p in parts:
+                node = node[p]
+        except (KeyError, TypeError):
+            continue
+        dest = out
+        for p in parts[:-1]:
+            dest = dest.setdefault(p, {})
+        dest[parts[-1]] = copy.deepcopy(node)
+    return out
+
+
+def merged(*cfgs: dict) -> dict:
+    """Deep union of several rules' config parts (later ones win on conflicting leaves).
+
+    Used for the provenance of a result that depends on a chain of rules: the union of the parts
+    every rule of the chain takes.
+    """
+    out: dict = {}
+    for cfg in cfgs:
+        _merge_into(out, cfg)
+    return out
+
+
+def _merge_into(dest: dict, src: dict) -> None:
+    for k, v in src.items():
+        if isinstance(v, dict) and isinstance(dest.get(k), dict):
+            _merge_into(dest[k], v)
+        else:
+            dest[k] = copy.deepcopy(v)

@@ -65,6 +65,7 @@ if DIAG_DATASETS:
         threads: 1
         resources:
             mem_mb=3000,
+            runtime=30,
         script:
             "../scripts/diagnose.py"
 

@@ -9,6 +9,17 @@ from jointid.frf import dataset_folder as _dataset_folder
 FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
 
 
+def cfg_harmonic(state):
+    """rule harmonic: the shared sections and this state's settings only."""
+    return sections(config, "rig", "joints", "solver", "harmonic", "measurements", "datasets",
+                    f"states.{state}")
+
+
+CFG_TABLE1_CHAIN = merged(CFG_TABLES_CHAIN, *map(cfg_harmonic, STATES))
+
+localrules: table1
+
+
 rule harmonic:
     input:
         params=rules.identify.output.params,
@@ -20,7 +31,7 @@ rule harmonic:
         stiffness=f"{R}/harmonic/{{state}}/dynamic_stiffness.json",
         modes=f"{R}/harmonic/{{state}}/modes.npz",
     params:
-        cfg=sections(config, "rig", "joints", "solver", "harmonic", "states", "measurements", "datasets"),
+        cfg=lambda wc: cfg_harmonic(wc.state),
     log:
         "logs/harmonic/{state}.log",
     benchmark:
@@ -28,6 +39,7 @@ rule harmonic:
     threads: 1
     resources:
         mem_mb=3000,
+        runtime=10,
     script:
         "../scripts/harmonic.py"
 
@@ -41,9 +53,13 @@ rule table1:
                    category="Tables"),
         md=f"{R}/tables/table1_dynamic_stiffness.md",
     params:
-        cfg={},
+        cfg=CFG_TABLE1_CHAIN,  # nothing of its own: for the provenance
     log:
         "logs/table1.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
     script:
         "../scripts/table1.py"
 
@@ -78,6 +94,12 @@ rule report:
         cfg=config,
     log:
         "logs/report.log",
+    benchmark:
+        "benchmarks/out/report.tsv"
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=10,
     script:
         "../scripts/report.py"
 

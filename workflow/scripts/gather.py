@@ -2,4 +2,5 @@
 from jointid.workflow import run_script
 from jointid import stages
 
-run_script(snakemake, lambda cfg, inp, out: stages.run_gather(inp.sheet, list(inp.modes), out.table, out.arrays))
+run_script(snakemake, lambda cfg, inp, out: stages.run_gather(
+    inp.sheet, list(inp.modes), out.table, out.arrays), provenance=True)

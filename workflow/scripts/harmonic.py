@@ -4,4 +4,4 @@ from jointid import frf
 
 run_script(snakemake, lambda cfg, inp, out: frf.run_harmonic(
     cfg, snakemake.wildcards.state, inp.params, inp.matrices, out.frf, out.stiffness,
-    out_modes=out.modes, verify_csv=inp.verify))
+    out_modes=out.modes, verify_csv=inp.verify), provenance=True)

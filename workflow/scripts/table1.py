@@ -3,4 +3,4 @@ from jointid.workflow import run_script
 from jointid import report
 
 run_script(snakemake, lambda cfg, inp, out: report.run_table1(
-    list(inp.stiffness), inp.paper, out.csv, out.md))
+    list(inp.stiffness), inp.paper, out.csv, out.md), provenance=True)

@@ -4,4 +4,4 @@ from jointid import stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_tables(
     {"power_off": inp.verify[0], "power_on": inp.verify[1]}, inp.paper,
-    {"power_off": out.power_off, "power_on": out.power_on}))
+    {"power_off": out.power_off, "power_on": out.power_on}), provenance=True)

@@ -3,4 +3,4 @@ from jointid.workflow import run_script
 from jointid import stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_verify(
-    cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table))
+    cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table), provenance=True)
