@@ -1,0 +1,73 @@
+"""CI acceptance checks (jointid.checks): Table 1 gates on a positive power-on increase."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pandas as pd
+import pytest
+
+from jointid import checks
+
+HEADER = "state,dynamic_stiffness_N_per_mm,paper_dynamic_stiffness_N_per_mm\n"
+
+
+def _table1(folder, k_off, k_on):
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / checks.TABLE1).write_text(HEADER + f"power_off,{k_off},104547\npower_on,{k_on},148551\n")
+    return folder
+
+
+def _tables23(folder, err_off, err_on):
+    for name, err in (("table2_power_off.csv", err_off), ("table3_power_on.csv", err_on)):
+        pd.DataFrame({"order": [1, 2], "experimental_Hz": [100.0, 200.0],
+                      "simulation_Hz": [100.0, 200.0 * (1 + err / 100)],
+                      "relative_error_pct": [0.0, err], "paper_simulation_Hz": [99.0, 201.0],
+                      "paper_relative_error_pct": [-1.0, 0.5]}).to_csv(folder / name, index=False)
+
+
+def test_table1_increase_is_computed_from_the_stiffnesses(tmp_path):
+    inc, problems = checks.table1_increase_pct(_table1(tmp_path, 100000.0, 142100.0))
+    assert problems == [] and inc == pytest.approx(42.1, rel=1e-12)
+    assert checks.check_table1(tmp_path) == []
+
+
+@pytest.mark.parametrize("k_on", [100000.0, 90000.0])
+def test_table1_without_increase_fails(tmp_path, k_on):
+    problems = checks.check_table1(_table1(tmp_path, 100000.0, k_on))
+    assert len(problems) == 1 and "not positive" in problems[0] and checks.TABLE1 in problems[0]
+
+
+def test_table1_missing_or_incomplete_fails_with_the_fix(tmp_path):
+    assert checks.check_table1(tmp_path) == [
+        f"{tmp_path / checks.TABLE1}: missing — run `snakemake -j2 {(tmp_path / checks.TABLE1).as_posix()}` "
+        "(rule table1)"]
+    (tmp_path / checks.TABLE1).write_text(HEADER + "power_off,100000,104547\npower_on,nan,148551\n")
+    (problem,) = checks.check_table1(tmp_path)
+    assert "power_on dynamic_stiffness_N_per_mm = nan is not a positive number" in problem
+    (tmp_path / checks.TABLE1).write_text(HEADER + "power_off,100000,104547\n")
+    (problem,) = checks.check_table1(tmp_path)
+    assert "0 rows for state power_on" in problem
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "jointid.checks", *map(str, args)], capture_output=True,
+                          text=True, timeout=60)
+
+
+def test_cli_gates_table1_separately_from_the_error_bounds(tmp_path):
+    _table1(tmp_path, 100000.0, 111000.0)
+    _tables23(tmp_path, 8.95, 3.0)  # Table 2 above the paper's 8.1 %
+    ok = _cli("--table1", tmp_path)
+    assert ok.returncode == 0, ok.stderr
+    assert "+11.0 %" in ok.stdout
+    bounds = _cli("--tables2-3", tmp_path)
+    assert bounds.returncode == 1 and "8.95 % exceeds the required 8.1 %" in bounds.stderr
+    assert checks.TABLE1 not in bounds.stderr + bounds.stdout
+    assert _cli(tmp_path).returncode == 1  # no option: both groups
+    _table1(tmp_path, 100000.0, 99000.0)
+    bad = _cli("--table1", tmp_path)
+    assert bad.returncode == 1 and "-1.0 %" in bad.stderr
+    _tables23(tmp_path, 8.0, 8.2)
+    assert _cli("--tables2-3", tmp_path).returncode == 0
