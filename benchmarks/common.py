@@ -16,7 +16,8 @@ OUT = ROOT / "benchmarks" / "out"
 PYTHON = sys.executable
 
 # coarse settings used by --quick (same as tests/coarse_config.yaml)
-COARSE = {"mesh": {"element": "hex2", "max_cell_size_m": 0.12, "refine": 1}}
+COARSE = {"mesh": {"element": "hex2", "max_cell_size_m": 0.12, "height_cell_fraction": 1.0,
+                   "joint_cell_fraction": 1.0, "refine": 1}}
 
 
 def worker_env(blas_threads: int | None) -> dict:

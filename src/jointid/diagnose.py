@@ -534,8 +534,8 @@ class Variant:
             xm[j] -= h
             kp, mp = self.coefficients(xp, state)
             km, mm = self.coefficients(xm, state)
-            dk = {k: (kp.get(k, 0.0) - km.get(k, 0.0)) / (2 * h) for k in set(kp) | set(km)}
-            dm = {k: (mp.get(k, 0.0) - mm.get(k, 0.0)) / (2 * h) for k in set(mp) | set(mm)}
+            dk = {k: (kp.get(k, 0.0) - km.get(k, 0.0)) / (2 * h) for k in sorted(set(kp) | set(km))}
+            dm = {k: (mp.get(k, 0.0) - mm.get(k, 0.0)) / (2 * h) for k in sorted(set(mp) | set(mm))}
             out.append(({k: v for k, v in dk.items() if v != 0.0}, {k: v for k, v in dm.items() if v != 0.0}))
         return out
 
