@@ -13,4 +13,4 @@ reports its own peak RSS (``resource.getrusage``).  Results go to ``benchmarks/o
 one JSON per benchmark and ``summary.md`` with the table that is printed.
 """
 
-BENCHMARKS = ("a", "b", "c", "d", "e")
+BENCHMARKS = ("a", "b", "c", "d", "e", "f")

@@ -64,7 +64,7 @@ if DIAG_DATASETS:
             "benchmarks/out/diagnosis/{dataset}.tsv"
         threads: 1
         resources:
-            mem_mb=3000,
+            mem_mb=4500,
             runtime=30,
         script:
             "../scripts/diagnose.py"
