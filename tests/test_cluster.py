@@ -78,7 +78,8 @@ def test_doe_fanout_through_cluster_generic_executor(tmp_path):
     subs = pd.read_csv(wd / "submissions.tsv", sep="\t", header=None,
                        names=["job_id", "pid", "name", "mem_mb", "runtime_min", "cpus", "jobscript"])
     counts = subs["name"].value_counts().to_dict()
-    assert counts == {"modal": len(sheet), "mesh": 1, "doe": 1, "gather_modal": 1}, counts
+    # doe and gather_modal are localrules (seconds, no scheduler round trip); their outputs exist above
+    assert counts == {"modal": len(sheet), "mesh": 1}, counts
     # every job left Snakemake through the submit command and came back under its external id
     for job_id in subs["job_id"]:
         assert f"external jobid '{job_id}'" in out
