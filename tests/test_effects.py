@@ -60,12 +60,13 @@ def test_bonded_foundation_reproduces_the_clamped_base(setup):
 def test_carried_mass_is_table_carriages_and_motors(setup):
     cfg, model, system = setup
     rig = cfg["rig"]
-    rho = cfg["materials"]["steel"]["density_kg_per_m3"]
     t, c, r = rig["table"], rig["carriages"], rig["rails"]
-    table = t["length_m"] * t["width_m"] * t["thickness_m"] * rho
+    rho_t = cfg["materials"][t["material"]]["density_kg_per_m3"]
+    rho_c = cfg["materials"][c["material"]]["density_kg_per_m3"]
+    table = t["length_m"] * t["width_m"] * t["thickness_m"] * rho_t
     h = c["height_m"] - c["ground_clearance_m"]
     inside = r["width_m"] * (r["height_m"] - c["ground_clearance_m"]) * c["length_m"]
-    carriages = 4 * (c["length_m"] * c["width_m"] * h - inside) * rho
+    carriages = 4 * (c["length_m"] * c["width_m"] * h - inside) * rho_c
     motors = rig["motors"]["count"] * rig["motors"]["mass_each_kg"]
     assert system.carried_mass_kg == pytest.approx(table + carriages + motors, rel=1e-6)
 
