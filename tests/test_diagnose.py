@@ -208,7 +208,14 @@ def test_workflow_diagnoses_registered_datasets_only(tmp_path):
     out = _snakemake_dry_run(tmp_path / "a", reg, "results/diagnosis/paper/ranking.csv")
     assert out.returncode == 0, out.stderr[-2000:]
     assert "rule diagnose" in out.stdout and "results/diagnosis/paper/ranking.csv" in out.stdout
+    # registered datasets replace the default: only `mine` is diagnosed
     (tmp_path / "b").mkdir()
-    out = _snakemake_dry_run(tmp_path / "b", {"datasets": {}})
+    mine = {"datasets": {"mine": {"path": "data/paper", "states": ["power_off"]}}}
+    out = _snakemake_dry_run(tmp_path / "b", mine)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert "rule diagnose" not in out.stdout and "results/diagnosis/" not in out.stdout
+    assert "results/diagnosis/mine/ranking.csv" in out.stdout and "results/diagnosis/paper/" not in out.stdout
+    # with no datasets registered, the run's measured dataset is diagnosed under its folder name
+    (tmp_path / "c").mkdir()
+    out = _snakemake_dry_run(tmp_path / "c", {"datasets": {}})
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "results/diagnosis/paper/ranking.csv" in out.stdout
