@@ -47,10 +47,11 @@ from scipy.linalg import lapack
 from . import io
 from .doe import to_physical
 from .errors import ModelError, NumericalWarning
-from .modal import TWO_PI, solve_modes
+from .modal import TWO_PI, Modes, solve_modes
 from .model import base_coefficients, joint_terms
 
-__all__ = ["ROM", "build_rom", "training_points", "load_rom", "frequency_error", "residual_indicator"]
+__all__ = ["ROM", "build_rom", "training_points", "load_rom", "frequency_error", "residual_indicator",
+           "full_modes"]
 
 _FORMAT = "jointid-rom-1"
 
@@ -281,6 +282,29 @@ def load_rom(path) -> ROM:
     return ROM.load(path)
 
 
+def full_modes(rom: ROM, k_coeffs: dict[str, float], m_coeffs: dict[str, float] | None = None,
+               n_modes: int | None = None, *, check: bool = True) -> Modes:
+    """ROM modes expanded to full DOF vectors, as :func:`jointid.modal.solve_modes` returns them.
+
+    ``phi = V y`` is mass-normalised (against ``M(m_coeffs)`` when that equals the ROM's ``m_ref``,
+    which holds for every joint-parameter point of the configuration it was built for) and its sign
+    is fixed as the full solver fixes it: the largest component of the whole DOF vector positive.
+    Shapes at the measuring points are then ``model.probe @ phi``, comparable with a full solve
+    component by component (not only by MAC).  Needs the basis (:attr:`ROM.basis`).
+
+    Returns
+    -------
+    jointid.modal.Modes
+        ``freqs_Hz (n_modes,)`` Hz, ``phi (n_dofs, n_modes)``, zero at fixed DOFs.
+    """
+    freqs, _, y = rom.solve(k_coeffs, m_coeffs, n_modes, check=check, return_coords=True)
+    phi = rom.expand(y)
+    idx = np.argmax(np.abs(phi), axis=0)
+    sign = np.sign(phi[idx, np.arange(phi.shape[1])])
+    sign[sign == 0] = 1.0
+    return Modes(freqs_Hz=freqs, phi=phi * sign)
+
+
 # ------------------------------------------------------------------ building
 def frequency_error(f_rom: np.ndarray, f_full: np.ndarray, min_freq_Hz: float = 0.0) -> np.ndarray:
     """Relative error ``|f_rom - f_full| / f_full`` mode by mode (NaN below ``min_freq_Hz``)."""
@@ -398,7 +422,7 @@ def residual_indicator(model, rom: ROM, k_coeffs: dict, m_coeffs: dict, n_modes:
 def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *, n_extra: int = 2,
               tol: float = 1e-4, n_verify: int = 2, max_rounds: int = 6, n_candidates: int = 32,
               seed: int = 0, extra_points: list[tuple[dict, dict]] | None = None, rank_rtol: float = 1e-6,
-              keep_basis: bool = True, labels: list[str] | None = None, progress=None) -> ROM:
+              keep_basis: bool = True, labels: list[str] | None = None, candidates=None, progress=None) -> ROM:
     """Build and verify a parametric ROM of ``model`` over the joint-parameter box of ``cfg``.
 
     Greedy error control: ``n_candidates`` random interior points of the coded box are ranked by
@@ -436,6 +460,11 @@ def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *,
         Keep the (n_dofs x r) basis in the ROM (for :meth:`ROM.expand` and the indicator).
     labels : list of str, optional
         Labels of the probe rows (default ``<point>:<dir>`` from ``model.meta['points']``).
+    candidates : array (n, p), optional
+        Further coded candidate points in ``[-1, 1]^p`` ranked with the random ones, e.g. the points
+        where the ROM will be evaluated (a DOE): the error control then also covers them.
+    progress : callable, optional
+        Called with one line of text per training point and verification round.
 
     Returns
     -------
@@ -492,7 +521,14 @@ def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *,
         say(f"rom: training point {theta or kc}: +{added} vectors (r = {b.V.shape[1]})")
 
     rng = np.random.default_rng(seed)
-    candidates = [coeffs_coded(x) for x in rng.uniform(-1.0, 1.0, size=(n_candidates, len(names)))]
+    coded = rng.uniform(-1.0, 1.0, size=(n_candidates, len(names)))
+    if candidates is not None:
+        extra = np.atleast_2d(np.asarray(candidates, float))
+        if extra.size and extra.shape[1] != len(names):
+            raise ModelError(f"rom: candidate points have {extra.shape[1]} coordinates; the box has "
+                             f"{len(names)} parameters ({', '.join(names)})")
+        coded = np.vstack([coded, extra]) if extra.size else coded
+    candidates = [coeffs_coded(x) for x in coded]
     for theta, (kc, mc) in candidates:
         cover(kc, mc)  # the greedy search certifies the box spanned by the candidates
     verified = n_verify <= 0
