@@ -92,14 +92,46 @@ rule doe:
         "workflow/scripts/doe.py"
 
 
+# solver.method: rom -- one parametric reduced-order model (jointid.rom) over the joint-parameter box,
+# built and verified against full solves once; every modal job then evaluates it.  With method full
+# (the default) no job asks for it, and the modal rule's params leave out the ROM keys so that the
+# full path's jobs, params and results stay exactly those it had before the option existed.
+USE_ROM = config["solver"]["method"] == "rom"
+CFG_ROM = sections(config, "rig", "joints", "solver")
+CFG_MODAL_RULE = CFG_MODAL if USE_ROM else {
+    **CFG_MODAL, "solver": {k: v for k, v in CFG_MODAL["solver"].items() if k not in ("method", "rom_tolerance")}}
+
+
+rule rom:
+    input:
+        matrices=rules.mesh.output.matrices,
+        sheet=rules.doe.output.sheet,
+    output:
+        rom=f"{R}/rom/rom.npz",
+        summary=f"{R}/rom/rom.json",
+    params:
+        cfg=CFG_ROM,
+    log:
+        "logs/rom.log",
+    benchmark:
+        "benchmarks/out/rom.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    script:
+        "workflow/scripts/rom.py"
+
+
 rule modal:
     input:
+        unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),
         matrices=rules.mesh.output.matrices,
         sheet=rules.doe.output.sheet,
     output:
         modes=f"{R}/modal/points/{{point}}.npz",
     params:
-        cfg=CFG_MODAL,
+        cfg=CFG_MODAL_RULE,
         theta=lambda wc: {n: float(SHEET.set_index("point").loc[wc.point, n]) for n in config["joints"]["parameters"]},
     log:
         "logs/modal/{point}.log",

@@ -116,20 +116,96 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
     return modes.freqs_Hz, shapes, desc, modes
 
 
-def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str) -> None:
+def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, rom: str | None = None) -> None:
+    """Modes at one DOE point -> ``out_npz`` (freqs_Hz, shapes, labels, description, strain_joints, theta).
+
+    ``solver.method``: ``full`` (default) solves the FE model; ``rom`` evaluates the reduced-order
+    model ``rom`` (written by :func:`run_rom`) and expands its modes to full DOF vectors for the
+    mode descriptions.  Both write the same arrays.
+    """
     import pandas as pd
 
     from .model import load_model
     from .points import dof_labels
 
     model = load_model(matrices)
-    freqs, shapes, desc, _ = solve_point(cfg, model, theta)
+    if cfg["solver"].get("method", "full") == "rom":
+        from .describe import describe_modes
+        from .errors import ConfigError
+        from .model import base_coefficients
+        from .rom import full_modes, load_rom
+
+        if not rom:
+            raise ConfigError("solver.method: rom needs the reduced-order model (rule rom, "
+                              "results/rom/rom.npz) — build it with run_rom, or set solver.method: full")
+        reduced = load_rom(rom)
+        kc, mc = base_coefficients(cfg, model, theta)
+        modes = full_modes(reduced, kc, mc, cfg["solver"]["n_modes"])
+        freqs, shapes = modes.freqs_Hz, model.probe @ modes.phi
+        desc = describe_modes(model, modes.phi, kc, mc)
+    else:
+        freqs, shapes, desc, _ = solve_point(cfg, model, theta)
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
     io.write_npz(out_npz, freqs_Hz=freqs, shapes=shapes, labels=np.array(labels),
                  description=desc["description"].to_numpy().astype(str),
                  strain_joints=desc["strain_joints"].to_numpy(),
                  theta_names=np.array(list(theta)), theta=np.array(list(theta.values())))
     _log("modal: " + ", ".join(f"{f:.1f}" for f in freqs) + " Hz")
+
+
+def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: str) -> dict:
+    """Build the parametric reduced-order model once (``solver.method: rom``) with error control.
+
+    Training: full solves at the corners and the centre of the joint-parameter box (``solver.n_modes``
+    + 2 modes each).  Error control: candidate points (random interior ones and every point of the
+    DOE sheet) are ranked by the residual indicator; the worst are solved in full, and the basis is
+    enriched until the relative frequency error of every tracked mode (at or above
+    ``solver.min_freq_Hz``) is at most ``solver.rom_tolerance``.  Writes the ROM with its basis
+    (``out_npz``, :func:`jointid.rom.load_rom`) and a summary (``out_json``: tolerance, achieved
+    error, basis size, verification rounds); returns the summary.
+
+    Raises
+    ------
+    ModelError
+        If the tolerance is not met after the enrichment rounds.
+    """
+    import warnings
+
+    import pandas as pd
+
+    from .errors import ModelError, NumericalWarning
+    from .model import load_model
+    from .rom import build_rom
+
+    s = cfg["solver"]
+    tol = float(s.get("rom_tolerance", 1e-4))
+    model = load_model(matrices)
+    sheet = pd.read_csv(sheet_csv)
+    doe_x = sheet[[f"x_{n}" for n in parameter_names(cfg)]].to_numpy(float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)  # not verified: raised as an error below
+        rom = build_rom(model, cfg, s["n_modes"], "corners", tol=tol, candidates=doe_x, progress=_log)
+    rep = rom.report
+    n_full = len(rep["training"]) + sum(len(r["points"]) for r in rep["rounds"])
+    summary = {"n_dofs": int(model.n_dofs), "n_modes": rep["n_modes"], "n_train_modes": rep["n_train_modes"],
+               "min_freq_Hz": float(s["min_freq_Hz"]), "tolerance": tol, "max_error": rep["max_error"],
+               "verified": rep["verified"], "basis_size": rom.size, "n_full_solves": n_full,
+               "n_training_points": len(rep["training"]), "n_doe_candidates": int(len(doe_x)),
+               "rounds": [{"round": r["round"], "basis_size": r["r"], "max_error": r["max_error"],
+                           "added": r.get("added", 0),
+                           "points": [{"theta": p["theta"], "max_error": p["max_error"]} for p in r["points"]]}
+                          for r in rep["rounds"]],
+               "coeff_range": rom.coeff_range}
+    if not rep["verified"]:
+        raise ModelError(f"rom: relative frequency error {rep['max_error']:.2e} at the verification points is "
+                         f"above solver.rom_tolerance = {tol:.1e} after {len(rep['rounds'])} enrichment rounds "
+                         f"(basis size {rom.size}) — raise solver.rom_tolerance, narrow joints.parameters, "
+                         "or use solver.method: full")
+    rom.save(out_npz)
+    io.write_json(out_json, summary)
+    _log(f"rom: basis {rom.size} vectors from {n_full} full solves ({model.n_dofs} DOFs); max relative "
+         f"frequency error at the verification points {rep['max_error']:.2e} <= {tol:.1e} -> {out_npz}")
+    return summary
 
 
 def run_gather(sheet_csv: str, npz_paths: list[str], out_csv: str, out_npz: str) -> None:
