@@ -1,27 +1,35 @@
-"""Reduced-order model against full modal solves of the coarse rig model."""
+"""Reduced-order model against full modal solves of the coarse rig model, and the ROM as the
+``solver.method: rom`` option of the workflow's modal stage (stages.run_rom / run_modal, rule rom)."""
 
+import json
+import re
+import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from conftest import copy_workflow, scheduled_jobs, snakemake_cmd, tail, workflow_env, write_config
+from jointid import io
 from jointid.config import load_config
 from jointid.doe import to_physical
-from jointid.errors import ModelError, NumericalWarning
+from jointid.errors import ConfigError, ModelError, NumericalWarning
 from jointid.modal import mac, solve_modes
-from jointid.model import base_coefficients, build_model
-from jointid.rom import ROM, build_rom, frequency_error, residual_indicator, training_points
+from jointid.model import base_coefficients, build_model, save_model
+from jointid.rom import ROM, build_rom, frequency_error, load_rom, residual_indicator, training_points
+from jointid.stages import doe_sheet, run_modal, run_rom
 
 ROOT = Path(__file__).resolve().parents[1]
 TOL = 1e-4
 N_MODES = 8  # tracked modes (the workflow tracks 12-20; 8 keeps this file fast)
 
 
-def _cfg(**mesh):
+def _cfg(solver=None, **mesh):
     over = yaml.safe_load((ROOT / "tests" / "coarse_config.yaml").read_text())
     over["mesh"].update(mesh)
     over["solver"]["backend"] = "scipy"  # SuperLU is the faster backend at these sizes
+    over["solver"].update(solver or {})
     return load_config(ROOT / "config.yaml", overrides=over)
 
 
@@ -41,11 +49,25 @@ def _full(model, cfg, theta, n=N_MODES):
 
 
 @pytest.fixture(scope="module")
-def coarse():
-    cfg = _cfg()
+def stage(tmp_path_factory):
+    """The workflow's rom stage on the coarse model: ``(cfg, model, folder, sheet, summary)``; the
+    folder holds matrices.npz, points.csv (the DOE sheet), rom.npz and rom.json."""
+    cfg = _cfg(solver={"n_modes": N_MODES, "method": "rom"})
+    folder = tmp_path_factory.mktemp("rom_stage")
     model = build_model(cfg)
-    rom = build_rom(model, cfg, N_MODES, "corners", n_verify=1, seed=3)
-    return cfg, model, rom
+    save_model(model, folder / "matrices.npz")
+    sheet = doe_sheet(cfg)
+    io.write_csv(sheet, folder / "points.csv")
+    summary = run_rom(cfg, str(folder / "matrices.npz"), str(folder / "points.csv"), str(folder / "rom.npz"),
+                      str(folder / "rom.json"))
+    return cfg, model, folder, sheet, summary
+
+
+@pytest.fixture(scope="module")
+def coarse(stage):
+    """``(cfg, model, rom)``: the ROM the rom stage wrote (corners + centre, greedy-verified)."""
+    cfg, model, folder, _, _ = stage
+    return cfg, model, load_rom(folder / "rom.npz")
 
 
 def test_rom_matches_full_solve_at_random_interior_points(coarse):
@@ -173,3 +195,94 @@ def test_frequencies_only_path_matches_solve(coarse):
         f2, _ = rom.solve(kc, mc2)
     np.testing.assert_allclose(rom.frequencies(kc, mc2, check=False), f2, rtol=1e-10)
     assert np.all(f2 <= f * (1 + 1e-12)) and np.any(f2 < f * (1 - 1e-4))  # more mass, lower frequencies
+
+
+# ------------------------------------------------------------------ solver.method: rom in the workflow
+def _theta(cfg, sheet, point):
+    row = sheet.set_index("point").loc[point]
+    return {n: float(row[n]) for n in cfg["joints"]["parameters"]}
+
+
+def test_rom_stage_meets_the_tolerance_and_reports_it(stage):
+    cfg, model, folder, sheet, summary = stage
+    doc = json.loads((folder / "rom.json").read_text())  # floats written to 12 digits
+    assert set(doc) == set(summary) and doc["verified"] is True
+    assert doc["max_error"] == pytest.approx(summary["max_error"], rel=1e-10)
+    assert doc["basis_size"] == summary["basis_size"] and len(doc["rounds"]) == len(summary["rounds"])
+    assert summary["tolerance"] == cfg["solver"]["rom_tolerance"] == TOL
+    assert summary["verified"] and 0.0 <= summary["max_error"] <= TOL
+    assert summary["rounds"] and summary["rounds"][-1]["max_error"] == summary["max_error"]
+    assert summary["n_doe_candidates"] == len(sheet) and summary["n_dofs"] == model.n_dofs
+    assert summary["n_full_solves"] == 9 + sum(len(r["points"]) for r in summary["rounds"])  # 2^3 corners + centre
+    rom = load_rom(folder / "rom.npz")
+    assert rom.basis is not None and rom.basis.shape == (model.n_dofs, summary["basis_size"])
+
+
+@pytest.mark.parametrize("role", ["design", "verify"])
+def test_rom_modal_output_equals_the_full_modal_output(stage, tmp_path, role):
+    """At a DOE point that is not a training point (a face centre of the CCF; a random verification
+    point), the rom path writes the full path's arrays: same names, types, labels and theta,
+    frequencies within the tolerance (and above the full ones: Rayleigh-Ritz), MAC >= 0.999, the
+    same mode descriptions."""
+    cfg, model, folder, sheet, _ = stage
+    x = sheet[[c for c in sheet.columns if c.startswith("x_")]].abs()
+    pick = sheet[(sheet.role == role) & ((x.sum(axis=1) == 1.0) if role == "design" else True)]
+    point = pick.point.iloc[0]
+    theta = _theta(cfg, sheet, point)
+    full_cfg = {**cfg, "solver": {k: v for k, v in cfg["solver"].items() if k not in ("method", "rom_tolerance")}}
+    run_modal(full_cfg, str(folder / "matrices.npz"), theta, str(tmp_path / "full.npz"))
+    run_modal(cfg, str(folder / "matrices.npz"), theta, str(tmp_path / "rom.npz"), rom=str(folder / "rom.npz"))
+    full, red = np.load(tmp_path / "full.npz"), np.load(tmp_path / "rom.npz")
+    assert sorted(red.files) == sorted(full.files)
+    for key in full.files:
+        assert red[key].dtype.kind == full[key].dtype.kind and red[key].shape == full[key].shape, key
+    for key in ("labels", "theta_names", "theta"):
+        np.testing.assert_array_equal(red[key], full[key])
+    f_full, f_rom = full["freqs_Hz"], red["freqs_Hz"]
+    assert len(f_full) == N_MODES
+    tracked = f_full >= cfg["solver"]["min_freq_Hz"]
+    assert tracked.sum() >= N_MODES - 1
+    err = frequency_error(f_rom, f_full)[tracked]
+    assert err.max() <= TOL, (point, err)
+    assert np.all(f_rom >= f_full * (1 - 1e-9))
+    m = np.diag(mac(red["shapes"], full["shapes"]))[tracked]
+    assert m.min() >= 0.999, (point, m)
+    np.testing.assert_array_equal(red["description"], full["description"])
+    np.testing.assert_allclose(red["strain_joints"], full["strain_joints"], atol=1e-3)
+
+
+def test_rom_method_without_the_rom_file_is_a_clear_error(stage, tmp_path):
+    cfg, _, folder, sheet, _ = stage
+    with pytest.raises(ConfigError, match="solver.method: rom needs the reduced-order model"):
+        run_modal(cfg, str(folder / "matrices.npz"), _theta(cfg, sheet, "d000"), str(tmp_path / "x.npz"))
+    assert not (tmp_path / "x.npz").exists()
+
+
+def _modal_inputs(output: str) -> list[str]:
+    """The ``input:`` line of every modal job of a dry-run's output."""
+    return re.findall(r"^rule modal:\n\s+input: (.*)$", output, flags=re.M)
+
+
+def test_dry_run_rom_rule_once_with_method_rom_and_never_with_full(tmp_path):
+    """Coarse dry-runs: with solver.method: rom one rom job that every modal job takes as input;
+    with the default (full) no rom job and modal jobs exactly as before the option existed."""
+    runs = {}
+    for method in ("full", "rom"):
+        wd = copy_workflow(tmp_path / method)
+        extra = [write_config(tmp_path / "rom.yaml", "solver:\n  method: rom\n")] if method == "rom" else []
+        runs[method] = subprocess.Popen(snakemake_cmd("-n", "-j2", configs=extra), cwd=wd, env=workflow_env(),
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out = {m: p.communicate(timeout=300)[0] for m, p in runs.items()}  # the two run side by side
+    for m, p in runs.items():
+        assert p.returncode == 0, tail(out[m])
+    n_points = len(doe_sheet(_cfg()))
+    jobs = {m: scheduled_jobs(text) for m, text in out.items()}
+    assert jobs["rom"]["rom"] == 1 and jobs["rom"]["modal"] == n_points
+    assert "rom" not in jobs["full"] and jobs["full"]["modal"] == n_points
+    assert {r: n for r, n in jobs["rom"].items() if r != "rom"} == jobs["full"]
+    rom_inputs, full_inputs = _modal_inputs(out["rom"]), _modal_inputs(out["full"])
+    assert len(rom_inputs) == len(full_inputs) == n_points
+    assert all("results/rom/rom.npz" in line.split(", ") for line in rom_inputs)
+    assert all(line == "results/model/matrices.npz, results/doe/points.csv" for line in full_inputs)
+    assert re.search(r"^rule rom:\n\s+input: results/model/matrices.npz, results/doe/points.csv\n"
+                     r"\s+output: results/rom/rom.npz, results/rom/rom.json", out["rom"], flags=re.M)
