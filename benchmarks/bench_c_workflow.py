@@ -1,10 +1,19 @@
-"""(c) The full workflow ``snakemake -j2`` from a clean results directory, in a temporary copy."""
+"""(c) The full workflow ``snakemake -j2`` from a clean results directory, in a temporary copy.
+
+Optionally (``rom=True``, or ``JOINTID_BENCH_C_ROM=1`` in the environment, or
+``python -m benchmarks.bench_c_workflow --rom``) a second clean run with ``solver.method: rom``
+(rule rom builds the reduced-order model once, the modal jobs evaluate it): its wall time, peak
+memory, the ROM's build time and achieved frequency error are added as further rows.
+"""
 
 from __future__ import annotations
 
+import json
+import os
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -12,11 +21,52 @@ from pathlib import Path
 from .common import OUT, PYTHON, ROOT, Result, TreeMemorySampler, fmt_mb, worker_env
 
 COPY = ("Snakefile", "config.yaml", "workflow", "data")
+ROM_CONFIG = "solver:\n  method: rom\n"  # merged last (Snakemake's --config cannot set a nested key by dots)
 
 
-def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False) -> Result:
+def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, rom: bool | None = None) -> Result:
     res = Result("c")
-    tmp = Path(tempfile.mkdtemp(prefix="jointid-bench-c-"))
+    if rom is None:
+        rom = os.environ.get("JOINTID_BENCH_C_ROM", "") not in ("", "0")
+    out = _run_workflow(quick, blas_threads, keep, "full")
+    ok, wall = out["exit"] == 0, out["wall_s"]
+    res.add(f"snakemake -j2 from clean ({out['n_jobs']} jobs{', coarse config' if quick else ''})",
+            f"{wall:.1f} s" + ("" if ok else f" (FAILED, exit {out['exit']})"), "<= 120 s", ok and wall <= 120.0)
+    res.add("peak memory, all processes together (sampled /proc)", fmt_mb(out["peak_tree_MB"]), "<= 4 GB",
+            ok and out["peak_tree_MB"] <= 4096)
+    res.add("peak RSS of the largest single process (time -v)", fmt_mb(out["max_single_MB"]))
+    _notes(res, out, blas_threads, "")
+    res.data = out
+    if rom:
+        r = _run_workflow(quick, blas_threads, keep, "rom")
+        rok = r["exit"] == 0
+        res.add(f"same with solver.method: rom ({r['n_jobs']} jobs)",
+                f"{r['wall_s']:.1f} s" + ("" if rok else f" (FAILED, exit {r['exit']})"))
+        res.add("  rom: peak memory all processes / largest single process",
+                f"{fmt_mb(r['peak_tree_MB'])} / {fmt_mb(r['max_single_MB'])}")
+        s = r.get("rom_summary") or {}
+        if s:
+            t_build = r["per_rule"].get("rom", {}).get("sum_s", float("nan"))
+            res.add("  rom: ROM build (rule rom) and achieved max relative frequency error",
+                    f"{t_build:.0f} s, r = {s['basis_size']}, {s['n_full_solves']} full solves; "
+                    f"{s['max_error']:.1e}", f"<= {s['tolerance']:.0e}", s["max_error"] <= s["tolerance"])
+        _notes(res, r, blas_threads, "rom: ")
+        res.data["rom"] = r
+    return res
+
+
+def _notes(res: Result, out: dict, blas_threads, prefix: str) -> None:
+    per_rule = out["per_rule"]
+    if per_rule:
+        top = sorted(per_rule.items(), key=lambda kv: -kv[1]["sum_s"])[:5]
+        res.notes.append(prefix + "job time by rule (sum over jobs, from the rules' benchmark files): " + ", ".join(
+            f"{rule} {v['sum_s']:.0f} s / {v['n']} job{'s' if v['n'] > 1 else ''}" for rule, v in top))
+    res.notes.append(prefix + f"temporary copy {out['tmp']}{' (kept)' if out['kept'] else ' (removed)'}; "
+                     f"BLAS threads per job: {blas_threads or 'default'}")
+
+
+def _run_workflow(quick: bool, blas_threads: int | None, keep: bool, method: str) -> dict:
+    tmp = Path(tempfile.mkdtemp(prefix=f"jointid-bench-c-{'rom-' if method == 'rom' else ''}"))
     for name in COPY:
         src = ROOT / name
         if src.is_dir():
@@ -28,6 +78,9 @@ def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False) -
         (tmp / "tests").mkdir()
         shutil.copy2(ROOT / "tests" / "coarse_config.yaml", tmp / "tests" / "coarse_config.yaml")
         configs.append("tests/coarse_config.yaml")
+    if method == "rom":
+        (tmp / "rom_config.yaml").write_text(ROM_CONFIG)
+        configs.append("rom_config.yaml")
     snakemake = str(Path(PYTHON).parent / "snakemake")
     cmd = [snakemake, "-j2", "--configfile", *configs]
     time_bin = "/usr/bin/time"
@@ -45,33 +98,26 @@ def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False) -
     max_single = int(m.group(1)) / 1024.0 if m else float("nan")
     steps = re.findall(r"(\d+) of (\d+) steps \(100%\) done", text)
     n_jobs = int(steps[-1][1]) if steps else None
+    per_rule = _rule_times(tmp, quick, "_rom" if method == "rom" else "")
+    summary = tmp / "results" / "rom" / "rom.json"
     ok = rc == 0
-    res.add(f"snakemake -j2 from clean ({n_jobs} jobs{', coarse config' if quick else ''})",
-            f"{wall:.1f} s" + ("" if ok else f" (FAILED, exit {rc})"), "<= 120 s", ok and wall <= 120.0)
-    res.add("peak memory, all processes together (sampled /proc)", fmt_mb(mem.peak_MB), "<= 4 GB",
-            ok and mem.peak_MB <= 4096)
-    res.add("peak RSS of the largest single process (time -v)", fmt_mb(max_single))
-    per_rule = _rule_times(tmp, quick)
-    if per_rule:
-        top = sorted(per_rule.items(), key=lambda kv: -kv[1]["sum_s"])[:5]
-        res.notes.append("job time by rule (sum over jobs, from the rules' benchmark files): " + ", ".join(
-            f"{rule} {v['sum_s']:.0f} s / {v['n']} job{'s' if v['n'] > 1 else ''}" for rule, v in top))
-    res.notes.append(f"temporary copy {tmp}{' (kept)' if keep or not ok else ' (removed)'}; "
-                     f"BLAS threads per job: {blas_threads or 'default'}")
-    res.data = {"wall_s": wall, "exit": rc, "peak_tree_MB": mem.peak_MB, "max_single_MB": max_single,
-                "n_jobs": n_jobs, "per_rule": per_rule, "log_tail": text[-4000:]}
+    out = {"wall_s": wall, "exit": rc, "peak_tree_MB": mem.peak_MB, "max_single_MB": max_single,
+           "n_jobs": n_jobs, "per_rule": per_rule, "log_tail": text[-4000:], "tmp": str(tmp),
+           "kept": keep or not ok, "method": method}
+    if summary.exists():
+        out["rom_summary"] = {k: v for k, v in json.loads(summary.read_text()).items() if k != "coeff_range"}
     if ok and not keep:
         shutil.rmtree(tmp, ignore_errors=True)
-    return res
+    return out
 
 
-def _rule_times(workdir: Path, quick: bool) -> dict[str, dict]:
+def _rule_times(workdir: Path, quick: bool, tag: str = "") -> dict[str, dict]:
     """Sum of the ``s`` column of the rules' Snakemake benchmark files, by rule; the files are
-    copied to ``benchmarks/out/c_rules[_quick]/``."""
+    copied to ``benchmarks/out/c_rules[_rom][_quick]/``."""
     src = workdir / "benchmarks" / "out"
     if not src.is_dir():
         return {}
-    dest = OUT / f"c_rules{'_quick' if quick else ''}"
+    dest = OUT / f"c_rules{tag}{'_quick' if quick else ''}"
     shutil.rmtree(dest, ignore_errors=True)
     shutil.copytree(src, dest)
     out: dict[str, dict] = {}
@@ -88,3 +134,12 @@ def _rule_times(workdir: Path, quick: bool) -> dict[str, dict]:
         v["sum_s"] += sec
         v["n"] += 1
     return out
+
+
+if __name__ == "__main__":  # python -m benchmarks.bench_c_workflow [--quick] [--rom]
+    from .common import format_table, write_result
+
+    quick = "--quick" in sys.argv[1:]
+    result = run(quick=quick, rom="--rom" in sys.argv[1:])
+    write_result(result, quick)
+    print(format_table([result]))
