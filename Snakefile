@@ -34,15 +34,20 @@ CFG_MESH = sections(config, "materials", "rig", "mesh")
 CFG_DOE = sections(config, "joints", "doe")
 CFG_MODAL = sections(config, "rig", "joints", "solver")
 CFG_FIT_SURFACE = sections(config, "joints", "surface", "solver.min_freq_Hz", "harmonic.band_Hz")
-CFG_VERIFY = sections(config, "rig", "joints", "solver")
+SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min_freq_Hz")  # a full FE solve
+CFG_VERIFY = sections(config, "rig", "joints", *SOLVE_KEYS)
 
 
 def cfg_identify(state):
     """rule identify: the shared sections and this state's settings only."""
-    return sections(config, "rig", "joints", "identify", "solver", "measurements", f"states.{state}")
+    return sections(config, "rig", "joints", "identify", *SOLVE_KEYS, "measurements", f"states.{state}")
 
 
-CFG_MODAL_CHAIN = merged(CFG_MESH, CFG_DOE, CFG_MODAL)
+USE_ROM = config["solver"]["method"] == "rom"
+# with method full the modal rule's params leave out the ROM keys (see rule rom below)
+CFG_MODAL_RULE = CFG_MODAL if USE_ROM else {
+    **CFG_MODAL, "solver": {k: v for k, v in CFG_MODAL["solver"].items() if k not in ("method", "rom_tolerance")}}
+CFG_MODAL_CHAIN = merged(CFG_MESH, CFG_DOE, CFG_MODAL_RULE)
 CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, CFG_FIT_SURFACE, CFG_VERIFY, *map(cfg_identify, STATES))
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
@@ -96,10 +101,7 @@ rule doe:
 # built and verified against full solves once; every modal job then evaluates it.  With method full
 # (the default) no job asks for it, and the modal rule's params leave out the ROM keys so that the
 # full path's jobs, params and results stay exactly those it had before the option existed.
-USE_ROM = config["solver"]["method"] == "rom"
 CFG_ROM = sections(config, "rig", "joints", "solver")
-CFG_MODAL_RULE = CFG_MODAL if USE_ROM else {
-    **CFG_MODAL, "solver": {k: v for k, v in CFG_MODAL["solver"].items() if k not in ("method", "rom_tolerance")}}
 
 
 rule rom:

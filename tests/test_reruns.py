@@ -66,7 +66,8 @@ def test_solver_change_reruns_the_fanout_but_not_the_mesh(finished):
 @pytest.mark.parametrize("change, unaffected", [
     ("harmonic:\n  n_freq: 801\n", {"fit_surface": 0, "identify": 0, "verify": 0, "tables": 0}),
     ("states:\n  power_on:\n    em_force_N: 1200.0\n", {"identify": 1, "verify": 1, "harmonic": 1}),
-], ids=["harmonic_n_freq", "one_state"])
+    ("solver:\n  rom_tolerance: 2.0e-4\n", {"modal": 0, "fit_surface": 0, "identify": 0, "verify": 0}),
+], ids=["harmonic_n_freq", "one_state", "rom_tolerance_unused_by_full"])
 def test_value_used_elsewhere_does_not_rerun_the_chain(finished, change, unaffected):
     """harmonic.n_freq is not used by the identification chain; power_on's force not by power_off
     (exactly the power_on jobs rerun)."""
