@@ -20,10 +20,8 @@ LIMIT_PCT = 2.0
 
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     from jointid.config import load_config
-    from jointid.measured import read_dataset
-    from jointid.model import build_model, joint_terms
-    from jointid.stages import solve_point
-    from jointid.updating import fe_polish
+    from jointid.model import build_model
+    from jointid.stages import polish_on_model
 
     res = Result("f")
     base = {"mesh": {"element": "hex2", "max_cell_size_m": 0.12, "height_cell_fraction": 1.0,
@@ -34,13 +32,6 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     names = list(cfg["joints"]["parameters"])
     lo = np.array([cfg["joints"]["parameters"][n]["lower"] for n in names])
     hi = np.array([cfg["joints"]["parameters"][n]["upper"] for n in names])
-    jt = joint_terms(cfg["joints"])
-    terms = [{t: 1.0 for t in jt[n]} for n in names]
-
-    def solve(theta):
-        f, s, _, m = solve_point(cfg, model, dict(zip(names, theta)), describe=False)
-        return f, s, m.phi, model.stiffness
-
     data = {"refined": label, "n_dofs": model.n_dofs, "states": {}}
     for state in cfg["states"]:
         path = ROOT / "results" / "identify" / state / "params.json"
@@ -51,9 +42,9 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
         theta0 = np.array([doc["parameters"][n]["value"] for n in names])
         f_meas = np.asarray(doc["f_meas_Hz"], float)
         n_lab = model.probe.shape[0]
-        out = fe_polish(solve, theta0, names, lo, hi, f_meas, np.zeros((n_lab, len(f_meas))), terms,
-                        max_iter=3, log=lambda m: print(f"[f] {state}: {m.strip()}", flush=True),
-                        repair_min_Hz=cfg["solver"]["min_freq_Hz"])
+        out = polish_on_model(cfg, model, names, theta0, f_meas, np.zeros((n_lab, len(f_meas))), lo, hi,
+                              repair=True, max_iter=3,
+                              log=lambda m, state=state: print(f"[f] {state}: {m.strip()}", flush=True))
         err_default = float(np.abs(doc["residual_pct"]).max())
         err_refined = float(np.abs(100 * (out["f_fe"] - f_meas) / f_meas).max())
         changes = 100 * (out["theta"] / theta0 - 1)

@@ -171,12 +171,7 @@ class ROM:
         shapes : ndarray, shape (n_labels, n_modes)
             Mass-normalised displacements at the measuring points.
         """
-        n = self.n_modes if n_modes is None else int(n_modes)
-        if not 0 < n <= self.size:
-            raise ModelError(f"rom: n_modes = {n} must be between 1 and the basis size {self.size}")
-        if check:
-            self._check_range(k_coeffs, self.m_ref if m_coeffs is None else m_coeffs)
-        Kr, Mr = self.reduced_matrices(k_coeffs, m_coeffs)
+        n, Kr, Mr = self._reduced(k_coeffs, m_coeffs, n_modes, check)
         if Mr is None:  # LAPACK dsyevr directly: the wrapper of scipy.linalg.eigh costs ~15 % here
             w, z, m, _, info = lapack.dsyevr(Kr, range="I", il=1, iu=n)
             if info != 0 or m != n:
@@ -194,16 +189,20 @@ class ROM:
             return freqs, shapes, y * sign
         return freqs, shapes
 
-    def frequencies(self, k_coeffs: dict[str, float], m_coeffs: dict[str, float] | None = None,
-                    n_modes: int | None = None, *, check: bool = True) -> np.ndarray:
-        """Frequencies only (Hz, shape ``(n_modes,)``): the same values as :meth:`solve`, about twice
-        as fast (no eigenvectors; for frequency-only pairing, surfaces and sweeps)."""
+    def _reduced(self, k_coeffs, m_coeffs, n_modes, check):
+        """Number of modes (checked), and the reduced ``(Kr, Mr)`` at these coefficients."""
         n = self.n_modes if n_modes is None else int(n_modes)
         if not 0 < n <= self.size:
             raise ModelError(f"rom: n_modes = {n} must be between 1 and the basis size {self.size}")
         if check:
             self._check_range(k_coeffs, self.m_ref if m_coeffs is None else m_coeffs)
-        Kr, Mr = self.reduced_matrices(k_coeffs, m_coeffs)
+        return (n, *self.reduced_matrices(k_coeffs, m_coeffs))
+
+    def frequencies(self, k_coeffs: dict[str, float], m_coeffs: dict[str, float] | None = None,
+                    n_modes: int | None = None, *, check: bool = True) -> np.ndarray:
+        """Frequencies only (Hz, shape ``(n_modes,)``): the same values as :meth:`solve`, about twice
+        as fast (no eigenvectors; for frequency-only pairing, surfaces and sweeps)."""
+        n, Kr, Mr = self._reduced(k_coeffs, m_coeffs, n_modes, check)
         if Mr is not None:  # standard form L^-1 Kr L^-T with Mr = L L^T
             L = np.linalg.cholesky(Mr)
             Kr = sla.solve_triangular(L, sla.solve_triangular(L, Kr, lower=True).T, lower=True)

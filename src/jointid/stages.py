@@ -330,11 +330,23 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
 
 def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False):
     """Gauss-Newton refinement of the surface optimum on the full FE model."""
-    from .model import joint_terms, load_model
+    from .model import load_model
+
+    ref = np.asarray(doc["ref_shapes"])[:, pairing]
+    return polish_on_model(cfg, load_model(matrices), doc["names"], theta0, f_meas, ref, lower, upper,
+                           weights=weights, sigma_rel=sigma_rel, repair=repair)
+
+
+def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shapes, lower, upper, *,
+                    weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None):
+    """FE polish (:func:`jointid.updating.fe_polish`) of joint parameters ``names`` on ``model``.
+
+    ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by MAC; with
+    ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate instead.
+    """
+    from .model import joint_terms
     from .updating import fe_polish
 
-    model = load_model(matrices)
-    names = doc["names"]
     jt = joint_terms(cfg["joints"])
 
     def solve(theta):
@@ -342,9 +354,8 @@ def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, low
         return freqs, shapes, modes.phi, model.stiffness
 
     terms = [{t: 1.0 for t in jt[n]} for n in names]
-    ref = np.asarray(doc["ref_shapes"])[:, pairing]
-    return fe_polish(solve, theta0, names, lower, upper, f_meas, ref, terms, weights=weights,
-                     sigma_rel=sigma_rel, log=_log,
+    return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
+                     sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
                      repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None)
 
 
