@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import os
 import sys
 
 from .errors import ConfigError
@@ -65,3 +66,20 @@ def _merge_into(dest: dict, src: dict) -> None:
             _merge_into(dest[k], v)
         else:
             dest[k] = copy.deepcopy(v)
+
+
+def registered_datasets(config: dict) -> dict:
+    """The datasets to diagnose: those under `datasets:`, else the measured dataset of the run.
+
+    Without a `datasets:` block the folder `measurements.dataset` (the paper's data by default) is
+    diagnosed under its folder name, with the states that use it.
+    """
+    named = dict(config.get("datasets") or {})
+    if named:
+        return named
+    path = config["measurements"]["dataset"]
+    states = [s for s, c in config["states"].items() if not c.get("dataset")]
+    name = os.path.basename(os.path.normpath(path))
+    if not states or not name.isidentifier():
+        return {}
+    return {name: {"path": path, "states": states}}

@@ -7,26 +7,9 @@
 # reruns only this rule.  With no `datasets:` block the run's measured dataset (measurements.dataset,
 # data/paper by default) is diagnosed under its folder name.
 
-def _registered_datasets(config):
-    """The datasets to diagnose: those under `datasets:`, else the measured dataset of the run.
+from jointid.workflowconfig import registered_datasets
 
-    Without a `datasets:` block the folder `measurements.dataset` (the paper's data by default) is
-    diagnosed under its folder name, with the states that use it.
-    """
-    import os
-
-    named = dict(config.get("datasets") or {})
-    if named:
-        return named
-    path = config["measurements"]["dataset"]
-    states = [s for s, c in config["states"].items() if not c.get("dataset")]
-    name = os.path.basename(os.path.normpath(path))
-    if not states or not name.isidentifier():
-        return {}
-    return {name: {"path": path, "states": states}}
-
-
-DIAG_DATASETS = _registered_datasets(config)
+DIAG_DATASETS = registered_datasets(config)
 
 
 def _diagnosis_inputs(wc):
