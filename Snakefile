@@ -189,6 +189,7 @@ rule fit_surface:
 
 rule identify:
     input:
+        unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),  # the polish runs on the ROM
         surface=rules.fit_surface.output.model,
         points=rules.mesh.output.points,
         matrices=rules.mesh.output.matrices,

@@ -65,7 +65,8 @@ def stage(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def coarse(stage):
-    """``(cfg, model, rom)``: the ROM the rom stage wrote (corners + centre, greedy-verified)."""
+    """``(cfg, model, rom)``: the ROM the rom stage wrote (centre solve, inverse iterations at the
+    corners, greedy-verified)."""
     cfg, model, folder, _, _ = stage
     return cfg, model, load_rom(folder / "rom.npz")
 
@@ -173,10 +174,11 @@ def test_greedy_enrichment_reaches_tolerance():
 
 
 def test_residual_indicator_vanishes_at_a_training_point(coarse):
-    """At a training point the ROM contains the exact modes: residual at round-off level there,
-    clearly larger in the interior."""
+    """At the fully solved training point (the centre) the ROM contains the exact modes: residual at
+    round-off level there, clearly larger in the interior."""
     cfg, model, rom = coarse
-    kc, mc = rom.coefficients(rom.report["training"][1]["theta"])  # a corner
+    assert rom.report["training"][0]["how"] == "full solve"
+    kc, mc = rom.coefficients(rom.report["training"][0]["theta"])  # the centre
     eta_corner = residual_indicator(model, rom, kc, mc)
     kc, mc = rom.coefficients(_random_thetas(cfg, 1, seed=4)[0])
     eta_inside = residual_indicator(model, rom, kc, mc)
@@ -284,5 +286,48 @@ def test_dry_run_rom_rule_once_with_method_rom_and_never_with_full(tmp_path):
     assert len(rom_inputs) == len(full_inputs) == n_points
     assert all("results/rom/rom.npz" in line.split(", ") for line in rom_inputs)
     assert all(line == "results/model/matrices.npz, results/doe/points.csv" for line in full_inputs)
+    # the identify jobs polish on the ROM with method rom, on the FE model otherwise
+    ident = {m: re.findall(r"^rule identify:\n\s+input: (.*)$", text, flags=re.M) for m, text in out.items()}
+    assert len(ident["rom"]) == len(ident["full"]) == 2
+    assert all("results/rom/rom.npz" in line for line in ident["rom"])
+    assert not any("rom.npz" in line for line in ident["full"])
     assert re.search(r"^rule rom:\n\s+input: results/model/matrices.npz, results/doe/points.csv\n"
                      r"\s+output: results/rom/rom.npz, results/rom/rom.json", out["rom"], flags=re.M)
+
+
+def test_training_kind_is_checked_and_modes_training_still_verifies(coarse):
+    """Both training kinds meet the tolerance at fresh interior points; a wrong kind is a clear error."""
+    cfg, model, rom_inverse = coarse
+    with pytest.raises(ModelError, match="training 'lanczos' is unknown"):
+        build_rom(model, cfg, N_MODES, "corners", training="lanczos")
+    rom_modes = build_rom(model, cfg, N_MODES, "corners", training="modes", tol=TOL, seed=3)
+    assert rom_modes.report["verified"]
+    assert [t["how"] for t in rom_inverse.report["training"]][1:] == ["1 inverse iteration(s)"] * 8
+    for theta in _random_thetas(cfg, 2, seed=21):
+        f_full, _, kc, mc = _full(model, cfg, theta)
+        for rom in (rom_inverse, rom_modes):
+            assert np.max(frequency_error(rom.solve(kc, mc)[0], f_full)) <= TOL
+
+
+def test_polish_on_the_rom_recovers_the_full_model_truth(coarse):
+    """Gauss-Newton polish on the ROM (the identify stage with solver.method: rom) lands where the
+    full-model polish lands: frequencies synthesised by a full solve at a known truth are recovered."""
+    from jointid.stages import polish_on_model
+
+    cfg, model, rom = coarse
+    names = list(cfg["joints"]["parameters"])
+    lo = np.array([cfg["joints"]["parameters"][n]["lower"] for n in names])
+    hi = np.array([cfg["joints"]["parameters"][n]["upper"] for n in names])
+    truth = _random_thetas(cfg, 1, seed=17)[0]
+    f_full, shapes, _, _ = _full(model, cfg, truth)
+    keep = np.flatnonzero(f_full >= cfg["solver"]["min_freq_Hz"])[:5]
+    theta_true = np.array([truth[n] for n in names])
+    theta0 = theta_true * np.array([1.3, 0.75, 1.2])
+    results = {}
+    for kind, m in (("rom", rom), ("full", model)):
+        res = polish_on_model(cfg, m, names, theta0, f_full[keep], shapes[:, keep], lo, hi, sigma_rel=0.01,
+                              log=lambda msg: None)
+        results[kind] = np.asarray(res["theta"])
+        np.testing.assert_allclose(res["f_fe"], f_full[keep], rtol=5 * TOL)
+    np.testing.assert_allclose(results["rom"], theta_true, rtol=0.01)
+    np.testing.assert_allclose(results["rom"], results["full"], rtol=0.01)

@@ -9,10 +9,15 @@ so once a basis ``V`` (n_dofs x r, r ~ 10^2) is fixed, every term is projected *
 eigenproblem ``Kr(k) y = w^2 Mr(m) y`` (Rayleigh-Ritz), solved with :func:`scipy.linalg.eigh`.
 
 Basis
-    Mass-normalised modes of full solves (:func:`jointid.modal.solve_modes`) at a few points of the
-    coded joint-parameter box (default: its ``2**p`` corners and the centre), ``n_modes + n_extra``
-    modes each, stacked and M-orthonormalised against the reference mass matrix (that of the first
-    training point).  Directions that the stack represents to better than ``rank_rtol`` are dropped.
+    Training at a few points of the coded joint-parameter box (default: the centre and its ``2**p``
+    corners), stacked and M-orthonormalised against the reference mass matrix (that of the first
+    training point); directions that the stack represents to better than ``rank_rtol`` are dropped.
+    ``training="modes"``: ``n_modes + n_extra`` mass-normalised modes of a full solve
+    (:func:`jointid.modal.solve_modes`) at every training point.  ``training="inverse"`` (default):
+    a full solve at the first point only; at every further point the current ROM's Ritz vectors are
+    improved by ``n_inverse`` block inverse iterations ``W = (K - sigma M)^-1 M V y`` with one
+    factorisation and no Lanczos run, which costs about a third of a full solve and, on the rigs
+    tested, reaches the same accuracy (the Ritz vectors are already close, so one step suffices).
 Error control (greedy)
     Random interior points of the box (candidates) are ranked by a cheap residual indicator
     (:func:`residual_indicator`, no factorisation); the worst few are solved in full and compared
@@ -47,7 +52,7 @@ from scipy.linalg import lapack
 from . import io
 from .doe import to_physical
 from .errors import ModelError, NumericalWarning
-from .modal import TWO_PI, Modes, solve_modes
+from .modal import TWO_PI, Modes, factorize, solve_modes
 from .model import base_coefficients, joint_terms
 
 __all__ = ["ROM", "build_rom", "training_points", "load_rom", "frequency_error", "residual_indicator",
@@ -392,6 +397,34 @@ def _full_solve(model, kc, mc, n, solver):
                        fixed=model.fixed, backend=solver.get("backend", "auto"))
 
 
+def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver, n_inverse: int, labels) -> int:
+    """Improve the current ROM's ``n`` lowest Ritz vectors at ``(kc, mc)`` by ``n_inverse`` block
+    inverse iterations with the full ``K - sigma M`` (one factorisation); add them to the basis.
+    Returns the number of basis vectors added."""
+    shift = float(solver.get("shift_Hz", -10.0))
+    sigma = -abs(TWO_PI * shift) ** 2 if shift <= 0 else (TWO_PI * shift) ** 2
+    free = np.setdiff1d(np.arange(model.n_dofs), model.fixed) if len(model.fixed) else np.arange(model.n_dofs)
+    K, M = model.K(kc), model.M(mc)
+    A = (K - sigma * M)[free][:, free].tocsr()
+    try:
+        fac = factorize(A, solver.get("backend", "auto"))
+    except Exception as exc:
+        raise ModelError(f"rom: factorisation of K - sigma*M failed at a training point ({exc}) — check "
+                         "the joint stiffness bounds and supports, or use solver.shift_Hz < 0") from None
+    added = 0
+    try:
+        for _ in range(max(1, int(n_inverse))):
+            rom = _assemble(b, model, n, {}, labels)
+            _, _, y = rom.solve(kc, mc, n, check=False, return_coords=True)
+            X = b.V @ y
+            W = np.zeros_like(X)
+            W[free] = fac.solve(np.ascontiguousarray((M @ X)[free]))
+            added += b.add(W)
+    finally:
+        fac.free()
+    return added
+
+
 def residual_indicator(model, rom: ROM, k_coeffs: dict, m_coeffs: dict, n_modes: int | None = None,
                        V: np.ndarray | None = None) -> np.ndarray:
     """Relative residual ``||K phi - w^2 M phi|| / ||K phi||`` (free DOFs) of each ROM mode.
@@ -419,7 +452,7 @@ def residual_indicator(model, rom: ROM, k_coeffs: dict, m_coeffs: dict, n_modes:
 
 
 def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *, n_extra: int = 2,
-              tol: float = 1e-4, n_verify: int = 2, max_rounds: int = 6, n_candidates: int = 32,
+              training: str = "inverse", n_inverse: int = 1, tol: float = 1e-4, n_verify: int = 2, max_rounds: int = 6, n_candidates: int = 32,
               seed: int = 0, extra_points: list[tuple[dict, dict]] | None = None, rank_rtol: float = 1e-6,
               keep_basis: bool = True, labels: list[str] | None = None, candidates=None, progress=None) -> ROM:
     """Build and verify a parametric ROM of ``model`` over the joint-parameter box of ``cfg``.
@@ -441,6 +474,12 @@ def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *,
     points : ``"corners"``, ``"star"``, array (n, p) or list of dict
         Training points: coded points in ``[-1, 1]^p`` over ``joints.parameters`` (log coding as in
         :mod:`jointid.doe`) or dicts of joint parameters in N/m^3 (e.g. an identified optimum).
+    training : ``"inverse"`` or ``"modes"``
+        How training points after the first enter the basis: block inverse iterations from the current
+        Ritz vectors (``"inverse"``, default, ``n_inverse`` steps, one factorisation each) or the
+        modes of a full solve (``"modes"``).  The first point is always a full solve.
+    n_inverse : int
+        Inverse-iteration steps per training point (``training="inverse"``).
     n_extra : int
         Modes computed beyond ``n_modes`` at each training point (default 2: a small basis evaluates
         fast, and the greedy error control adds what is missing).
@@ -510,14 +549,20 @@ def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *,
             lo, hi = covered.get(nme, [c, c])
             covered[nme] = [min(lo, c), max(hi, c)]
 
+    if training not in ("inverse", "modes"):
+        raise ModelError(f"rom: training '{training}' is unknown — use inverse or modes")
     n_train = n_modes + n_extra
-    report = {"n_modes": n_modes, "n_train_modes": n_train, "tol": tol, "training": [], "rounds": []}
-    for theta, (kc, mc) in train:
-        modes = _full_solve(model, kc, mc, n_train, solver)
-        added = b.add(modes.phi)
+    report = {"n_modes": n_modes, "n_train_modes": n_train, "tol": tol, "training_kind": training,
+              "training": [], "rounds": []}
+    for k, (theta, (kc, mc)) in enumerate(train):
+        if k == 0 or training == "modes":
+            added, how = b.add(_full_solve(model, kc, mc, n_train, solver).phi), "full solve"
+        else:
+            added = _inverse_iterates(b, model, kc, mc, n_train, solver, n_inverse, labels)
+            how = f"{max(1, int(n_inverse))} inverse iteration(s)"
         cover(kc, mc)
-        report["training"].append({"theta": theta, "added": added})
-        say(f"rom: training point {theta or kc}: +{added} vectors (r = {b.V.shape[1]})")
+        report["training"].append({"theta": theta, "added": added, "how": how})
+        say(f"rom: training point {k + 1}/{len(train)} ({how}): +{added} vectors (r = {b.V.shape[1]})")
 
     rng = np.random.default_rng(seed)
     coded = rng.uniform(-1.0, 1.0, size=(n_candidates, len(names)))

@@ -156,8 +156,9 @@ def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, r
 def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: str) -> dict:
     """Build the parametric reduced-order model once (``solver.method: rom``) with error control.
 
-    Training: full solves at the corners and the centre of the joint-parameter box (``solver.n_modes``
-    + 2 modes each).  Error control: candidate points (random interior ones and every point of the
+    Training: a full solve at the centre of the joint-parameter box (``solver.n_modes`` + 2 modes),
+    then one block inverse iteration from the current Ritz vectors at each corner (one factorisation
+    each, no Lanczos run; :func:`jointid.rom.build_rom`).  Error control: candidate points (random interior ones and every point of the
     DOE sheet) are ranked by the residual indicator; the worst are solved in full, and the basis is
     enriched until the relative frequency error of every tracked mode (at or above
     ``solver.min_freq_Hz``) is at most ``solver.rom_tolerance``.  Writes the ROM with its basis
@@ -269,7 +270,13 @@ def _dataset_for(cfg: dict, state: str) -> str:
 
 
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
-                 matrices: str | None = None) -> None:
+                 matrices: str | None = None, rom: str | None = None) -> None:
+    """Identify one state's joint parameters: multistart on the surfaces, then the polish.
+
+    The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
+    reduced-order model ``rom`` when one is given (``solver.method: rom``; the verify stage then
+    checks the result with a full solve).
+    """
     import pandas as pd
 
     from .measured import read_dataset
@@ -294,7 +301,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     f_final, polish = res.f_model, None
     if matrices and cfg["identify"].get("fe_polish", True):
         polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, lower, upper,
-                         repair=shapes is None)
+                         repair=shapes is None, rom=rom)
         theta, f_final = polish["theta"], polish["f_fe"]
         sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
         ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
@@ -310,6 +317,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                                           for n, th, lo, hi in zip(doc["names"], theta, ci_lo, ci_hi)},
            "surface_optimum": {n: float(t) for n, t in zip(doc["names"], surface_theta)},
            "fe_polish": None if polish is None else {
+               "on": "rom" if rom else "fe",
                "iterations": polish["iterations"], "cost_history": polish["cost_history"],
                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
@@ -328,12 +336,19 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
         _log("warning: " + m)
 
 
-def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False):
-    """Gauss-Newton refinement of the surface optimum on the full FE model."""
+def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False,
+            rom=None):
+    """Gauss-Newton refinement of the surface optimum on the full FE model (or the ROM file ``rom``)."""
     from .model import load_model
 
     ref = np.asarray(doc["ref_shapes"])[:, pairing]
-    return polish_on_model(cfg, load_model(matrices), doc["names"], theta0, f_meas, ref, lower, upper,
+    if rom:
+        from .rom import load_rom
+
+        model = load_rom(rom)
+    else:
+        model = load_model(matrices)
+    return polish_on_model(cfg, model, doc["names"], theta0, f_meas, ref, lower, upper,
                            weights=weights, sigma_rel=sigma_rel, repair=repair)
 
 
@@ -341,17 +356,28 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
                     weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None):
     """FE polish (:func:`jointid.updating.fe_polish`) of joint parameters ``names`` on ``model``.
 
-    ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by MAC; with
+    ``model`` is the full FE model (:class:`jointid.fem.Model`) or a reduced-order model
+    (:class:`jointid.rom.ROM`, evaluated in its generalised coordinates, where the sensitivities
+    ``y^T Kr_i y`` are exact for the reduced model).  ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by MAC; with
     ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate instead.
     """
     from .model import joint_terms
     from .updating import fe_polish
 
-    jt = joint_terms(cfg["joints"])
+    from .rom import ROM
 
-    def solve(theta):
-        freqs, shapes, _, modes = solve_point(cfg, model, dict(zip(names, theta)), describe=False)
-        return freqs, shapes, modes.phi, model.stiffness
+    jt = joint_terms(cfg["joints"])
+    if isinstance(model, ROM):
+        reduced_terms = dict(zip(model.k_names, model.k_terms))
+        n_modes = cfg["solver"]["n_modes"]
+
+        def solve(theta):
+            freqs, shapes, y = model.solve_theta(dict(zip(names, theta)), n_modes, return_coords=True)
+            return freqs, shapes, y, reduced_terms
+    else:
+        def solve(theta):
+            freqs, shapes, _, modes = solve_point(cfg, model, dict(zip(names, theta)), describe=False)
+            return freqs, shapes, modes.phi, model.stiffness
 
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
