@@ -48,7 +48,8 @@ def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, r
         if s:
             t_build = r["per_rule"].get("rom", {}).get("sum_s", float("nan"))
             res.add("  rom: ROM build (rule rom) and achieved max relative frequency error",
-                    f"{t_build:.0f} s, r = {s['basis_size']}, {s['n_full_solves']} full solves; "
+                    f"{t_build:.0f} s, r = {s['basis_size']}, {s['n_full_solves']} full solves + "
+                    f"{s.get('n_inverse_iteration_points', 0)} inverse-iteration points; "
                     f"{s['max_error']:.1e}", f"<= {s['tolerance']:.0e}", s["max_error"] <= s["tolerance"])
         _notes(res, r, blas_threads, "rom: ")
         res.data["rom"] = r
