@@ -310,6 +310,15 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
         ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
         for n in polish["on_bound"]:
             msgs.append(f"{n} sits on a bound of joints.parameters.{n} after the FE polish — widen the bounds")
+        skipped = polish["unpaired_in_band_Hz"]
+        if skipped:
+            msgs.append(f"{len(skipped)} model mode(s) inside the measured band ("
+                        + ", ".join(f"{f:.0f}" for f in skipped) + " Hz) have no measured partner: "
+                        + ("the frequency-only pairing skipped them. Either the test missed them (check that "
+                           "the excitation and measuring points could see them) or the reconstruction is off; "
+                           "measured shapes would make the pairing unambiguous (MAC)" if shapes is None else
+                           "the measured shapes pair with other model modes; check whether the test could "
+                           "have missed them"))
     areas = io.read_json(points_csv.replace("measuring_points.csv", "summary.json"))["contact_area_per_carriage_m2"]
     per_carriage = {}
     for n, th, lo, hi in zip(doc["names"], theta, ci_lo, ci_hi):
@@ -321,6 +330,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
            "surface_optimum": {n: float(t) for n, t in zip(doc["names"], surface_theta)},
            "fe_polish": None if polish is None else {
                "on": "rom" if rom else "fe",
+               "unpaired_in_band_Hz": polish["unpaired_in_band_Hz"],
                "iterations": polish["iterations"], "cost_history": polish["cost_history"],
                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [

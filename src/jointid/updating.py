@@ -208,7 +208,7 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
             J[:, i] = np.sqrt(w) * dlam_dlog10 / (8 * np.pi**2 * f) / f_meas
         history.append(float(r @ r))
         if best is None or history[-1] < best[0]:
-            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy())
+            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs))
         log(f"  FE polish it {it}: max |error| {100 * np.abs(r / np.sqrt(w)).max():.3f} %, "
             + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
         shapes_now = shapes[:, index]
@@ -222,8 +222,12 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
             y = y_new
             break
         y = y_new
-    _, y, f, index, macs, J = best
+    _, y, f, index, macs, J, freqs = best
     cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
+    band = (np.min(f_meas), np.max(f_meas))
+    unpaired = [float(freqs[j]) for j in range(len(freqs))
+                if band[0] <= freqs[j] <= band[1] and j not in set(index.tolist())]
     return {"theta": 10 ** y, "f_fe": f, "index": index, "mac": macs, "jacobian_log10": J,
+            "unpaired_in_band_Hz": unpaired,
             "cov_log10": cov, "iterations": it, "cost_history": history,
             "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}
