@@ -47,6 +47,19 @@ RUN_TIMEOUT_S = 900
 
 
 # ------------------------------------------------------------------ workflow copies
+def coarse_config_dict() -> dict:
+    """The default ``config.yaml`` with the sections of ``tests/coarse_config.yaml`` merged over it
+    (one level deep, as Snakemake merges config files), as a plain dict — not yet validated."""
+    import yaml
+
+    with open(REPO / "config.yaml") as fh:
+        cfg = yaml.safe_load(fh)
+    with open(COARSE_CONFIG) as fh:
+        for k, v in yaml.safe_load(fh).items():
+            cfg[k] = {**cfg.get(k, {}), **v}
+    return cfg
+
+
 def copy_workflow(dest: Path) -> Path:
     """Copy Snakefile, config.yaml, workflow/ and data/ of the repository into ``dest``."""
     dest = Path(dest)

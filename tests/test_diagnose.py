@@ -16,6 +16,7 @@ from jointid import correlate
 from jointid import effects as E
 from jointid.diagnose import (ReducedSolver, Variant, EffectSpec, append_history, identifiability, limit_threads,
                               score_test)
+from conftest import coarse_config_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -127,11 +128,7 @@ def coarse():
     from jointid.model import build_model
 
     limit_threads(1)
-    with open(ROOT / "config.yaml") as fh:
-        cfg = yaml.safe_load(fh)
-    with open(ROOT / "tests/coarse_config.yaml") as fh:
-        for k, v in yaml.safe_load(fh).items():
-            cfg[k] = {**cfg.get(k, {}), **v}
+    cfg = coarse_config_dict()
     cfg = load_config(cfg)
     model = build_model(cfg)
     return cfg, E.build_system(model, cfg)

@@ -4,7 +4,6 @@ import math
 
 import numpy as np
 import pytest
-import yaml
 
 from jointid import effects as E
 from jointid.config import load_config
@@ -12,6 +11,7 @@ from jointid.emforce import carriage_loads_N
 from jointid.errors import ConfigError
 from jointid.modal import solve_modes
 from jointid.model import base_coefficients, build_model
+from conftest import coarse_config_dict
 
 
 @pytest.fixture(scope="module")
@@ -19,11 +19,7 @@ def setup():
     from jointid.diagnose import limit_threads
 
     limit_threads(1)
-    with open("config.yaml") as fh:
-        cfg = yaml.safe_load(fh)
-    with open("tests/coarse_config.yaml") as fh:
-        for k, v in yaml.safe_load(fh).items():
-            cfg[k] = {**cfg.get(k, {}), **v}
+    cfg = coarse_config_dict()
     cfg = load_config(cfg)
     model = build_model(cfg)
     return cfg, model, E.build_system(model, cfg)

@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from jointid import effects as E
 from jointid import synth
 from jointid.config import load_config
 from jointid.diagnose import diagnose, dataset_states, history_row, limit_threads, write_outputs
 from jointid.measured import read_dataset
+from conftest import coarse_config_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = sorted((ROOT / "tests" / "hidden").glob("*.yaml"))
@@ -31,11 +31,7 @@ def rig():
     from jointid.model import build_model
 
     limit_threads(1)
-    with open(ROOT / "config.yaml") as fh:
-        cfg = yaml.safe_load(fh)
-    with open(ROOT / "tests/coarse_config.yaml") as fh:
-        for k, v in yaml.safe_load(fh).items():
-            cfg[k] = {**cfg.get(k, {}), **v}
+    cfg = coarse_config_dict()
     cfg["joints"]["parameters"] = {
         "k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
         "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}}

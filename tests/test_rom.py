@@ -18,7 +18,7 @@ from jointid.errors import ConfigError, ModelError, NumericalWarning
 from jointid.modal import mac, solve_modes
 from jointid.model import base_coefficients, build_model, save_model
 from jointid.rom import ROM, build_rom, frequency_error, load_rom, residual_indicator, training_points
-from jointid.stages import doe_sheet, run_modal, run_rom
+from jointid.stages import doe_sheet, polish_on_model, run_modal, run_rom
 
 ROOT = Path(__file__).resolve().parents[1]
 TOL = 1e-4
@@ -311,19 +311,23 @@ def test_training_kind_is_checked_and_modes_training_still_verifies(coarse):
             assert np.max(frequency_error(rom.solve(kc, mc)[0], f_full)) <= TOL
 
 
-def test_polish_on_the_rom_recovers_the_full_model_truth(coarse):
-    """Gauss-Newton polish on the ROM (the identify stage with solver.method: rom) lands where the
-    full-model polish lands: frequencies synthesised by a full solve at a known truth are recovered."""
-    from jointid.stages import polish_on_model
-
-    cfg, model, rom = coarse
+def _polish_case(cfg, model):
+    """A known truth for the polish tests: names, bounds, true parameters, its full-solve frequencies
+    and shapes, and the first five modes above solver.min_freq_Hz."""
     names = list(cfg["joints"]["parameters"])
     lo = np.array([cfg["joints"]["parameters"][n]["lower"] for n in names])
     hi = np.array([cfg["joints"]["parameters"][n]["upper"] for n in names])
     truth = _random_thetas(cfg, 1, seed=17)[0]
     f_full, shapes, _, _ = _full(model, cfg, truth)
     keep = np.flatnonzero(f_full >= cfg["solver"]["min_freq_Hz"])[:5]
-    theta_true = np.array([truth[n] for n in names])
+    return names, lo, hi, np.array([truth[n] for n in names]), f_full, shapes, keep
+
+
+def test_polish_on_the_rom_recovers_the_full_model_truth(coarse):
+    """Gauss-Newton polish on the ROM (the identify stage with solver.method: rom) lands where the
+    full-model polish lands: frequencies synthesised by a full solve at a known truth are recovered."""
+    cfg, model, rom = coarse
+    names, lo, hi, theta_true, f_full, shapes, keep = _polish_case(cfg, model)
     theta0 = theta_true * np.array([1.3, 0.75, 1.2])
     results = {}
     for kind, m in (("rom", rom), ("full", model)):
@@ -338,17 +342,9 @@ def test_polish_on_the_rom_recovers_the_full_model_truth(coarse):
 def test_polish_reports_model_modes_left_unpaired_inside_the_measured_band(coarse):
     """A measured set that misses one mode in the middle of its band: the polish names that model
     mode (and only it) as unpaired in band — the identify stage warns with it."""
-    from jointid.stages import polish_on_model
-
     cfg, model, rom = coarse
-    names = list(cfg["joints"]["parameters"])
-    lo = np.array([cfg["joints"]["parameters"][n]["lower"] for n in names])
-    hi = np.array([cfg["joints"]["parameters"][n]["upper"] for n in names])
-    truth = _random_thetas(cfg, 1, seed=17)[0]
-    f_full, shapes, _, _ = _full(model, cfg, truth)
-    keep = np.flatnonzero(f_full >= cfg["solver"]["min_freq_Hz"])[:5]
+    names, lo, hi, theta_true, f_full, shapes, keep = _polish_case(cfg, model)
     seen = keep[[0, 1, 3, 4]]
-    theta_true = np.array([truth[n] for n in names])
     res = polish_on_model(cfg, rom, names, theta_true, f_full[seen], shapes[:, seen], lo, hi, log=lambda m: None)
     assert res["unpaired_in_band_Hz"] == pytest.approx([f_full[keep[2]]], rel=5 * TOL)
     full = polish_on_model(cfg, rom, names, theta_true, f_full[keep], shapes[:, keep], lo, hi, log=lambda m: None)
