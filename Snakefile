@@ -20,7 +20,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("PYTHONHASHSEED", "0")
 
 from jointid.workflowconfig import validated, sections, merged
-from jointid.stages import doe_sheet
+from jointid.stages import doe_sheet, zoom_enabled
 
 configfile: "config.yaml"
 config = validated(config)
@@ -52,7 +52,7 @@ CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, CFG_FIT_SURFACE, CFG_VERIFY, *map(cfg
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
-localrules: all, doe, gather_modal, tables
+localrules: all, doe, gather_modal, tables, doe_zoom, gather_zoom
 
 
 rule all:
@@ -187,10 +187,121 @@ rule fit_surface:
         "workflow/scripts/fit_surface.py"
 
 
+# doe.zoom (sequential response surface, on by default): the surfaces over the whole bounds give each
+# state a first optimum ("scout", surfaces only); a second DOE of the same design is solved in a box
+# around those optima (shared by the states: one fan-out), and the surfaces fitted there carry the
+# identification.  A quadratic in log-parameters is accurate over a factor ~2, not over decades.
+ZOOM = zoom_enabled(config)
+SURFACE = f"{R}/surface/zoom/model.json" if ZOOM else f"{R}/surface/model.json"
+
+
+def cfg_scout(state):
+    """rule scout: what the surface-only identification reads (not the FE solve, not the motor force)."""
+    return sections(config, "joints", "identify", "measurements", f"states.{state}.dataset")
+
+
+rule scout:
+    input:
+        surface=rules.fit_surface.output.model,
+        points=rules.mesh.output.points,
+        dataset=lambda wc: config["states"][wc.state].get("dataset") or config["measurements"]["dataset"],
+    output:
+        params=f"{R}/identify/{{state}}/scout.json",
+    params:
+        cfg=lambda wc: cfg_scout(wc.state),
+    log:
+        "logs/scout/{state}.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    script:
+        "workflow/scripts/identify.py"
+
+
+rule doe_zoom:
+    input:
+        scout=expand(f"{R}/identify/{{state}}/scout.json", state=STATES),
+    output:
+        sheet=f"{R}/doe/zoom/points.csv",
+        box=f"{R}/doe/zoom/box.json",
+    params:
+        cfg=CFG_DOE,
+        states=STATES,
+    log:
+        "logs/doe_zoom.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
+    script:
+        "workflow/scripts/doe_zoom.py"
+
+
+rule modal_zoom:
+    input:
+        unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),
+        matrices=rules.mesh.output.matrices,
+        sheet=rules.doe_zoom.output.sheet,
+    output:
+        modes=f"{R}/modal/zoom/points/{{point}}.npz",
+    params:
+        cfg=CFG_MODAL_RULE,  # the point's parameters come from the zoomed sheet (known at run time)
+    log:
+        "logs/modal_zoom/{point}.log",
+    benchmark:
+        "benchmarks/out/modal_zoom/{point}.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=10,
+    script:
+        "workflow/scripts/modal.py"
+
+
+rule gather_zoom:
+    input:
+        sheet=rules.doe_zoom.output.sheet,
+        modes=expand(f"{R}/modal/zoom/points/{{point}}.npz", point=POINTS),
+    output:
+        table=f"{R}/modal/zoom/all.csv",
+        arrays=f"{R}/modal/zoom/all.npz",
+    params:
+        cfg=CFG_MODAL_CHAIN,  # nothing of its own: for the provenance
+    log:
+        "logs/gather_zoom.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=2,
+    script:
+        "workflow/scripts/gather.py"
+
+
+rule fit_zoom:
+    input:
+        sheet=rules.doe_zoom.output.sheet,
+        arrays=rules.gather_zoom.output.arrays,
+        box=rules.doe_zoom.output.box,
+    output:
+        model=f"{R}/surface/zoom/model.json",
+        diagnostics=f"{R}/surface/zoom/diagnostics.csv",
+    params:
+        cfg=CFG_FIT_SURFACE,
+    log:
+        "logs/fit_zoom.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    script:
+        "workflow/scripts/fit_surface.py"
+
+
 rule identify:
     input:
         unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),  # the polish runs on the ROM
-        surface=rules.fit_surface.output.model,
+        surface=SURFACE,
         points=rules.mesh.output.points,
         matrices=rules.mesh.output.matrices,
         dataset=lambda wc: config["states"][wc.state].get("dataset") or config["measurements"]["dataset"],
@@ -213,7 +324,7 @@ rule identify:
 rule verify:
     input:
         params=rules.identify.output.params,
-        surface=rules.fit_surface.output.model,
+        surface=SURFACE,
         matrices=rules.mesh.output.matrices,
     output:
         table=f"{R}/identify/{{state}}/verify.csv",

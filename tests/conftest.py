@@ -38,7 +38,8 @@ REPO = Path(__file__).resolve().parents[1]
 COARSE_CONFIG = REPO / "tests" / "coarse_config.yaml"
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 WORKFLOW_ITEMS = ("Snakefile", "config.yaml", "workflow", "data")
-CORE_RULES = ("mesh", "doe", "modal", "gather_modal", "fit_surface", "identify", "verify", "tables")
+CORE_RULES = ("mesh", "doe", "modal", "gather_modal", "fit_surface", "scout", "doe_zoom", "modal_zoom",
+              "gather_zoom", "fit_zoom", "identify", "verify", "tables")
 STATES = ("power_off", "power_on")
 TABLES = ("results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv")
 TABLE_COLUMNS = ["order", "experimental_Hz", "simulation_Hz", "relative_error_pct",

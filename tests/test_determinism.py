@@ -93,7 +93,9 @@ def _reproducible_part(path: Path) -> dict:
 WITH_PROVENANCE = (
     "results/modal/all.csv", "results/modal/all.npz",
     "results/surface/model.json", "results/surface/diagnostics.csv",
-    *(f"results/identify/{s}/{f}" for s in STATES for f in ("params.json", "verify.csv")),
+    "results/modal/zoom/all.csv", "results/modal/zoom/all.npz",
+    "results/surface/zoom/model.json", "results/surface/zoom/diagnostics.csv",
+    *(f"results/identify/{s}/{f}" for s in STATES for f in ("scout.json", "params.json", "verify.csv")),
     *(f"results/harmonic/{s}/{f}" for s in STATES for f in ("frf.csv", "dynamic_stiffness.json", "modes.npz")),
     "results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv",
     "results/tables/table1_dynamic_stiffness.csv", "results/tables/table1_dynamic_stiffness.md",
@@ -147,6 +149,7 @@ def test_two_clean_runs_are_byte_identical(coarse_run, tmp_path):
             "results/tables/table1_dynamic_stiffness.csv", "results/report/index.html",
             "results/identify/power_off/params.json", "results/identify/power_on/params.json",
             "results/surface/model.json", "results/surface/diagnostics.csv",
+            "results/surface/zoom/model.json", "results/doe/zoom/points.csv",
             "results/modal/all.npz", "results/model/matrices.npz",
             "results/diagnosis/paper/ranking.csv"} <= set(a)
     # byte for byte, except the diagnosis' run records (history.csv, verdict.json, its index.html),

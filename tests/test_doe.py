@@ -123,3 +123,60 @@ def test_verification_points_fresh_and_interior():
     np.testing.assert_array_equal(V, doe.verification_points(12, 3, seed=0))
     D = doe.design("lhs", 3, n_samples=12, seed=0)[:-1]
     assert not np.allclose(0.9 * D, V)  # a different random stream from the design's
+
+
+# ------------------------------------------------------------------ the zoomed second DOE
+def _zoom_cfg(w=0.15):
+    from conftest import coarse_config_dict
+
+    cfg = coarse_config_dict()
+    cfg["doe"]["zoom"] = {"enabled": True, "half_width_decades": w}
+    return cfg
+
+
+def test_zoom_box_spans_all_state_optima_with_the_margin():
+    from jointid.stages import zoom_box
+
+    cfg = _zoom_cfg(0.15)
+    optima = {"a": {"k_normal_N_per_m3": 3e11, "k_lateral_N_per_m3": 1.2e12, "k_feed_N_per_m3": 8e9},
+              "b": {"k_normal_N_per_m3": 5e11, "k_lateral_N_per_m3": 1.5e12, "k_feed_N_per_m3": 8e9}}
+    lo, hi = zoom_box(cfg, optima)
+    f = 10 ** 0.15
+    np.testing.assert_allclose(lo, [3e11 / f, 1.2e12 / f, 8e9 / f], rtol=1e-12)
+    np.testing.assert_allclose(hi, [5e11 * f, 1.5e12 * f, 8e9 * f], rtol=1e-12)
+
+
+def test_zoom_box_at_a_bound_keeps_its_width_inside_the_bounds():
+    from jointid.stages import parameter_bounds, zoom_box
+
+    cfg = _zoom_cfg(0.2)
+    b_lo, b_hi = parameter_bounds(cfg)
+    optima = {"a": {"k_normal_N_per_m3": b_lo[0], "k_lateral_N_per_m3": b_hi[1], "k_feed_N_per_m3": 1e10}}
+    lo, hi = zoom_box(cfg, optima)
+    assert np.all(lo >= b_lo * (1 - 1e-12)) and np.all(hi <= b_hi * (1 + 1e-12))
+    np.testing.assert_allclose(np.log10(hi / lo), 0.4, rtol=1e-9)  # full width 2 w everywhere
+    np.testing.assert_allclose([lo[0], hi[1]], [b_lo[0], b_hi[1]], rtol=1e-12)
+
+
+def test_zoom_box_wider_than_the_bounds_is_the_bounds():
+    from jointid.stages import parameter_bounds, zoom_box
+
+    cfg = _zoom_cfg(1.0)
+    lo, hi = zoom_box(cfg, {"a": {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}})
+    np.testing.assert_allclose(lo, parameter_bounds(cfg)[0], rtol=1e-12)
+    np.testing.assert_allclose(hi, parameter_bounds(cfg)[1], rtol=1e-12)
+
+
+def test_zoomed_sheet_codes_its_own_box():
+    from jointid.stages import doe_sheet, parameter_names
+
+    cfg = _zoom_cfg()
+    names = parameter_names(cfg)
+    lo, hi = np.array([2e11, 8e11, 6e9]), np.array([7e11, 2e12, 1.2e10])
+    zoom, full = doe_sheet(cfg, lo, hi), doe_sheet(cfg)
+    assert list(zoom.point) == list(full.point) and list(zoom.role) == list(full.role)
+    X = zoom[[f"x_{n}" for n in names]].to_numpy()
+    np.testing.assert_array_equal(X, full[[f"x_{n}" for n in names]].to_numpy())  # same coded design
+    theta = zoom[names].to_numpy()
+    np.testing.assert_allclose(theta, doe.to_physical(X, lo, hi), rtol=1e-12)
+    assert np.all(theta >= lo * (1 - 1e-12)) and np.all(theta <= hi * (1 + 1e-12))

@@ -36,18 +36,34 @@ def test_complete_run_is_up_to_date(finished):
     assert "Nothing to be done" in out
 
 
-@pytest.mark.parametrize("change, expected", [
+def zoom_chain(finished) -> dict:
+    """Jobs of the zoomed second DOE once a first-stage optimum may have moved."""
+    n_points = len(list((finished / "results" / "modal" / "zoom" / "points").glob("*.npz")))
+    return {"scout": 2, "doe_zoom": 1, "modal_zoom": n_points, "gather_zoom": 1, "fit_zoom": 1}
+
+
+@pytest.mark.parametrize("change, expected, zoom", [
     ("identify:\n  frequency_uncertainty_pct: 2.0\n",
-     {"identify": 2, "verify": 2, "tables": 1}),
+     {"identify": 2, "verify": 2, "tables": 1}, True),
+    ("identify:\n  fe_polish: false\n",
+     {"identify": 2, "verify": 2, "tables": 1}, False),
     ("harmonic:\n  band_Hz: [300.0, 3200.0]\n",
-     {"fit_surface": 1, "identify": 2, "verify": 2, "tables": 1}),
-], ids=["frequency_uncertainty", "harmonic_band"])
-def test_one_changed_value_reruns_only_its_stages(finished, change, expected):
+     {"fit_surface": 1, "identify": 2, "verify": 2, "tables": 1}, True),
+    ("doe:\n  zoom:\n    half_width_decades: 0.2\n",
+     {"doe_zoom": 1, "identify": 2, "verify": 2, "tables": 1}, True),
+], ids=["frequency_uncertainty", "fe_polish", "harmonic_band", "zoom_width"])
+def test_one_changed_value_reruns_only_its_stages(finished, change, expected, zoom):
+    """The first-stage optima (scout) feed the zoomed DOE: what changes them reruns its fan-out;
+    what only the final identification reads (the FE polish switch) does not."""
     override = write_config(finished / "override.yaml", change)
     try:
         jobs, out = dry_run(finished, override)
     finally:
         override.unlink()
+    if zoom:
+        expected = {**zoom_chain(finished), **expected}
+        if "doe_zoom" in change:
+            expected.pop("scout")
     assert core(jobs) == expected, out[-3000:]
     assert not {"mesh", "doe", "modal", "gather_modal"} & set(jobs)
 
@@ -59,14 +75,16 @@ def test_solver_change_reruns_the_fanout_but_not_the_mesh(finished):
     finally:
         override.unlink()
     n_points = len(list((finished / "results" / "modal" / "points").glob("*.npz")))
-    assert core(jobs) == {"modal": n_points, "gather_modal": 1, "fit_surface": 1, "identify": 2,
-                          "verify": 2, "tables": 1}, out[-3000:]
+    assert core(jobs) == {"modal": n_points, "gather_modal": 1, "fit_surface": 1, **zoom_chain(finished),
+                          "identify": 2, "verify": 2, "tables": 1}, out[-3000:]
 
 
 @pytest.mark.parametrize("change, unaffected", [
     ("harmonic:\n  n_freq: 801\n", {"fit_surface": 0, "identify": 0, "verify": 0, "tables": 0}),
-    ("states:\n  power_on:\n    em_force_N: 1200.0\n", {"identify": 1, "verify": 1, "harmonic": 1}),
-    ("solver:\n  rom_tolerance: 2.0e-4\n", {"modal": 0, "fit_surface": 0, "identify": 0, "verify": 0}),
+    ("states:\n  power_on:\n    em_force_N: 1200.0\n", {"scout": 0, "doe_zoom": 0, "identify": 1, "verify": 1,
+                                                      "harmonic": 1}),
+    ("solver:\n  rom_tolerance: 2.0e-4\n", {"modal": 0, "fit_surface": 0, "modal_zoom": 0, "identify": 0,
+                                           "verify": 0}),
 ], ids=["harmonic_n_freq", "one_state", "rom_tolerance_unused_by_full"])
 def test_value_used_elsewhere_does_not_rerun_the_chain(finished, change, unaffected):
     """harmonic.n_freq is not used by the identification chain; power_on's force not by power_off

@@ -40,6 +40,7 @@ def test_dry_run_lists_every_stage_once_per_point_and_state(tmp_path):
     n_points = len(doe_sheet(coarse_config()))
     assert n_points == 15 + 2  # face-centred CCF in 3 factors + 1 centre, 2 verification points
     expected = {"mesh": 1, "doe": 1, "modal": n_points, "gather_modal": 1, "fit_surface": 1,
+                "scout": len(STATES), "doe_zoom": 1, "modal_zoom": n_points, "gather_zoom": 1, "fit_zoom": 1,
                 "identify": len(STATES), "verify": len(STATES), "tables": 1}
     assert {r: n for r, n in jobs.items() if r in CORE_RULES} == expected
     unknown = set(jobs) - set(CORE_RULES) - extra_rule_names(wd)
@@ -86,6 +87,30 @@ def test_full_coarse_run_params_within_bounds_and_clean(coarse_run):
     assert temporary_files(wd) == []
     for log in (wd / "logs").rglob("*.log"):
         assert "Traceback" not in log.read_text(), f"{log.name} holds a traceback"
+
+
+def test_zoomed_surfaces_are_more_accurate_and_carry_the_identification(coarse_run):
+    """The second DOE sits in the box around the first-stage optima of both states; its surfaces
+    agree with the FE model at its own fresh verification points better than the first ones do at
+    theirs; the identification and the verification use them."""
+    wd = coarse_run
+    box = json.loads((wd / "results" / "doe" / "zoom" / "box.json").read_text())
+    sheet = pd.read_csv(wd / "results" / "doe" / "zoom" / "points.csv")
+    for j, name in enumerate(box["names"]):
+        assert sheet[name].min() == pytest.approx(box["lower"][j], rel=1e-9)
+        assert sheet[name].max() == pytest.approx(box["upper"][j], rel=1e-9)
+        for state in STATES:
+            scout = json.loads((wd / "results" / "identify" / state / "scout.json").read_text())
+            assert box["lower"][j] < scout["surface_optimum"][name] * (1 + 1e-9)
+            assert scout["surface_optimum"][name] < box["upper"][j] * (1 + 1e-9)
+            assert scout["fe_polish"] is None  # the scout is the surfaces' optimum alone
+    first = pd.read_csv(wd / "results" / "surface" / "diagnostics.csv")["verify_max_error_pct"]
+    zoom = pd.read_csv(wd / "results" / "surface" / "zoom" / "diagnostics.csv")["verify_max_error_pct"]
+    assert zoom.max() < first.max(), (zoom.max(), first.max())
+    for state in STATES:
+        par = json.loads((wd / "results" / "identify" / state / "params.json").read_text())
+        assert par["surface_stage"] == "zoom"
+        assert [par["surface_box"][n] for n in box["names"]] == [list(b) for b in zip(box["lower"], box["upper"])]
 
 
 def test_failing_stage_leaves_no_partial_output_and_keeps_earlier_results(coarse_run, tmp_path):

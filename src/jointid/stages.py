@@ -59,11 +59,19 @@ def parameter_names(cfg: dict) -> list[str]:
     return list(cfg["joints"]["parameters"])
 
 
-def doe_sheet(cfg: dict) -> pd.DataFrame:
+def parameter_bounds(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of the identified parameters (``joints.parameters``, N/m^3)."""
+    names = parameter_names(cfg)
+    return (np.array([float(cfg["joints"]["parameters"][n]["lower"]) for n in names]),
+            np.array([float(cfg["joints"]["parameters"][n]["upper"]) for n in names]))
+
+
+def doe_sheet(cfg: dict, lower=None, upper=None) -> pd.DataFrame:
     """The DOE as a sample sheet: one row per FE solve (design points, then verification points).
 
     Columns: ``point, role, x_<param>`` (coded in [-1, 1] over log10 of the parameter) and
-    ``<param>`` (physical, N/m^3).
+    ``<param>`` (physical, N/m^3).  The box is ``joints.parameters``' bounds unless ``lower`` and
+    ``upper`` (N/m^3) are given (the zoomed second DOE, :func:`zoom_box`).
     """
     import pandas as pd
 
@@ -74,8 +82,9 @@ def doe_sheet(cfg: dict) -> pd.DataFrame:
     X = design(d["design"], len(names), n_center=d["n_center"], n_samples=d.get("n_samples", 0),
                seed=d["seed"])
     V = verification_points(d["n_verification"], len(names), seed=d["seed"] + 1)
-    lo = np.array([cfg["joints"]["parameters"][n]["lower"] for n in names])
-    hi = np.array([cfg["joints"]["parameters"][n]["upper"] for n in names])
+    lo, hi = parameter_bounds(cfg)
+    if lower is not None:
+        lo, hi = np.asarray(lower, float), np.asarray(upper, float)
     rows = []
     for role, block in (("design", X), ("verify", V)):
         theta = to_physical(block, lo, hi)
@@ -92,6 +101,55 @@ def run_doe(cfg: dict, out_csv: str) -> None:
     io.write_csv(sheet, out_csv)
     _log(f"doe: {int((sheet.role == 'design').sum())} design + {int((sheet.role == 'verify').sum())} "
          f"verification points -> {out_csv}")
+
+
+def zoom_enabled(cfg: dict) -> bool:
+    return bool((cfg["doe"].get("zoom") or {}).get("enabled", True))
+
+
+def zoom_box(cfg: dict, optima: dict[str, dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Box of the zoomed second DOE around the first-stage optima of all states (N/m^3).
+
+    Per parameter: ``[min over states / 10^w, max over states * 10^w]`` with ``w =
+    doe.zoom.half_width_decades``, clipped to the bounds of ``joints.parameters``; a box squeezed
+    against a bound keeps its full width ``2 w`` on the inside.
+    """
+    names = parameter_names(cfg)
+    w = float((cfg["doe"].get("zoom") or {}).get("half_width_decades", 0.15))
+    lo_b, hi_b = np.log10(parameter_bounds(cfg)[0]), np.log10(parameter_bounds(cfg)[1])
+    opt = np.log10(np.array([[float(o[n]) for n in names] for o in optima.values()]))
+    lo, hi = opt.min(axis=0) - w, opt.max(axis=0) + w
+    span = np.minimum(hi - lo, hi_b - lo_b)
+    lo, hi = np.maximum(lo, lo_b), np.minimum(hi, hi_b)
+    hi = np.maximum(hi, np.minimum(lo + span, hi_b))
+    lo = np.minimum(lo, np.maximum(hi - span, lo_b))
+    return 10.0 ** lo, 10.0 ** hi
+
+
+def run_doe_zoom(cfg: dict, scout_jsons: dict[str, str], out_csv: str, out_json: str) -> None:
+    """The zoomed second DOE: the same design in :func:`zoom_box` around the states' surface optima."""
+    names = parameter_names(cfg)
+    optima = {s: io.read_json(p)["surface_optimum"] for s, p in scout_jsons.items()}
+    lo, hi = zoom_box(cfg, optima)
+    sheet = doe_sheet(cfg, lo, hi)
+    io.write_json(out_json, {"names": names, "lower": lo.tolist(), "upper": hi.tolist(),
+                             "half_width_decades": float(cfg["doe"]["zoom"]["half_width_decades"]),
+                             "first_stage_optima": optima})
+    io.write_csv(sheet, out_csv)
+    _log("doe zoom: " + ", ".join(f"{n} {a:.3g}..{b:.3g}" for n, a, b in zip(names, lo, hi))
+         + f"; {len(sheet)} points -> {out_csv}")
+
+
+def sheet_theta(sheet_csv: str, point: str, names: list[str]) -> dict[str, float]:
+    """Physical parameters (N/m^3) of one point of a DOE sample sheet."""
+    import pandas as pd
+
+    sheet = pd.read_csv(sheet_csv).set_index("point")
+    if point not in sheet.index:
+        from .errors import DataError
+
+        raise DataError(f"doe: point {point} is not in {sheet_csv} (points: {', '.join(sheet.index)})")
+    return {n: float(sheet.loc[point, n]) for n in names}
 
 
 # ------------------------------------------------------------------ modal
@@ -239,7 +297,9 @@ def tracked_band(cfg: dict) -> tuple[float, float]:
     return float(cfg["solver"]["min_freq_Hz"]), 1.25 * float(cfg["harmonic"]["band_Hz"][1])
 
 
-def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, out_csv: str) -> None:
+def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, out_csv: str,
+                    box_json: str | None = None) -> None:
+    """Track the modes through one DOE and fit the surfaces (``box_json``: the zoomed DOE's box)."""
     import pandas as pd
 
     from .updating import fit_surfaces
@@ -250,8 +310,12 @@ def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, o
     names = parameter_names(cfg)
     doc, diag = fit_surfaces(sheet, z["freqs_Hz"], z["shapes"], descr, names, tracked_band(cfg),
                              kind=cfg["surface"]["kind"])
-    doc["lower"] = [cfg["joints"]["parameters"][n]["lower"] for n in names]
-    doc["upper"] = [cfg["joints"]["parameters"][n]["upper"] for n in names]
+    if box_json:  # the zoomed second DOE
+        box = io.read_json(box_json)
+        doc["lower"], doc["upper"], doc["stage"] = list(box["lower"]), list(box["upper"]), "zoom"
+    else:
+        doc["lower"], doc["upper"] = [b.tolist() for b in parameter_bounds(cfg)]
+        doc["stage"] = "global"
     io.write_json(out_json, doc)
     io.write_csv(diag, out_csv)
     worst = diag["verify_max_error_pct"].max()
@@ -269,7 +333,7 @@ def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, o
 
 # ------------------------------------------------------------------ identification
 def _dataset_for(cfg: dict, state: str) -> str:
-    return cfg["states"][state].get("dataset") or cfg["measurements"]["dataset"]
+    return ((cfg.get("states") or {}).get(state) or {}).get("dataset") or cfg["measurements"]["dataset"]
 
 
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
@@ -297,19 +361,29 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
     sigma_pct = ds.conditions.get("frequency_uncertainty_pct", ic["frequency_uncertainty_pct"])
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
+    zoom = doc.get("stage") == "zoom"
     res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100)
+    if zoom:  # an edge of the zoomed box is no bound of the parameters: the FE polish may pass it
+        msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in doc["names"])]
     surface_theta = np.asarray(res.theta, float)
     theta, ci_lo, ci_hi = surface_theta, res.ci_lower, res.ci_upper
     f_final, polish = res.f_model, None
     if matrices and cfg["identify"].get("fe_polish", True):
-        polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, lower, upper,
+        b_lo, b_hi = parameter_bounds(cfg)
+        polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, b_lo, b_hi,
                          repair=shapes is None, rom=rom)
         theta, f_final = polish["theta"], polish["f_fe"]
         sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
         ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
         for n in polish["on_bound"]:
             msgs.append(f"{n} sits on a bound of joints.parameters.{n} after the FE polish — widen the bounds")
+    if zoom:
+        out_of_box = [f"{n} = {t:.3g} (box {a:.3g}..{b:.3g})" for n, t, a, b in zip(doc["names"], theta, lower, upper)
+                      if not a * (1 - 1e-9) <= t <= b * (1 + 1e-9)]
+        if out_of_box:
+            msgs.append("the optimum lies outside the zoomed DOE box, where its surfaces extrapolate: "
+                        + "; ".join(out_of_box) + " — raise doe.zoom.half_width_decades")
         skipped = polish["unpaired_in_band_Hz"]
         if skipped:
             msgs.append(f"{len(skipped)} model mode(s) inside the measured band ("
@@ -328,6 +402,8 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     out = {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
                                           for n, th, lo, hi in zip(doc["names"], theta, ci_lo, ci_hi)},
            "surface_optimum": {n: float(t) for n, t in zip(doc["names"], surface_theta)},
+           "surface_stage": doc.get("stage", "global"),
+           "surface_box": {n: [float(a), float(b)] for n, a, b in zip(doc["names"], lower, upper)},
            "fe_polish": None if polish is None else {
                "on": "rom" if rom else "fe",
                "unpaired_in_band_Hz": polish["unpaired_in_band_Hz"],

@@ -3,4 +3,4 @@ from jointid.workflow import run_script
 from jointid import stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_fit_surface(
-    cfg, inp.sheet, inp.arrays, out.model, out.diagnostics), provenance=True)
+    cfg, inp.sheet, inp.arrays, out.model, out.diagnostics, box_json=inp.get("box")), provenance=True)

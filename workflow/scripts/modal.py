@@ -2,5 +2,14 @@
 from jointid.workflow import run_script
 from jointid import stages
 
+
+def _theta(cfg, inp):
+    """The point's parameters: from the rule's params, else from its sample sheet (zoomed DOE)."""
+    given = getattr(snakemake.params, "theta", None)
+    if given:
+        return dict(given)
+    return stages.sheet_theta(inp.sheet, snakemake.wildcards.point, stages.parameter_names(cfg))
+
+
 run_script(snakemake, lambda cfg, inp, out: stages.run_modal(
-    cfg, inp.matrices, dict(snakemake.params.theta), out.modes, rom=inp.get("rom")))
+    cfg, inp.matrices, _theta(cfg, inp), out.modes, rom=inp.get("rom")))
