@@ -31,7 +31,8 @@ R = "results"
 
 # the config parts each rule uses (see the stage functions in src/jointid/stages.py)
 CFG_MESH = sections(config, "materials", "rig", "mesh")
-CFG_DOE = sections(config, "joints", "doe")
+DOE_KEYS = ("doe.design", "doe.n_center", "doe.n_samples", "doe.seed", "doe.n_verification")
+CFG_DOE = sections(config, "joints", *DOE_KEYS)  # not doe.zoom: that is the second DOE's only
 CFG_MODAL = sections(config, "rig", "joints", "solver")
 CFG_FIT_SURFACE = sections(config, "joints", "surface", "solver.min_freq_Hz", "harmonic.band_Hz")
 SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min_freq_Hz")  # a full FE solve
@@ -48,7 +49,8 @@ USE_ROM = config["solver"]["method"] == "rom"
 CFG_MODAL_RULE = CFG_MODAL if USE_ROM else {
     **CFG_MODAL, "solver": {k: v for k, v in CFG_MODAL["solver"].items() if k not in ("method", "rom_tolerance")}}
 CFG_MODAL_CHAIN = merged(CFG_MESH, CFG_DOE, CFG_MODAL_RULE)
-CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, CFG_FIT_SURFACE, CFG_VERIFY, *map(cfg_identify, STATES))
+CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT_SURFACE, CFG_VERIFY,
+                          *map(cfg_identify, STATES))
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
@@ -197,7 +199,8 @@ SURFACE = f"{R}/surface/zoom/model.json" if ZOOM else f"{R}/surface/model.json"
 
 def cfg_scout(state):
     """rule scout: what the surface-only identification reads (not the FE solve, not the motor force)."""
-    return sections(config, "joints", "identify", "measurements", f"states.{state}.dataset")
+    return sections(config, "joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
+                    "identify.weights", "measurements", f"states.{state}.dataset")
 
 
 rule scout:
@@ -226,7 +229,7 @@ rule doe_zoom:
         sheet=f"{R}/doe/zoom/points.csv",
         box=f"{R}/doe/zoom/box.json",
     params:
-        cfg=CFG_DOE,
+        cfg=sections(config, "joints", "doe"),
         states=STATES,
     log:
         "logs/doe_zoom.log",

@@ -132,11 +132,11 @@ def test_failing_stage_leaves_no_partial_output_and_keeps_earlier_results(coarse
     proc = run_snakemake(wd, "-j2", "--keep-going", configs=[override])
     out = proc.stdout + proc.stderr
     assert proc.returncode != 0
-    assert "Error in rule identify" in out
+    assert "Error in rule scout" in out  # the first stage that reads the measured frequencies
     for state in STATES:
-        assert not (wd / "results" / "identify" / state / "params.json").exists(), \
-            f"{state}: the failed identify must not leave params.json"
-        log = (wd / "logs" / "identify" / f"{state}.log").read_text()
+        assert not (wd / "results" / "identify" / state / "scout.json").exists(), \
+            f"{state}: the failed scout must not leave scout.json"
+        log = (wd / "logs" / "scout" / f"{state}.log").read_text()
         assert "Traceback" not in log, "a DataError is reported without a traceback"
         assert "data/bad/modes.csv:3" in log and "freq_Hz" in log, log
     # earlier results untouched (bytes and times), no stray temporary files
