@@ -40,8 +40,15 @@ CFG_VERIFY = sections(config, "rig", "joints", *SOLVE_KEYS)
 
 
 def cfg_identify(state):
-    """rule identify: the shared sections and this state's settings only."""
-    return sections(config, "rig", "joints", "identify", *SOLVE_KEYS, "measurements", f"states.{state}")
+    """rule identify: the shared sections, this state's settings and the other states' datasets (the
+    measured modes of frequency-only states are paired alike in all states)."""
+    return sections(config, "rig", "joints", "identify", *SOLVE_KEYS, "measurements", f"states.{state}",
+                    *(f"states.{s}.dataset" for s in STATES))
+
+
+def state_datasets(wc):
+    """Measured datasets of all states (the pairing of frequency-only states is shared)."""
+    return sorted({config["states"][s].get("dataset") or config["measurements"]["dataset"] for s in STATES})
 
 
 USE_ROM = config["solver"]["method"] == "rom"
@@ -195,23 +202,26 @@ rule fit_surface:
 # identification.  A quadratic in log-parameters is accurate over a factor ~2, not over decades.
 ZOOM = zoom_enabled(config)
 SURFACE = f"{R}/surface/zoom/model.json" if ZOOM else f"{R}/surface/model.json"
+SURFACE_DIAGNOSTICS = SURFACE.replace("model.json", "diagnostics.csv")
+SURFACE_SHEET = f"{R}/doe/zoom/points.csv" if ZOOM else f"{R}/doe/points.csv"  # the DOE behind SURFACE
 
 
 def cfg_scout(state):
     """rule scout: what the surface-only identification reads (not the FE solve, not the motor force)."""
     return sections(config, "joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
-                    "identify.weights", "measurements", f"states.{state}.dataset")
+                    "identify.weights", "measurements", *(f"states.{s}.dataset" for s in STATES))
 
 
 rule scout:
     input:
         surface=rules.fit_surface.output.model,
         points=rules.mesh.output.points,
-        dataset=lambda wc: config["states"][wc.state].get("dataset") or config["measurements"]["dataset"],
+        datasets=state_datasets,
     output:
         params=f"{R}/identify/{{state}}/scout.json",
     params:
         cfg=lambda wc: cfg_scout(wc.state),
+        states=STATES,
     log:
         "logs/scout/{state}.log",
     threads: 1
@@ -307,11 +317,12 @@ rule identify:
         surface=SURFACE,
         points=rules.mesh.output.points,
         matrices=rules.mesh.output.matrices,
-        dataset=lambda wc: config["states"][wc.state].get("dataset") or config["measurements"]["dataset"],
+        datasets=state_datasets,
     output:
         params=f"{R}/identify/{{state}}/params.json",
     params:
         cfg=lambda wc: cfg_identify(wc.state),
+        states=STATES,
     log:
         "logs/identify/{state}.log",
     benchmark:

@@ -137,10 +137,12 @@ def _rule_times(workdir: Path, quick: bool, tag: str = "") -> dict[str, dict]:
     return out
 
 
-if __name__ == "__main__":  # python -m benchmarks.bench_c_workflow [--quick] [--rom]
+if __name__ == "__main__":  # python -m benchmarks.bench_c_workflow [--quick] [--rom] [--keep]
     from .common import format_table, write_result
 
     quick = "--quick" in sys.argv[1:]
-    result = run(quick=quick, rom="--rom" in sys.argv[1:])
+    result = run(quick=quick, rom="--rom" in sys.argv[1:], keep="--keep" in sys.argv[1:])
+    if result.data.get("kept"):
+        print(f"workflow copy kept in {result.data['tmp']}")
     write_result(result, quick)
     print(format_table([result]))

@@ -422,7 +422,16 @@ def _diag_html(data: dict) -> str:
     d = data["diagnostics"]
     fm = {"ref_freq_Hz": ".1f", "min_mac_in_doe": ".3f", "r2": ".5f", "r2_adj": ".5f", "r2_pred": ".5f",
           "rmse": ".3g", "verify_max_error_pct": ".2f"}
-    return _html_table(d, fm, {"verify_max_error_pct": "verification max error (%)"}, text_cols=("description",))
+    par = next(iter(data["params"].values()), {})
+    box = par.get("surface_box") or {}
+    if par.get("surface_stage") == "zoom" and box:
+        head = ("<p class='note'>Surfaces of the zoomed second DOE, in the box around the first-stage optima of "
+                "all states: " + "; ".join(f"{_esc(n)} {a:.3g} .. {b:.3g} N/m³" for n, (a, b) in box.items())
+                + " (the first DOE's surfaces over the whole bounds: results/surface/diagnostics.csv).</p>")
+    else:
+        head = "<p class='note'>Surfaces over the whole bounds of joints.parameters.</p>"
+    return head + _html_table(d, fm, {"verify_max_error_pct": "verification max error (%)"},
+                              text_cols=("description",))
 
 
 def _provenance_html(cfg: dict, prov: dict) -> str:

@@ -104,7 +104,7 @@ def run_doe(cfg: dict, out_csv: str) -> None:
 
 
 def zoom_enabled(cfg: dict) -> bool:
-    return bool((cfg["doe"].get("zoom") or {}).get("enabled", True))
+    return bool((cfg["doe"].get("zoom") or {}).get("enabled", False))
 
 
 def zoom_box(cfg: dict, optima: dict[str, dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -336,34 +336,74 @@ def _dataset_for(cfg: dict, state: str) -> str:
     return ((cfg.get("states") or {}).get(state) or {}).get("dataset") or cfg["measurements"]["dataset"]
 
 
+AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are reported as alternatives
+
+
+def _measured(cfg: dict, state: str, pts):
+    """``(frequencies, shapes or None, frequency uncertainty in %)`` of one state's measured modes."""
+    from .measured import read_dataset
+    from .points import dof_labels
+
+    ds = read_dataset(_dataset_for(cfg, state), measuring_points=pts)
+    shapes = None
+    if ds.shapes is not None and state in set(ds.shapes["state"]):
+        shapes = ds.shape_matrix(state, dof_labels(pts))
+    sigma_pct = ds.conditions.get("frequency_uncertainty_pct", cfg["identify"]["frequency_uncertainty_pct"])
+    return ds.freqs(state), shapes, float(sigma_pct)
+
+
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
-                 matrices: str | None = None, rom: str | None = None) -> None:
+                 matrices: str | None = None, rom: str | None = None, states: list[str] | None = None) -> None:
     """Identify one state's joint parameters: multistart on the surfaces, then the polish.
 
     The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
     reduced-order model ``rom`` when one is given (``solver.method: rom``; the verify stage then
-    checks the result with a full solve).
+    checks the result with a full solve).  With ``states`` (all states of the run) and frequencies
+    alone in every one of them, in equal numbers, the measured modes are paired with the same tracked
+    modes in every state (:func:`jointid.updating.identify_states_jointly`), and the polish follows
+    those modes by shape instead of re-pairing them by frequency.
     """
     import pandas as pd
 
-    from .measured import read_dataset
-    from .points import dof_labels
-    from .updating import identify_state
+    from .updating import identify_state, identify_states_jointly
 
     doc = io.read_json(surface_json)
     pts = pd.read_csv(points_csv)
-    ds = read_dataset(_dataset_for(cfg, state), measuring_points=pts)
-    f_meas = ds.freqs(state)
-    shapes = None
-    if ds.shapes is not None and state in set(ds.shapes["state"]):
-        shapes = ds.shape_matrix(state, dof_labels(pts))
+    f_meas, shapes, sigma_pct = _measured(cfg, state, pts)
     ic = cfg["identify"]
     weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
-    sigma_pct = ds.conditions.get("frequency_uncertainty_pct", ic["frequency_uncertainty_pct"])
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
     zoom = doc.get("stage") == "zoom"
+    joint, joint_info = None, None
+    if states and len(states) > 1 and state in states and shapes is None:
+        others = {s: _measured(cfg, s, pts) for s in states}
+        if all(o[1] is None for o in others.values()) and len({len(o[0]) for o in others.values()}) == 1:
+            joint, joint_info = identify_states_jointly(
+                doc, {s: o[0] for s, o in others.items()}, lower, upper, weights=weights,
+                n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()})
     res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
-                                        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100)
+                                        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
+                                        pairing=joint)
+    if joint is not None:
+        # alternatives within delta chi2 < 4, chi2 scaled by its value per degree of freedom when the
+        # best fit itself is poor (a model error, not the noise, then sets the scatter)
+        cands = joint_info["candidates"]
+        dof = max(1, len(states) * (len(f_meas) - len(doc["names"])))
+        scale = max(1.0, cands[0]["chi2"] / dof)
+        close = [c for c in cands[1:] if (c["chi2"] - cands[0]["chi2"]) / scale < AMBIGUOUS_DCHI2]
+        if close:
+            alt = "; ".join(f"tracked modes {[doc['tracked_modes'][j] for j in c['pairing']]} "
+                            f"(chi2 {c['chi2']:.1f})" for c in close)
+            msgs.append(f"ambiguous pairing: besides tracked modes {[doc['tracked_modes'][j] for j in joint]} "
+                        f"(chi2 {cands[0]['chi2']:.1f} over all states, {dof} degrees of freedom) also {alt} "
+                        f"fit within delta chi2 < {AMBIGUOUS_DCHI2:g}"
+                        + (f" (scaled by chi2/dof = {scale:.1f})" if scale > 1 else "")
+                        + ": frequencies alone cannot tell them apart; measured shapes would")
+    if joint is not None and list(joint) != joint_info[state]["own"]:
+        own = [doc["tracked_modes"][j] for j in joint_info[state]["own"]]
+        msgs.append(f"on its own this state would pair its measured modes with tracked modes {own} "
+                    f"instead of {[doc['tracked_modes'][j] for j in joint]}: one pairing for all states "
+                    f"({', '.join(states)}) fits them best together (summed cost)")
     if zoom:  # an edge of the zoomed box is no bound of the parameters: the FE polish may pass it
         msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in doc["names"])]
     surface_theta = np.asarray(res.theta, float)
@@ -372,18 +412,12 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     if matrices and cfg["identify"].get("fe_polish", True):
         b_lo, b_hi = parameter_bounds(cfg)
         polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, b_lo, b_hi,
-                         repair=shapes is None, rom=rom)
+                         repair=shapes is None and joint is None, rom=rom)
         theta, f_final = polish["theta"], polish["f_fe"]
         sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
         ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
         for n in polish["on_bound"]:
             msgs.append(f"{n} sits on a bound of joints.parameters.{n} after the FE polish — widen the bounds")
-    if zoom:
-        out_of_box = [f"{n} = {t:.3g} (box {a:.3g}..{b:.3g})" for n, t, a, b in zip(doc["names"], theta, lower, upper)
-                      if not a * (1 - 1e-9) <= t <= b * (1 + 1e-9)]
-        if out_of_box:
-            msgs.append("the optimum lies outside the zoomed DOE box, where its surfaces extrapolate: "
-                        + "; ".join(out_of_box) + " — raise doe.zoom.half_width_decades")
         skipped = polish["unpaired_in_band_Hz"]
         if skipped:
             msgs.append(f"{len(skipped)} model mode(s) inside the measured band ("
@@ -393,6 +427,15 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                            "measured shapes would make the pairing unambiguous (MAC)" if shapes is None else
                            "the measured shapes pair with other model modes; check whether the test could "
                            "have missed them"))
+    if zoom:
+        out_of_box = [f"{n} = {t:.3g} (box {a:.3g}..{b:.3g})" for n, t, a, b in zip(doc["names"], theta, lower, upper)
+                      if not a * (1 - 1e-9) <= t <= b * (1 + 1e-9)]
+        if out_of_box:
+            msgs.append("the optimum lies outside the zoomed DOE box, where its surfaces extrapolate: "
+                        + "; ".join(out_of_box) + " — raise doe.zoom.half_width_decades")
+        elif polish is None and res.on_bound:
+            msgs.append(f"{', '.join(res.on_bound)} on an edge of the zoomed DOE box: the optimum may lie beyond "
+                        "it — raise doe.zoom.half_width_decades or enable identify.fe_polish")
     areas = io.read_json(points_csv.replace("measuring_points.csv", "summary.json"))["contact_area_per_carriage_m2"]
     per_carriage = {}
     for n, th, lo, hi in zip(doc["names"], theta, ci_lo, ci_hi):
@@ -411,7 +454,9 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
                doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
-           "paired_by": "mac" if shapes is not None else "frequency",
+           "paired_by": "mac" if shapes is not None else ("frequency, all states" if joint is not None
+                                                          else "frequency"),
+           "joint_pairing": joint_info,
            "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model,
            "residual_pct": 100 * (np.asarray(f_final) - f_meas) / f_meas,
            "cost": res.cost, "condition_number": res.condition_number,

@@ -98,11 +98,14 @@ def fit_surfaces(sheet: pd.DataFrame, freqs: np.ndarray, shapes: np.ndarray, des
 # ------------------------------------------------------------------ 2. identification
 def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
                    meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
-                   seed: int = 0, sigma_rel: float = 0.01):
+                   seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None):
     """Identify the joint parameters of one state from measured frequencies.
 
     Returns ``(result, pairing, warnings list)`` where ``pairing[i]`` is the column of the tracked
-    mode paired with measured mode ``i``.
+    mode paired with measured mode ``i``.  A given ``pairing`` is kept as it is; otherwise it comes
+    from the measured shapes (MAC) or, for frequencies alone, from the best of several starts, each
+    re-paired by frequency until stable.  ``candidates`` (a list) collects ``(pairing, cost)`` of
+    every start in that last case.
     """
     surf = Surface.from_dict(doc["surface"])
     names = doc["names"]
@@ -121,6 +124,10 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
                            seed=seed, sigma_rel=sigma_rel, names=names, lower=lower, upper=upper)
         return res, [str(x.message) for x in w]
 
+    if pairing is not None:
+        pairing = np.asarray(pairing, int)
+        res, caught = run(pairing)
+        return res, pairing, caught
     if meas_shapes is not None:
         ref_shapes = np.asarray(doc["ref_shapes"])
         pairing, macs = pair_by_shapes(meas_shapes, ref_shapes)
@@ -142,9 +149,51 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
             if np.array_equal(new, pairing):
                 break
             pairing = new
+        if candidates is not None:
+            candidates.append((tuple(int(c) for c in pairing), float(res.cost)))
         if best is None or res.cost < best[0].cost - 1e-12:
             best = (res, pairing, msgs)
     return best
+
+
+def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tuple[np.ndarray, dict]:
+    """One pairing of measured and tracked modes for several frequency-only states.
+
+    Measured mode ``i`` is taken to be the same physical mode in every state (the convention of a
+    dataset that lists the states' modes side by side, as the paper's Tables 2 and 3 do), so all
+    states pair it with the same tracked mode.  Each state is identified with every pairing that a
+    start of any state converged to; the pairing of least summed cost wins.  Without that rule, with
+    model modes inside the band that the test did not see, a state can prefer a pairing that another
+    state rules out.
+
+    ``f_meas`` maps state -> measured frequencies (equal counts); ``kw`` as :func:`identify_state`
+    (``sigma_rel`` may be a mapping state -> value).  Returns ``(pairing, info)``: the summed-cost
+    winner; ``info[state]`` its cost there and the state's own best pairing; ``info["candidates"]``
+    every pairing tried with its summed cost and chi-square (``sum cost / sigma^2``), best first.
+    """
+    sig = kw.pop("sigma_rel", 0.01)
+    sigma = sig if isinstance(sig, dict) else {s: sig for s in f_meas}
+    cands, own = {}, {}
+    for state, f in f_meas.items():
+        found: list = []
+        _, p, _ = identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[state],
+                                 candidates=found, **kw)
+        own[state] = tuple(int(c) for c in p)
+        for pairing, _ in found:
+            cands.setdefault(pairing, None)
+    best, tried = None, []
+    for pairing in sorted(cands):
+        costs = {s: identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[s],
+                                   pairing=pairing, **kw)[0].cost for s, f in f_meas.items()}
+        total = sum(costs.values())
+        chi2 = sum(c / sigma[s] ** 2 for s, c in costs.items())
+        tried.append({"pairing": list(pairing), "cost": total, "chi2": chi2})
+        if best is None or total < best[0] - 1e-12:
+            best = (total, pairing, costs)
+    _, pairing, costs = best
+    info = {s: {"cost": costs[s], "own": list(own[s])} for s in f_meas}
+    info["candidates"] = sorted(tried, key=lambda t: t["cost"])
+    return np.asarray(pairing, int), info
 
 
 # ------------------------------------------------------------------ 3. verification

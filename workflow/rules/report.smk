@@ -75,8 +75,8 @@ rule report:
         frf=expand(f"{R}/harmonic/{{state}}/frf.csv", state=STATES),
         stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
         modes=expand(f"{R}/harmonic/{{state}}/modes.npz", state=STATES),
-        diagnostics=rules.fit_surface.output.diagnostics,
-        sheet=rules.doe.output.sheet,
+        diagnostics=SURFACE_DIAGNOSTICS,  # the surfaces that carried the identification
+        sheet=SURFACE_SHEET,
         points=rules.mesh.output.points,
     output:
         html=report(f"{R}/report/index.html", caption="../report/index.rst", category="Report"),

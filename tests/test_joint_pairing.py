@@ -1,0 +1,71 @@
+"""One pairing of measured and tracked modes for all frequency-only states
+(jointid.updating.identify_states_jointly)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jointid import doe
+from jointid.surface import fit_surface
+from jointid.updating import identify_state, identify_states_jointly
+
+NAMES = ["k_normal_N_per_m3", "k_feed_N_per_m3"]
+LOWER = np.array([2e11, 3e9])
+UPPER = np.array([4e12, 6e10])
+
+
+def four_modes(theta):
+    """Four model modes; the middle two (a normal-dominated and a feed-dominated one) lie close."""
+    kn, kf = theta[..., 0] / 1e12, theta[..., 1] / 1e10
+    return np.stack([400.0 * kf ** 0.25, 1300.0 * kn ** 0.2, 1400.0 * kf ** 0.2,
+                     2100.0 * (kn * kf) ** 0.1], axis=-1)
+
+
+def _doc():
+    X = doe.design("ccf", 2, n_center=1)
+    Y = np.log(four_modes(doe.to_physical(X, LOWER, UPPER)))
+    return {"names": NAMES, "surface": fit_surface(X, Y).to_dict(), "tracked_modes": [1, 2, 3, 4],
+            "lower": LOWER.tolist(), "upper": UPPER.tolist()}
+
+
+KW = dict(n_starts=4, seed=0)
+
+
+def test_states_of_one_pairing_keep_it_and_their_parameters():
+    doc = _doc()
+    truth = {"off": np.array([5e11, 8e9]), "on": np.array([9e11, 8e9])}
+    f = {s: four_modes(t)[[0, 1, 3]] for s, t in truth.items()}  # the test misses tracked mode 3
+    pairing, info = identify_states_jointly(doc, f, LOWER, UPPER, **KW)
+    assert list(pairing) == [0, 1, 3]
+    assert info["off"]["own"] == info["on"]["own"] == [0, 1, 3]
+    assert info["candidates"][0]["pairing"] == [0, 1, 3]
+    for s, t in truth.items():
+        res, p, _ = identify_state(doc, f[s], LOWER, UPPER, pairing=pairing, **KW)
+        np.testing.assert_allclose(res.theta, t, rtol=0.02)  # quadratic surface over a factor 20
+
+
+def test_the_shared_pairing_minimises_the_summed_cost_over_every_candidate():
+    doc = _doc()
+    # state "a" alone is closest to tracked mode 2 for its second mode, state "b" to mode 3
+    f = {"a": np.array([390.0, 1330.0, 2050.0]), "b": np.array([430.0, 1420.0, 2150.0])}
+    pairing, info = identify_states_jointly(doc, f, LOWER, UPPER, **KW)
+    assert info["a"]["own"] != info["b"]["own"]  # on their own they disagree
+    cands = info["candidates"]
+    assert [c["cost"] for c in cands] == sorted(c["cost"] for c in cands)
+    assert cands[0]["pairing"] == list(pairing)
+    assert {tuple(info[s]["own"]) for s in f} <= {tuple(c["pairing"]) for c in cands}
+    for s in f:  # the shared pairing costs each state at least its own best one
+        own = identify_state(doc, f[s], LOWER, UPPER, **KW)[0].cost
+        shared = identify_state(doc, f[s], LOWER, UPPER, pairing=pairing, **KW)[0].cost
+        assert shared >= own - 1e-12
+        assert info[s]["cost"] == pytest.approx(shared, rel=1e-9)
+    total = sum(info[s]["cost"] for s in f)
+    assert total == pytest.approx(cands[0]["cost"], rel=1e-9)
+
+
+def test_a_given_pairing_is_kept():
+    doc = _doc()
+    f = four_modes(np.array([5e11, 8e9]))[[0, 1, 3]]
+    _, p, _ = identify_state(doc, f, LOWER, UPPER, pairing=[0, 2, 3], **KW)
+    assert list(p) == [0, 2, 3]
