@@ -209,7 +209,7 @@ SURFACE_SHEET = f"{R}/doe/zoom/points.csv" if ZOOM else f"{R}/doe/points.csv"  #
 def cfg_scout(state):
     """rule scout: what the surface-only identification reads (not the FE solve, not the motor force)."""
     return sections(config, "joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
-                    "identify.weights", "measurements", *(f"states.{s}.dataset" for s in STATES))
+                    "identify.weights", "identify.pairing", "measurements", *(f"states.{s}.dataset" for s in STATES))
 
 
 rule scout:

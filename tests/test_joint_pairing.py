@@ -69,3 +69,42 @@ def test_a_given_pairing_is_kept():
     f = four_modes(np.array([5e11, 8e9]))[[0, 1, 3]]
     _, p, _ = identify_state(doc, f, LOWER, UPPER, pairing=[0, 2, 3], **KW)
     assert list(p) == [0, 2, 3]
+
+
+def _info(chi2_a, chi2_b):
+    """Two candidate pairings of two states (sigma = 1, so cost = chi2)."""
+    cands = [{"pairing": [0, 1, 3], "chi2_by_state": {"off": chi2_a[0], "on": chi2_a[1]}},
+             {"pairing": [0, 2, 3], "chi2_by_state": {"off": chi2_b[0], "on": chi2_b[1]}}]
+    for c in cands:
+        c["chi2"] = sum(c["chi2_by_state"].values())
+    cands.sort(key=lambda c: c["chi2"])
+    return {"off": {"own": [0, 1, 3] if chi2_a[0] <= chi2_b[0] else [0, 2, 3]},
+            "on": {"own": [0, 1, 3] if chi2_a[1] <= chi2_b[1] else [0, 2, 3]}, "candidates": cands}
+
+
+DOC = {"names": NAMES, "tracked_modes": [1, 2, 3, 4]}
+
+
+def test_notes_name_a_competing_pairing_only_when_it_fits_about_as_well():
+    from jointid.stages import _pairing_notes
+
+    close = _info((1.0, 1.0), (2.0, 2.5))  # 1 dof per state: delta chi2 1 and 1.5
+    far = _info((1.0, 1.0), (9.0, 9.0))
+    for rule in ("independent", "shared"):
+        shared = close["candidates"][0]["pairing"]
+        assert any(n.startswith("ambiguous pairing") for n in _pairing_notes(DOC, "off", ["off", "on"], shared,
+                                                                              close, rule))
+        assert not _pairing_notes(DOC, "off", ["off", "on"], far["candidates"][0]["pairing"], far, rule)
+
+
+def test_notes_say_when_a_state_on_its_own_pairs_otherwise():
+    from jointid.stages import _pairing_notes
+
+    info = _info((1.0, 30.0), (20.0, 2.0))  # "off" prefers [0, 1, 3], "on" [0, 2, 3]; summed: [0, 2, 3]
+    shared = info["candidates"][0]["pairing"]
+    assert shared == [0, 2, 3]
+    ind = _pairing_notes(DOC, "off", ["off", "on"], shared, info, "independent")
+    assert any("measured mode(s) 2 pair with other tracked modes here ([1, 2, 4])" in n for n in ind), ind
+    sh = _pairing_notes(DOC, "off", ["off", "on"], shared, info, "shared")
+    assert any("on its own this state would pair" in n and "[1, 2, 4] instead of [1, 3, 4]" in n for n in sh), sh
+    assert not any("on its own" in n for n in _pairing_notes(DOC, "on", ["off", "on"], shared, info, "shared"))

@@ -352,6 +352,46 @@ def _measured(cfg: dict, state: str, pts):
     return ds.freqs(state), shapes, float(sigma_pct)
 
 
+def _pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:
+    """Warnings on the pairing of frequency-only states: competing pairings of about equal fit, and
+    the pairing the other rule (``identify.pairing``) would choose."""
+    tm = lambda p: [doc["tracked_modes"][j] for j in p]  # noqa: E731
+    own = info[state]["own"]
+    k = len(doc["names"])
+    if rule == "shared":
+        chi2 = {tuple(c["pairing"]): c["chi2"] for c in info["candidates"]}
+        dof = max(1, sum(len(own) - k for _ in states))
+        chosen, what = tuple(shared), "over all states"
+    else:
+        chi2 = {tuple(c["pairing"]): c["chi2_by_state"][state] for c in info["candidates"]}
+        dof = max(1, len(own) - k)
+        chosen, what = tuple(own), "in this state"
+    best = chi2[chosen]
+    # chi2 scaled by its value per degree of freedom when the best fit is itself poor (then a model
+    # error, not the noise, sets the scatter)
+    scale = max(1.0, best / dof)
+    close = sorted((v, p) for p, v in chi2.items() if p != chosen and (v - best) / scale < AMBIGUOUS_DCHI2)
+    notes = []
+    if close:
+        notes.append(f"ambiguous pairing: besides tracked modes {tm(chosen)} (chi2 {best:.1f} {what}, {dof} "
+                     "degrees of freedom) also " + "; ".join(f"tracked modes {tm(p)} (chi2 {v:.1f})" for v, p in close)
+                     + f" fit within delta chi2 < {AMBIGUOUS_DCHI2:g}" + (f" (scaled by chi2/dof = {scale:.1f})"
+                                                                          if scale > 1 else "")
+                     + ": frequencies alone cannot tell them apart; measured shapes would")
+    if list(shared) != own:
+        if rule == "shared":
+            notes.append(f"on its own this state would pair its measured modes with tracked modes {tm(own)} "
+                         f"instead of {tm(shared)}: one pairing for all states ({', '.join(states)}) fits them "
+                         "best together (identify.pairing: shared)")
+        else:
+            diff = [i + 1 for i, (a, b) in enumerate(zip(own, shared)) if a != b]
+            notes.append(f"measured mode(s) {', '.join(map(str, diff))} pair with other tracked modes here "
+                         f"({tm(own)}) than one pairing shared by all states would ({tm(shared)}): either the "
+                         "modes swap order between the states or a pairing is off (identify.pairing: shared "
+                         "forces one)")
+    return notes
+
+
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
                  matrices: str | None = None, rom: str | None = None, states: list[str] | None = None) -> None:
     """Identify one state's joint parameters: multistart on the surfaces, then the polish.
@@ -359,9 +399,11 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
     reduced-order model ``rom`` when one is given (``solver.method: rom``; the verify stage then
     checks the result with a full solve).  With ``states`` (all states of the run) and frequencies
-    alone in every one of them, in equal numbers, the measured modes are paired with the same tracked
-    modes in every state (:func:`jointid.updating.identify_states_jointly`), and the polish follows
-    those modes by shape instead of re-pairing them by frequency.
+    alone in every one of them, in equal numbers, ``identify.pairing: shared`` pairs the measured
+    modes with the same tracked modes in every state (:func:`jointid.updating.identify_states_jointly`)
+    and the polish follows those modes by shape; ``independent`` (default) pairs each state by its
+    own frequencies and re-pairs at every polish iterate.  Either way the notes name competing
+    pairings and the other rule's choice.
     """
     import pandas as pd
 
@@ -374,36 +416,19 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
     zoom = doc.get("stage") == "zoom"
-    joint, joint_info = None, None
+    shared, joint_info, pair_msgs = None, None, []
     if states and len(states) > 1 and state in states and shapes is None:
         others = {s: _measured(cfg, s, pts) for s in states}
         if all(o[1] is None for o in others.values()) and len({len(o[0]) for o in others.values()}) == 1:
-            joint, joint_info = identify_states_jointly(
+            shared, joint_info = identify_states_jointly(
                 doc, {s: o[0] for s, o in others.items()}, lower, upper, weights=weights,
                 n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()})
+            pair_msgs = _pairing_notes(doc, state, states, shared, joint_info, ic.get("pairing", "independent"))
+    fixed = shared if ic.get("pairing", "independent") == "shared" else None
     res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
-                                        pairing=joint)
-    if joint is not None:
-        # alternatives within delta chi2 < 4, chi2 scaled by its value per degree of freedom when the
-        # best fit itself is poor (a model error, not the noise, then sets the scatter)
-        cands = joint_info["candidates"]
-        dof = max(1, len(states) * (len(f_meas) - len(doc["names"])))
-        scale = max(1.0, cands[0]["chi2"] / dof)
-        close = [c for c in cands[1:] if (c["chi2"] - cands[0]["chi2"]) / scale < AMBIGUOUS_DCHI2]
-        if close:
-            alt = "; ".join(f"tracked modes {[doc['tracked_modes'][j] for j in c['pairing']]} "
-                            f"(chi2 {c['chi2']:.1f})" for c in close)
-            msgs.append(f"ambiguous pairing: besides tracked modes {[doc['tracked_modes'][j] for j in joint]} "
-                        f"(chi2 {cands[0]['chi2']:.1f} over all states, {dof} degrees of freedom) also {alt} "
-                        f"fit within delta chi2 < {AMBIGUOUS_DCHI2:g}"
-                        + (f" (scaled by chi2/dof = {scale:.1f})" if scale > 1 else "")
-                        + ": frequencies alone cannot tell them apart; measured shapes would")
-    if joint is not None and list(joint) != joint_info[state]["own"]:
-        own = [doc["tracked_modes"][j] for j in joint_info[state]["own"]]
-        msgs.append(f"on its own this state would pair its measured modes with tracked modes {own} "
-                    f"instead of {[doc['tracked_modes'][j] for j in joint]}: one pairing for all states "
-                    f"({', '.join(states)}) fits them best together (summed cost)")
+                                        pairing=fixed)
+    msgs += pair_msgs
     if zoom:  # an edge of the zoomed box is no bound of the parameters: the FE polish may pass it
         msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in doc["names"])]
     surface_theta = np.asarray(res.theta, float)
@@ -412,7 +437,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     if matrices and cfg["identify"].get("fe_polish", True):
         b_lo, b_hi = parameter_bounds(cfg)
         polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, b_lo, b_hi,
-                         repair=shapes is None and joint is None, rom=rom)
+                         repair=shapes is None and fixed is None, rom=rom)
         theta, f_final = polish["theta"], polish["f_fe"]
         sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
         ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
@@ -454,7 +479,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
                doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
-           "paired_by": "mac" if shapes is not None else ("frequency, all states" if joint is not None
+           "paired_by": "mac" if shapes is not None else ("frequency, shared by all states" if fixed is not None
                                                           else "frequency"),
            "joint_pairing": joint_info,
            "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model,

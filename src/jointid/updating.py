@@ -187,7 +187,8 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
                                    pairing=pairing, **kw)[0].cost for s, f in f_meas.items()}
         total = sum(costs.values())
         chi2 = sum(c / sigma[s] ** 2 for s, c in costs.items())
-        tried.append({"pairing": list(pairing), "cost": total, "chi2": chi2})
+        tried.append({"pairing": list(pairing), "cost": total, "chi2": chi2, "costs": costs,
+                      "chi2_by_state": {s: c / sigma[s] ** 2 for s, c in costs.items()}})
         if best is None or total < best[0] - 1e-12:
             best = (total, pairing, costs)
     _, pairing, costs = best
