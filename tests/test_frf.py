@@ -49,6 +49,23 @@ def test_enough_modes_are_solved(rig):
     assert np.all(np.diff(modes.freqs_Hz) >= 0)
 
 
+def test_one_factorisation_serves_the_modes_and_the_static_solve(rig):
+    """solve_band_modes(keep_factor=True) gives the same modes, and the static residual refined on
+    its K - sigma M factorisation equals the one from a factorisation of K itself."""
+    cfg, model, K, M, modes, p = rig
+    m2, shifted = frf.solve_band_modes(K, M, BAND[1], fixed=model.fixed, n_start=12, keep_factor=True)
+    try:
+        np.testing.assert_allclose(m2.freqs_Hz, modes.freqs_Hz, rtol=1e-9)
+        assert shifted.sigma < 0 and len(shifted.free) == model.n_dofs - len(model.fixed)
+        R, H0, note = frf.static_residual(K, p, m2.phi, m2.freqs_Hz, fixed=model.fixed, shifted=shifted)
+    finally:
+        shifted.free_memory()
+    R0, H00, _ = frf.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
+    assert H0 == pytest.approx(H00, rel=1e-9)
+    assert R == pytest.approx(R0, rel=1e-6, abs=1e-9 * H00)
+    assert "residual" in note
+
+
 def test_drive_vector_is_an_interpolation_row(rig):
     cfg, model, *_ , p = rig
     assert p.shape == (model.n_dofs,)

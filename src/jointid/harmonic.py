@@ -124,9 +124,8 @@ def residual_flexibility(K_solve, F, phi, freqs_Hz, resp_dof):
     ``R = x_static[resp] - sum_r phi_resp_r (phi_r^T F) / w_r^2`` with ``x_static = K^-1 F``.
     Added to :func:`frf_modal` it restores the static contribution of the truncated (higher) modes
     exactly at 0 Hz. Their dynamic amplification, ``(f/f_t)^2 / (1 - (f/f_t)^2)`` times their static
-    share, is not corrected: keep modes well above the band (in the tests, a 40-DOF chain keeping 6
-    modes is within 1 % up to 0.4 f_7 and not near f_7); how far above is a convergence question of
-    the quantity wanted (the harmonic stage keeps 1.5 x the band top, checked against 2.5 x).
+    share, is not corrected: keep modes up to about 2-2.5 times the top of the band (in the tests, a
+    40-DOF chain keeping 6 modes is within 1 % up to 0.4 f_7 and not near f_7).
 
     Requires ``K`` nonsingular: a model with rigid-body modes has no static solution. Constrain the
     model, or use modal superposition without the residual.

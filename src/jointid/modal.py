@@ -77,6 +77,16 @@ def factorize(A: sp.spmatrix, backend: str = "auto"):
     return _PardisoFactor(A.tocsr()) if backend == "pardiso" else _SuperLUFactor(A)
 
 
+def factorize_shifted(Kf: sp.spmatrix, Mf: sp.spmatrix, sigma: float, backend: str = "auto"):
+    """Factorisation of ``K - sigma M`` (free DOFs), with a clear error when it fails."""
+    try:
+        return factorize((Kf - sigma * Mf).tocsr(), backend)
+    except Exception as exc:  # singular or not positive definite
+        raise ModelError(f"solver: factorisation of K - sigma*M failed ({exc}) — the stiffness is "
+                         "singular or indefinite at this shift; check the joint stiffness (zero?) and "
+                         "supports, or use a negative solver.shift_Hz") from None
+
+
 # ------------------------------------------------------------------ eigen-solve
 @dataclass
 class Modes:
@@ -90,12 +100,20 @@ class Modes:
         return (TWO_PI * self.freqs_Hz) ** 2
 
 
+def shift_sigma(shift_Hz: float) -> float:
+    """Spectral shift ``sigma`` (rad^2/s^2) of ``solver.shift_Hz`` (negative Hz: a shift below zero)."""
+    return -abs(TWO_PI * shift_Hz) ** 2 if shift_Hz <= 0 else (TWO_PI * shift_Hz) ** 2
+
+
 def solve_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, *, shift_Hz: float = -10.0,
-                fixed: np.ndarray | None = None, backend: str = "auto", tol: float = 0.0) -> Modes:
+                fixed: np.ndarray | None = None, backend: str = "auto", tol: float = 0.0,
+                factor=None) -> Modes:
     """Lowest ``n_modes`` eigenpairs of ``K phi = w^2 M phi`` by shift-invert Lanczos.
 
     ``shift_Hz`` < 0 places the shift below zero, so ``K - sigma M`` is positive definite even with
     rigid-body modes, and a shift can never hit an eigenvalue.  ``fixed`` DOFs are removed (clamped).
+    ``factor``: a factorisation of ``K - sigma M`` on the free DOFs (:func:`factorize`) to reuse; it is
+    then left to the caller to free.
     """
     n = K.shape[0]
     free = np.setdiff1d(np.arange(n), fixed) if fixed is not None and len(fixed) else np.arange(n)
@@ -104,20 +122,15 @@ def solve_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, *, shift_Hz: float
     if n_modes >= len(free) - 1:
         raise ModelError(f"solver.n_modes: {n_modes} modes requested but the model has only "
                          f"{len(free)} free DOFs — lower solver.n_modes or refine the mesh")
-    sigma = -abs(TWO_PI * shift_Hz) ** 2 if shift_Hz <= 0 else (TWO_PI * shift_Hz) ** 2
-    A = (Kf - sigma * Mf).tocsr()
-    try:
-        fac = factorize(A, backend)
-    except Exception as exc:  # singular or not positive definite
-        raise ModelError(f"solver: factorisation of K - sigma*M failed ({exc}) — the stiffness is "
-                         "singular or indefinite at this shift; check the joint stiffness (zero?) and "
-                         "supports, or use a negative solver.shift_Hz") from None
-    op = spla.LinearOperator(A.shape, matvec=fac.solve, dtype=np.float64)
+    sigma = shift_sigma(shift_Hz)
+    fac = factor if factor is not None else factorize_shifted(Kf, Mf, sigma, backend)
+    op = spla.LinearOperator(Kf.shape, matvec=fac.solve, dtype=np.float64)
     v0 = np.ones(len(free)) / np.sqrt(len(free))
     try:
         lam, vec = spla.eigsh(Kf, k=n_modes, M=Mf, sigma=sigma, which="LM", OPinv=op, v0=v0, tol=tol)
     finally:
-        fac.free()
+        if factor is None:
+            fac.free()
     order = np.argsort(lam)
     lam, vec = lam[order], vec[:, order]
     if not np.all(np.isfinite(lam)):

@@ -107,6 +107,11 @@ def zoom_enabled(cfg: dict) -> bool:
     return bool((cfg["doe"].get("zoom") or {}).get("enabled", False))
 
 
+def zoom_half_width(cfg: dict) -> float:
+    """``doe.zoom.half_width_decades`` (decades of the parameter)."""
+    return float((cfg["doe"].get("zoom") or {}).get("half_width_decades", 0.15))
+
+
 def zoom_box(cfg: dict, optima: dict[str, dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
     """Box of the zoomed second DOE around the first-stage optima of all states (N/m^3).
 
@@ -115,7 +120,7 @@ def zoom_box(cfg: dict, optima: dict[str, dict[str, float]]) -> tuple[np.ndarray
     against a bound keeps its full width ``2 w`` on the inside.
     """
     names = parameter_names(cfg)
-    w = float((cfg["doe"].get("zoom") or {}).get("half_width_decades", 0.15))
+    w = zoom_half_width(cfg)
     lo_b, hi_b = np.log10(parameter_bounds(cfg)[0]), np.log10(parameter_bounds(cfg)[1])
     opt = np.log10(np.array([[float(o[n]) for n in names] for o in optima.values()]))
     lo, hi = opt.min(axis=0) - w, opt.max(axis=0) + w
@@ -133,7 +138,7 @@ def run_doe_zoom(cfg: dict, scout_jsons: dict[str, str], out_csv: str, out_json:
     lo, hi = zoom_box(cfg, optima)
     sheet = doe_sheet(cfg, lo, hi)
     io.write_json(out_json, {"names": names, "lower": lo.tolist(), "upper": hi.tolist(),
-                             "half_width_decades": float(cfg["doe"]["zoom"]["half_width_decades"]),
+                             "half_width_decades": zoom_half_width(cfg),
                              "first_stage_optima": optima})
     io.write_csv(sheet, out_csv)
     _log("doe zoom: " + ", ".join(f"{n} {a:.3g}..{b:.3g}" for n, a, b in zip(names, lo, hi))
