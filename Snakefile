@@ -48,7 +48,9 @@ def cfg_identify(state):
 
 def state_datasets(wc):
     """Measured datasets of all states (the pairing of frequency-only states is shared)."""
-    return sorted({config["states"][s].get("dataset") or config["measurements"]["dataset"] for s in STATES})
+    from jointid.frf import dataset_folder
+
+    return sorted({dataset_folder(config, s) for s in STATES})
 
 
 USE_ROM = config["solver"]["method"] == "rom"
@@ -196,7 +198,7 @@ rule fit_surface:
         "workflow/scripts/fit_surface.py"
 
 
-# doe.zoom (sequential response surface, on by default): the surfaces over the whole bounds give each
+# doe.zoom (sequential response surface, opt-in): the surfaces over the whole bounds give each
 # state a first optimum ("scout", surfaces only); a second DOE of the same design is solved in a box
 # around those optima (shared by the states: one fan-out), and the surfaces fitted there carry the
 # identification.  A quadratic in log-parameters is accurate over a factor ~2, not over decades.

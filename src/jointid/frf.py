@@ -89,7 +89,8 @@ def drive_vector(model, point: str, direction: str = "y") -> np.ndarray:
 
 @dataclass
 class ShiftedFactor:
-    """A factorisation of ``K - sigma M`` on the free DOFs ``free``, kept for reuse (``free()`` it)."""
+    """A factorisation of ``K - sigma M`` on the free DOFs ``free``, kept for reuse (release it with
+    ``free_memory()``)."""
 
     fac: object
     sigma: float
@@ -152,7 +153,8 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
     n = max(1, min(int(n_start), limit))
     Kf = sp.csr_matrix(K)[free][:, free].tocsr() if n_free < n_all else sp.csr_matrix(K)
     Mf = sp.csr_matrix(M)[free][:, free].tocsr() if n_free < n_all else sp.csr_matrix(M)
-    shifted = ShiftedFactor(factorize_shifted(Kf, Mf, shift_sigma(shift_Hz), backend), shift_sigma(shift_Hz), free)
+    sigma = shift_sigma(shift_Hz)
+    shifted = ShiftedFactor(factorize_shifted(Kf, Mf, sigma, backend), sigma, free)
     try:  # one factorisation serves every attempt (and the static solve, with keep_factor)
         while True:
             modes = solve_modes(K, M, n, shift_Hz=shift_Hz, fixed=fixed, backend=backend, factor=shifted.fac)
@@ -234,12 +236,10 @@ def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto"
     try:
         x = None
         if shifted is not None and np.array_equal(shifted.free, free):
-            x = _static_by_shifted(shifted, Kf, b)
-        if x is not None:
-            pass
-        elif n < 20000:
+            x = _static_by_shifted(shifted, Kf, b)  # None if the refinement does not converge
+        if x is None and n < 20000:
             x = np.asarray(hm.static_solver(Kf)(b)).ravel()
-        else:
+        elif x is None:
             fac = factorize(Kf, backend)
             try:
                 x = np.asarray(fac.solve(b)).ravel()

@@ -338,7 +338,9 @@ def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, o
 
 # ------------------------------------------------------------------ identification
 def _dataset_for(cfg: dict, state: str) -> str:
-    return ((cfg.get("states") or {}).get(state) or {}).get("dataset") or cfg["measurements"]["dataset"]
+    from .frf import dataset_folder
+
+    return dataset_folder(cfg, state)
 
 
 AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are reported as alternatives
@@ -421,6 +423,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
     zoom = doc.get("stage") == "zoom"
+    rule = ic.get("pairing", "independent")
     shared, joint_info, pair_msgs = None, None, []
     if states and len(states) > 1 and state in states and shapes is None:
         others = {s: _measured(cfg, s, pts) for s in states}
@@ -428,8 +431,8 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
             shared, joint_info = identify_states_jointly(
                 doc, {s: o[0] for s, o in others.items()}, lower, upper, weights=weights,
                 n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()})
-            pair_msgs = _pairing_notes(doc, state, states, shared, joint_info, ic.get("pairing", "independent"))
-    fixed = shared if ic.get("pairing", "independent") == "shared" else None
+            pair_msgs = _pairing_notes(doc, state, states, shared, joint_info, rule)
+    fixed = shared if rule == "shared" else None
     res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
                                         pairing=fixed)
