@@ -379,3 +379,4 @@ rule tables:
 
 include: "workflow/rules/report.smk"
 include: "workflow/rules/diagnosis.smk"
+include: "workflow/rules/meshcheck.smk"

@@ -99,6 +99,7 @@ WITH_PROVENANCE = (
     *(f"results/harmonic/{s}/{f}" for s in STATES for f in ("frf.csv", "dynamic_stiffness.json", "modes.npz")),
     "results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv",
     "results/tables/table1_dynamic_stiffness.csv", "results/tables/table1_dynamic_stiffness.md",
+    *(f"results/mesh_check/{s}.{ext}" for s in STATES for ext in ("json", "csv")),
 )
 
 

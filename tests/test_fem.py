@@ -133,3 +133,60 @@ def test_vectorised_assembly_equals_scikit_fem_linear_elasticity():
     Kref = asm(linear_elasticity(*lame_parameters(2.0e11, 0.3)), vb)
     assert abs(K - Kref).max() < 1e-10 * abs(Kref).max()
     assert isinstance(K, sp.csr_matrix)
+
+
+# ---------------------------------------------------------------- nested refinement (mesh check)
+def test_halved_grid_is_nested_and_halves_the_chosen_cells():
+    from jointid.config import load_config
+    from jointid.mesh import mesh_from_config
+    from jointid.rig import build_rig
+
+    from conftest import REPO
+
+    cfg = load_config(REPO / "config.yaml")
+    rig = build_rig(cfg["rig"])
+    base = mesh_from_config(rig, cfg["mesh"]).mesh
+    lines = [np.unique(np.round(base.p[i], 9)) for i in range(3)]
+    for halve, axes in ((("thickness",), (1,)), (("plan",), (0, 2)), (("joint_zone",), (0, 1, 2))):
+        fine = mesh_from_config(rig, cfg["mesh"], halve=halve).mesh
+        for i in range(3):
+            fl = np.unique(np.round(fine.p[i], 9))
+            assert np.isin(lines[i], fl).all(), (halve, i)  # every old grid line is kept
+            if i in axes:
+                assert len(fl) > len(lines[i])
+            elif halve != ("joint_zone",):
+                assert len(fl) == len(lines[i])
+        # every old cell's edge along a halved axis is split into equal halves or kept
+        for i in axes:
+            fl = np.unique(np.round(fine.p[i], 9))
+            for a, b in zip(lines[i][:-1], lines[i][1:]):
+                inner = fl[(fl > a + 1e-9) & (fl < b - 1e-9)]
+                assert len(inner) in (0, 1)
+                if len(inner):
+                    assert inner[0] == pytest.approx((a + b) / 2, abs=1e-9)
+    with pytest.raises(ValueError, match="unknown cell classes"):
+        mesh_from_config(rig, cfg["mesh"], halve=("everything",))
+
+
+def test_nested_refinement_lowers_every_frequency():
+    """Min-max principle: on a nested (richer) mesh no eigenfrequency can rise."""
+    from jointid.meshcheck import pair_meshes
+    from jointid.model import base_coefficients, build_model
+
+    from conftest import coarse_config_dict
+
+    cfg = coarse_config_dict()
+    out = []
+    for halve in ((), ("thickness", "joint_zone")):
+        model = build_model(cfg, halve=halve)
+        kc, mc = base_coefficients(cfg, model)
+        modes = solve_modes(model.K(kc), model.M(mc), 10, shift_Hz=-10.0, fixed=model.fixed)
+        out.append((modes.freqs_Hz, model.probe @ modes.phi))
+    (fc, sc), (ff, sf) = out
+    assert len(fc) == len(ff) == 10
+    # sorted eigenvalues of a nested space interlace from below: the k-th can only fall
+    assert np.all(ff <= fc * (1 + 1e-8))
+    assert np.any(ff < fc * (1 - 1e-4))  # and the refinement does change something
+    index, macs = pair_meshes(sc, sf)
+    # every mode but the top of the window (its partner may lie above it) is followed onto the fine mesh
+    assert (index[:8] >= 0).all() and (macs[:8] > 0.9).all()

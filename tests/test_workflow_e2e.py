@@ -46,7 +46,7 @@ def test_dry_run_lists_every_stage_once_per_point_and_state(tmp_path):
     unknown = set(jobs) - set(CORE_RULES) - extra_rule_names(wd)
     assert not unknown, f"jobs of rules defined nowhere: {unknown}"
     # rule all also builds what the rule files append to EXTRA_TARGETS (report, diagnosis)
-    extras = {"harmonic": len(STATES), "table1": 1, "report": 1, "diagnose": 1}
+    extras = {"harmonic": len(STATES), "table1": 1, "report": 1, "diagnose": 1, "mesh_check": len(STATES)}
     assert {r: jobs.get(r, 0) for r in extras} == extras
     assert not (wd / "results").exists(), "a dry run must not write results"
 
@@ -111,6 +111,26 @@ def test_zoomed_surfaces_are_more_accurate_and_carry_the_identification(coarse_r
         par = json.loads((wd / "results" / "identify" / state / "params.json").read_text())
         assert par["surface_stage"] == "zoom"
         assert [par["surface_box"][n] for n in box["names"]] == [list(b) for b in zip(box["lower"], box["upper"])]
+
+
+def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
+    wd = coarse_run
+    for state in STATES:
+        doc = json.loads((wd / f"results/mesh_check/{state}.json").read_text())
+        par = json.loads((wd / f"results/identify/{state}/params.json").read_text())
+        assert doc["n_dofs_refined"] > 2 * doc["n_dofs_default"]
+        assert set(doc["parameters"]) == set(par["parameters"])
+        for name, p in doc["parameters"].items():
+            assert p["value"] == pytest.approx(par["parameters"][name]["value"], rel=1e-12)
+            assert np.isfinite(p["change_pct"]) and p["ci95_half_width_pct"] > 0
+            big = abs(p["change_pct"]) > doc["max_parameter_change_pct"]
+            assert big == any(w.startswith(f"{name} would change") for w in doc["warnings"])
+        tab = pd.read_csv(wd / f"results/mesh_check/{state}.csv")
+        ok = tab.dropna()
+        # nested meshes: no frequency can rise (min-max principle), and each paired mode follows by MAC
+        assert (ok.refined_Hz <= ok.default_Hz * (1 + 1e-8)).all()
+        assert (ok.mac >= 0.8).all()
+        assert sorted(tab.measured_mode[tab.measured_mode > 0]) == list(range(1, len(par["f_meas_Hz"]) + 1))
 
 
 def test_failing_stage_leaves_no_partial_output_and_keeps_earlier_results(coarse_run, tmp_path):

@@ -43,18 +43,29 @@ def _in_patch(mid: np.ndarray, boxes: list[Box]) -> np.ndarray:
     return mask
 
 
+HALVE_CLASSES = ("plan", "thickness", "joint_zone")
+
+
 def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float | None = None,
-               max_height_m: float | None = None) -> RigMesh:
+               max_height_m: float | None = None, halve: tuple[str, ...] = ()) -> RigMesh:
     """Mesh the rig with hexahedra whose grid lines pass through every part boundary.
 
     ``max_height_m`` (m) caps the cell edge along Y, through the thickness of the plates, where the
     bending of base and table converges slowest; ``joint_cell_m`` (m) caps the cell size inside the
     joint zone (carriage footprints between the base top and the carriage top), where the contact
-    strips load rail and carriage locally.
+    strips load rail and carriage locally.  ``halve`` names classes of cells split in two, on top of
+    ``refine``: ``plan`` (along X and Z), ``thickness`` (along Y), ``joint_zone`` (every axis, inside
+    the joint zone); the result is the same mesh with those cells bisected (nested), so a solve on it
+    is a one-step refinement study of the mesh without them.
     """
+    unknown = set(halve) - set(HALVE_CLASSES)
+    if unknown:
+        raise ValueError(f"unknown cell classes to halve: {sorted(unknown)} (choose from {HALVE_CLASSES})")
     h_axes = (max_cell_m, min(max_cell_m, max_height_m or max_cell_m), max_cell_m)
-    x, y, z = (grid_lines(bp, h, refine, zones, joint_cell_m)
-               for bp, h, zones in zip(rig.breakpoints, h_axes, rig.joint_zone))
+    axis_halved = ("plan" in halve, "thickness" in halve, "plan" in halve)
+    zone_refine = 2 * refine if "joint_zone" in halve else refine
+    x, y, z = (grid_lines(bp, h, refine * (2 if halved else 1), zones, joint_cell_m, zone_refine)
+               for bp, h, zones, halved in zip(rig.breakpoints, h_axes, rig.joint_zone, axis_halved))
     full = MeshHex.init_tensor(x, y, z)
     centroids = full.p[:, full.t].mean(axis=1).T
     part = rig.part_at(centroids)
@@ -85,12 +96,13 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
     return RigMesh(mesh=mesh, part=part, facets=_tag_facets(mesh, part, rig))
 
 
-def mesh_from_config(rig: Rig, mesh_cfg: dict, refine: int | None = None) -> RigMesh:
-    """Mesh the rig as the ``mesh`` section of the configuration asks (``refine`` overrides it)."""
+def mesh_from_config(rig: Rig, mesh_cfg: dict, refine: int | None = None, halve: tuple[str, ...] = ()) -> RigMesh:
+    """Mesh the rig as the ``mesh`` section of the configuration asks (``refine`` overrides it;
+    ``halve``: cell classes bisected on top, see :func:`build_mesh`)."""
     h = mesh_cfg["max_cell_size_m"]
     return build_mesh(rig, h, refine or mesh_cfg.get("refine", 1),
                       joint_cell_m=h * mesh_cfg.get("joint_cell_fraction", 1.0),
-                      max_height_m=h * mesh_cfg.get("height_cell_fraction", 1.0))
+                      max_height_m=h * mesh_cfg.get("height_cell_fraction", 1.0), halve=tuple(halve))
 
 
 def _tag_facets(mesh: MeshHex, part: np.ndarray, rig: Rig) -> dict[str, np.ndarray]:

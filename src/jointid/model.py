@@ -67,12 +67,13 @@ def _kind(name: str) -> str:
     return name.split("_")[1] if name.startswith("k_") else name
 
 
-def build_model(cfg: dict, *, refine: int | None = None, progress=None) -> fem.Model:
-    """Assemble the rig model described by ``cfg`` (the whole validated configuration)."""
+def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] = (), progress=None) -> fem.Model:
+    """Assemble the rig model described by ``cfg`` (the whole validated configuration); ``refine``
+    and ``halve`` refine its mesh (see :func:`jointid.mesh.build_mesh`)."""
     say = progress or (lambda msg: None)
     rig_cfg, mesh_cfg = cfg["rig"], cfg["mesh"]
     rig = build_rig(rig_cfg)
-    rmesh = mesh_from_config(rig, mesh_cfg, refine)
+    rmesh = mesh_from_config(rig, mesh_cfg, refine, halve)
     elem_cls, intorder = fem.ELEMENTS[mesh_cfg["element"]]
     elem = elem_cls()
     basis = Basis(rmesh.mesh, elem, intorder=intorder)

@@ -263,6 +263,7 @@ def _load(inputs: dict) -> dict:
         "sheet": pd.read_csv(inputs["sheet"]),
         "points": pd.read_csv(inputs["points"]),
         "paper_table1": pd.read_csv(inputs["paper_table1"]),
+        "mesh_check": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("mesh_check") or []))},
     }
 
 
@@ -403,6 +404,30 @@ def _params_html(data: dict) -> str:
             + f"<ul class='note'>{''.join(extra)}</ul>")
 
 
+def _mesh_check_html(data: dict) -> str:
+    """The mesh check (rule mesh_check, opt-in): the parameters' first-order change on a refined mesh."""
+    if not data.get("mesh_check"):
+        return ""
+    rows, notes = [], []
+    for state, d in data["mesh_check"].items():
+        for name, p in d["parameters"].items():
+            rows.append({"state": state, "parameter": name, "value": p["value"],
+                         "refined": p["value_refined_first_order"], "change_pct": p["change_pct"],
+                         "ci95_half_width_pct": p["ci95_half_width_pct"]})
+        notes.append(f"<li>{_esc(state)}: {d['n_dofs_default']:,} → {d['n_dofs_refined']:,} DOFs "
+                     f"({_esc(', '.join(d['halved']))} cells halved), paired modes move by up to "
+                     f"{d['max_paired_frequency_change_pct']:.2f} %"
+                     + "".join(f"<br><span class='warn'>{_esc(w)}</span>" for w in d["warnings"]) + "</li>")
+    fm = {"value": ".4g", "refined": ".4g", "change_pct": "+.2f", "ci95_half_width_pct": ".1f"}
+    return ("<h3>Mesh check</h3><p class='note'>The identified parameters re-solved on a nested refinement of "
+            "the mesh; 'refined' is where a re-identification there would move them, to first order "
+            "(results/mesh_check/).</p>"
+            + _html_table(pd.DataFrame(rows), fm, {"refined": "refined mesh (first order)", "change_pct": "change (%)",
+                                                   "ci95_half_width_pct": "95 % half-width (%)"},
+                          text_cols=("state", "parameter"))
+            + f"<ul class='note'>{''.join(notes)}</ul>")
+
+
 def _harmonic_notes(data: dict) -> str:
     items = []
     for state, d in data["stiffness"].items():
@@ -475,7 +500,7 @@ def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str
          + "<p class='note'>FE modes paired with the measured modes (verify stage), drawn at the 36 measuring "
            "points: table 3×6 grid on top, base lines below; the scale is arbitrary.</p>"),
         ("params", "Identified joint parameters", _img(figs["parameters"], "identified parameters")
-         + _params_html(data)),
+         + _params_html(data) + _mesh_check_html(data)),
         ("surface", "DOE and response-surface diagnostics", _img(figs["doe"], "DOE")
          + _img(figs["surface"], "surface diagnostics") + _diag_html(data)),
         ("prov", "Configuration and provenance", _provenance_html(cfg, prov)),
@@ -499,8 +524,9 @@ def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
     cfg : dict
         The whole configuration (shown, and hashed).
     inputs : dict
-        Paths: ``table1, table2, table3, paper_table1, diagnostics, sheet, points`` (one each) and
-        ``verify, params, frf, stiffness, modes`` (one per state; the state is the parent folder name).
+        Paths: ``table1, table2, table3, paper_table1, diagnostics, sheet, points`` (one each),
+        ``verify, params, frf, stiffness, modes`` (one per state; the state is the parent folder name)
+        and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check).
     outputs : dict
         ``html`` and one PNG path per figure (``frf, errors, parameters, surface, doe, mode_shapes``);
         figures without a path are only embedded.

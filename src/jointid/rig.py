@@ -147,19 +147,25 @@ def build_rig(rig_cfg: dict) -> Rig:
 
 
 def grid_lines(breakpoints: np.ndarray, max_cell_m: float, refine: int = 1,
-               zones: list[tuple[float, float]] = (), zone_cell_m: float | None = None) -> np.ndarray:
+               zones: list[tuple[float, float]] = (), zone_cell_m: float | None = None,
+               zone_refine: int = 1) -> np.ndarray:
     """Subdivide sorted breakpoints so that no cell is longer than ``max_cell_m / refine``.
 
     Intervals lying inside one of ``zones`` (``(lo, hi)`` in m) use ``zone_cell_m`` instead of
-    ``max_cell_m`` (when given and smaller).  Breakpoints closer than 1e-9 m are merged.  Returns the
-    sorted grid coordinates.
+    ``max_cell_m`` (when given and smaller) and are divided ``max(refine, zone_refine)`` times as
+    finely.  Breakpoints closer than 1e-9 m are merged.  Every interval is divided into equal cells,
+    so the grid for ``refine = 2`` contains every line of the grid for ``refine = 1`` (nested
+    meshes).  Returns the sorted grid coordinates.
     """
     bp = np.unique(np.round(np.asarray(breakpoints, float), 9))
     out = [bp[:1]]
     for a, b in zip(bp[:-1], bp[1:]):
         h = max_cell_m
-        if zone_cell_m is not None and any(lo - 1e-9 <= a and b <= hi + 1e-9 for lo, hi in zones):
-            h = min(h, zone_cell_m)
-        n = max(1, int(np.ceil((b - a) / h - 1e-9))) * int(refine)
+        split = int(refine)
+        if any(lo - 1e-9 <= a and b <= hi + 1e-9 for lo, hi in zones):
+            if zone_cell_m is not None:
+                h = min(h, zone_cell_m)
+            split = max(split, int(zone_refine))
+        n = max(1, int(np.ceil((b - a) / h - 1e-9))) * split
         out.append(np.linspace(a, b, n + 1)[1:])
     return np.concatenate(out)

@@ -78,6 +78,7 @@ rule report:
         diagnostics=SURFACE_DIAGNOSTICS,  # the surfaces that carried the identification
         sheet=SURFACE_SHEET,
         points=rules.mesh.output.points,
+        mesh_check=expand(f"{R}/mesh_check/{{state}}.json", state=STATES) if config["mesh_check"]["enabled"] else [],
     output:
         html=report(f"{R}/report/index.html", caption="../report/index.rst", category="Report"),
         frf=report(f"{R}/report/figures/frf.png", caption="../report/frf.rst", category="Harmonic response"),

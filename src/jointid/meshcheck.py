@@ -1,0 +1,147 @@
+"""Discretisation check of identified joint parameters: how far would they move on a finer mesh?
+
+The identified parameters carry the discretisation error of the FE model.  This module solves the
+model once more at the identified parameters on a nested refinement of the mesh (chosen classes of
+cells bisected, :func:`jointid.mesh.build_mesh`), pairs its modes with the default mesh's by MAC at the
+measuring points and turns the frequency changes into the parameter change a re-identification on
+the finer mesh would give, to first order (one Gauss-Newton step from the optimum):
+
+    delta = -(J^T W J)^-1 J^T W (ln f_fine - ln f_default)
+
+with ``J = d ln f / d log10 theta`` of the paired modes (exact modal sensitivities on the default
+mesh) and ``W`` the identification weights.  Because the meshes are nested, the fine frequencies can
+only be lower (min-max principle); the check reports both meshes' frequencies, the predicted
+parameter change and the 95 % interval the measurement uncertainty alone gives, for comparison.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import ModelError
+from .modal import mac, pair_by_mac
+
+
+def first_order_shift(J: np.ndarray, dlnf: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Parameter change (log10 units) of a least-squares fit when the model's ``ln f`` shift by ``dlnf``.
+
+    ``J`` ``(n_modes, n_params)``: ``d ln f / d log10 theta``; the fit minimises
+    ``sum w (ln f - ln f_meas)^2``; at its optimum a shift ``dlnf`` of the model moves it by
+    ``-(J^T W J)^+ J^T W dlnf``.
+    """
+    J = np.asarray(J, float)
+    w = np.ones(J.shape[0]) if weights is None else np.asarray(weights, float)
+    A = J.T @ (w[:, None] * J)
+    return -np.linalg.pinv(A) @ (J.T @ (w * np.asarray(dlnf, float)))
+
+
+def log_jacobian(model, modes_phi: np.ndarray, lam: np.ndarray, terms: list[dict[str, float]],
+                 theta: np.ndarray) -> np.ndarray:
+    """``d ln f / d log10 theta_i`` of mass-normalised modes ``phi`` (columns) with eigenvalues ``lam``.
+
+    ``terms[i]`` maps stiffness term names of the model to the coefficient per unit of parameter i
+    (``d lambda / d theta_i = sum c phi^T K_t phi``).
+    """
+    J = np.empty((modes_phi.shape[1], len(theta)))
+    for i, (tm, th) in enumerate(zip(terms, theta)):
+        dlam = sum(c * np.einsum("ij,ij->j", modes_phi, model.stiffness[t] @ modes_phi) for t, c in tm.items())
+        J[:, i] = dlam * th * np.log(10) / (2 * lam)
+    return J
+
+
+def pair_meshes(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
+    """Mode of mesh b continuing each mode of mesh a (MAC at the measuring points, one-to-one).
+
+    Returns ``(index, mac)``; ``index`` is -1 where no partner reaches ``threshold``.
+    """
+    index = -np.ones(shapes_a.shape[1], dtype=int)
+    macs = np.zeros(shapes_a.shape[1])
+    for i, j, m in pair_by_mac(mac(shapes_a, shapes_b), threshold):
+        index[i], macs[i] = j, m
+    return index, macs
+
+
+def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
+                   out_json: str, out_csv: str, log=print) -> dict:
+    """Workflow stage: the mesh check of one state's identified parameters (see the module doc)."""
+    import pandas as pd
+
+    from . import io
+    from .model import base_coefficients, build_model, joint_terms, load_model
+    from .modal import solve_modes
+
+    mc_cfg = cfg["mesh_check"]
+    halve = tuple(mc_cfg["halve"])
+    par = io.read_json(params_json)
+    ver = pd.read_csv(verify_csv)
+    names = list(par["parameters"])
+    theta = np.array([par["parameters"][n]["value"] for n in names])
+    theta_d = dict(zip(names, theta))
+    s = cfg["solver"]
+    n_modes = s["n_modes"]
+
+    def solve(model):
+        kc, mcoef = base_coefficients(cfg, model, theta_d)
+        modes = solve_modes(model.K(kc), model.M(mcoef), n_modes, shift_Hz=s["shift_Hz"], fixed=model.fixed,
+                            backend=s["backend"])
+        return modes, model.probe @ modes.phi
+
+    log(f"mesh_check[{state}]: default mesh at the identified parameters")
+    coarse = load_model(matrices)
+    modes_c, shapes_c = solve(coarse)
+    jt = joint_terms(cfg["joints"])
+    terms = [{t: 1.0 for t in jt[n]} for n in names]
+    J_all = log_jacobian(coarse, modes_c.phi, modes_c.omega2, terms, theta)
+    n_dofs_c = coarse.n_dofs
+    del coarse
+    log(f"mesh_check[{state}]: building the mesh with {', '.join(halve)} cells halved")
+    fine = build_model(cfg, halve=halve, progress=lambda m: log(f"mesh_check[{state}]: {m}"))
+    n_dofs_f = fine.n_dofs
+    modes_f, shapes_f = solve(fine)
+    del fine
+    index, macs = pair_meshes(shapes_c, shapes_f)
+    f_c, f_f = modes_c.freqs_Hz, modes_f.freqs_Hz
+    fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
+    use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
+    if not use.any():
+        raise ModelError(f"mesh_check[{state}]: no measured mode could be followed onto the refined mesh "
+                         "(MAC < 0.8 at the measuring points for every paired mode) — check the mesh settings")
+    rows = fe_mode[use]
+    dlnf = np.log(f_f[index[rows]] / f_c[rows])
+    weights = np.asarray(cfg["identify"].get("weights") or np.ones(len(fe_mode)), float)[use]
+    delta = first_order_shift(J_all[rows], dlnf, weights)
+    sigma_log10 = {n: (np.log10(par["parameters"][n]["ci95_high"]) - np.log10(par["parameters"][n]["ci95_low"])) / 2
+                   for n in names}
+    limit = float(mc_cfg["max_parameter_change_pct"])
+    params = {}
+    warnings = []
+    for n, th, d in zip(names, theta, delta):
+        change = 100 * (10 ** d - 1)
+        ci_half = 100 * (10 ** sigma_log10[n] - 1)
+        on_bound = n in par.get("on_bound", [])
+        params[n] = {"value": float(th), "value_refined_first_order": float(th * 10 ** d),
+                     "change_pct": float(change), "ci95_half_width_pct": float(ci_half), "on_bound": on_bound}
+        if on_bound:
+            warnings.append(f"{n} sits on a bound: the change is where it would move without the bound")
+        if abs(change) > limit:
+            warnings.append(f"{n} would change by {change:+.1f} % on the refined mesh (more than "
+                            f"mesh_check.max_parameter_change_pct = {limit:g} %; its 95 % interval from the "
+                            f"measurement uncertainty is +-{ci_half:.1f} %): the mesh is not converged for it")
+    table = pd.DataFrame({
+        "mode": np.arange(1, len(f_c) + 1), "default_Hz": f_c,
+        "refined_Hz": np.where(index >= 0, f_f[np.clip(index, 0, None)], np.nan),
+        "change_pct": np.where(index >= 0, 100 * (f_f[np.clip(index, 0, None)] / f_c - 1), np.nan),
+        "mac": macs,
+        "measured_mode": [int(np.flatnonzero(fe_mode == j)[0]) + 1 if (fe_mode == j).any() else 0
+                          for j in range(len(f_c))]})
+    io.write_csv(table, out_csv)
+    doc = {"state": state, "halved": list(halve), "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
+           "parameters": params, "max_parameter_change_pct": limit, "warnings": warnings,
+           "max_paired_frequency_change_pct": float(100 * np.max(np.abs(np.expm1(dlnf))))}
+    io.write_json(out_json, doc)
+    for n, p in params.items():
+        log(f"mesh_check[{state}]: {n} {p['value']:.4g} -> {p['value_refined_first_order']:.4g} N/m^3 "
+            f"({p['change_pct']:+.2f} %; 95 % interval +-{p['ci95_half_width_pct']:.1f} %)")
+    for w in warnings:
+        log(f"mesh_check[{state}]: WARNING {w}")
+    return doc

@@ -1,0 +1,32 @@
+# Mesh check (opt-in, mesh_check.enabled): each state's identified parameters re-solved on a nested
+# refinement of the mesh; the first-order change a re-identification there would give.
+#   results/mesh_check/{state}.json (parameters: value, refined value, change %, 95 % interval)
+#   results/mesh_check/{state}.csv  (every mode: default and refined frequency, change %, MAC)
+
+CFG_MESH_CHECK = sections(config, "materials", "rig", "mesh", "mesh_check", "joints", "identify.weights",
+                          *SOLVE_KEYS)
+
+if config["mesh_check"]["enabled"]:
+
+    rule mesh_check:
+        input:
+            params=rules.identify.output.params,
+            verify=rules.verify.output.table,
+            matrices=rules.mesh.output.matrices,
+        output:
+            json=f"{R}/mesh_check/{{state}}.json",
+            csv=f"{R}/mesh_check/{{state}}.csv",
+        params:
+            cfg=CFG_MESH_CHECK,
+        log:
+            "logs/mesh_check/{state}.log",
+        benchmark:
+            "benchmarks/out/mesh_check/{state}.tsv"
+        threads: 1
+        resources:
+            mem_mb=12000,
+            runtime=30,
+        script:
+            "../scripts/mesh_check.py"
+
+    EXTRA_TARGETS.extend(expand(f"{R}/mesh_check/{{state}}.json", state=STATES))
