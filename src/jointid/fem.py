@@ -47,18 +47,23 @@ class Model:
 
     def K(self, coeffs: dict[str, float]) -> sp.csr_matrix:
         """``K0 + sum coeffs[name] * stiffness[name]``."""
-        out = self.stiffness["K0"].copy()
-        for name, c in coeffs.items():
-            if c != 0.0:
-                out = out + c * self.stiffness[name]
-        return out.tocsr()
+        return _affine_sum(self.stiffness, "K0", coeffs)
 
     def M(self, coeffs: dict[str, float]) -> sp.csr_matrix:
-        out = self.mass["M0"].copy()
-        for name, c in coeffs.items():
-            if c != 0.0:
-                out = out + c * self.mass[name]
-        return out.tocsr()
+        """``M0 + sum coeffs[name] * mass[name]``."""
+        return _affine_sum(self.mass, "M0", coeffs)
+
+
+def _affine_sum(terms: dict[str, sp.csr_matrix], base: str, coeffs: dict[str, float]) -> sp.csr_matrix:
+    """``terms[base] + sum coeffs[name] * terms[name]``.  The affine terms (joint layers, masses on
+    patches) touch few DOFs: summed among themselves first, the large base matrix is added once
+    (one pass over its entries instead of one per term)."""
+    extra = None
+    for name, c in coeffs.items():
+        if c != 0.0:
+            t = c * terms[name]
+            extra = t if extra is None else extra + t
+    return (terms[base] + extra).tocsr() if extra is not None else terms[base].copy().tocsr()
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
