@@ -1,4 +1,4 @@
-"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e] [--quick]``.
+"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e f g] [--quick]``.
 
 =====  =======================================================================================
 ``a``  default-model assembly + 12-mode modal solve: jointid vs idiomatic scikit-fem, the ratio
@@ -6,6 +6,8 @@
 ``c``  full ``snakemake -j2`` from a clean results directory (tmp copy): wall time, peak memory
 ``d``  scaling of a full solve with DOFs (20k, 75k, 150k, 300k): time, peak RSS, fitted exponent
 ``e``  mesh convergence: first 12 frequencies of the default model vs a once-refined mesh
+``f``  identified joint parameters re-identified on a refined mesh: their change
+``g``  where the lateral modes lose mesh convergence: grid lines added beside one set of part edges
 =====  =======================================================================================
 
 Every measurement that matters for memory runs in its own subprocess (``benchmarks.worker``), which
@@ -13,4 +15,4 @@ reports its own peak RSS (``resource.getrusage``).  Results go to ``benchmarks/o
 one JSON per benchmark and ``summary.md`` with the table that is printed.
 """
 
-BENCHMARKS = ("a", "b", "c", "d", "e", "f")
+BENCHMARKS = ("a", "b", "c", "d", "e", "f", "g")

@@ -67,12 +67,14 @@ def _kind(name: str) -> str:
     return name.split("_")[1] if name.startswith("k_") else name
 
 
-def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] = (), progress=None) -> fem.Model:
+def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] = (), rig=None,
+                progress=None) -> fem.Model:
     """Assemble the rig model described by ``cfg`` (the whole validated configuration); ``refine``
-    and ``halve`` refine its mesh (see :func:`jointid.mesh.build_mesh`)."""
+    and ``halve`` refine its mesh (see :func:`jointid.mesh.build_mesh`); ``rig`` is a geometry to use
+    instead of the one built from ``cfg['rig']`` (e.g. with extra grid breakpoints)."""
     say = progress or (lambda msg: None)
     rig_cfg, mesh_cfg = cfg["rig"], cfg["mesh"]
-    rig = build_rig(rig_cfg)
+    rig = rig or build_rig(rig_cfg)
     rmesh = mesh_from_config(rig, mesh_cfg, refine, halve)
     elem_cls, intorder = fem.ELEMENTS[mesh_cfg["element"]]
     elem = elem_cls()
