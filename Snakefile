@@ -331,7 +331,7 @@ rule identify:
         "benchmarks/out/identify/{state}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=4000,
         runtime=20,
     script:
         "workflow/scripts/identify.py"

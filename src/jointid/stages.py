@@ -525,28 +525,39 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
 
     ``model`` is the full FE model (:class:`jointid.fem.Model`) or a reduced-order model
     (:class:`jointid.rom.ROM`, evaluated in its generalised coordinates, where the sensitivities
-    ``y^T Kr_i y`` are exact for the reduced model).  ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by MAC; with
-    ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate instead.
+    ``y^T Kr_i y`` are exact for the reduced model).  On the full model the iterates are solved by a
+    :class:`jointid.reduced.ReducedSolver` started at ``theta0`` (the exact modes there and their
+    responses to each parameter, enriched wherever a Ritz pair's full-space residual says its
+    eigenvalue is off by more than 1e-6): full-FE answers for one factorisation instead of one per
+    iterate.  ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by
+    MAC; with ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate
+    instead.
     """
-    from .model import joint_terms
+    from .model import base_coefficients, joint_terms
     from .updating import fe_polish
 
     from .rom import ROM
 
     jt = joint_terms(cfg["joints"])
+    terms = [{t: 1.0 for t in jt[n]} for n in names]
+    n_modes = cfg["solver"]["n_modes"]
     if isinstance(model, ROM):
         reduced_terms = dict(zip(model.k_names, model.k_terms))
-        n_modes = cfg["solver"]["n_modes"]
 
         def solve(theta):
             freqs, shapes, y = model.solve_theta(dict(zip(names, theta)), n_modes, return_coords=True)
             return freqs, shapes, y, reduced_terms
     else:
-        def solve(theta):
-            freqs, shapes, _, modes = solve_point(cfg, model, dict(zip(names, theta)), describe=False)
-            return freqs, shapes, modes.phi, model.stiffness
+        from .reduced import ReducedSolver
 
-    terms = [{t: 1.0 for t in jt[n]} for n in names]
+        kc0, mc0 = base_coefficients(cfg, model, dict(zip(names, theta0)))
+        rs = ReducedSolver(model, kc0, mc0, n_modes, [(t, {}) for t in terms], shift_Hz=cfg["solver"]["shift_Hz"],
+                           backend=cfg["solver"]["backend"])
+
+        def solve(theta):
+            sol = rs.solve(*base_coefficients(cfg, model, dict(zip(names, theta))), n_modes)
+            return sol.freqs_Hz, sol.shapes, rs.full_phi(sol), model.stiffness
+
     return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
                      sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
                      repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None)
