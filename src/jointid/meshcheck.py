@@ -20,6 +20,7 @@ import numpy as np
 
 from .errors import ModelError
 from .modal import mac, pair_by_mac
+from .updating import log_jacobian
 
 
 def first_order_shift(J: np.ndarray, dlnf: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
@@ -33,20 +34,6 @@ def first_order_shift(J: np.ndarray, dlnf: np.ndarray, weights: np.ndarray | Non
     w = np.ones(J.shape[0]) if weights is None else np.asarray(weights, float)
     A = J.T @ (w[:, None] * J)
     return -np.linalg.pinv(A) @ (J.T @ (w * np.asarray(dlnf, float)))
-
-
-def log_jacobian(model, modes_phi: np.ndarray, lam: np.ndarray, terms: list[dict[str, float]],
-                 theta: np.ndarray) -> np.ndarray:
-    """``d ln f / d log10 theta_i`` of mass-normalised modes ``phi`` (columns) with eigenvalues ``lam``.
-
-    ``terms[i]`` maps stiffness term names of the model to the coefficient per unit of parameter i
-    (``d lambda / d theta_i = sum c phi^T K_t phi``).
-    """
-    J = np.empty((modes_phi.shape[1], len(theta)))
-    for i, (tm, th) in enumerate(zip(terms, theta)):
-        dlam = sum(c * np.einsum("ij,ij->j", modes_phi, model.stiffness[t] @ modes_phi) for t, c in tm.items())
-        J[:, i] = dlam * th * np.log(10) / (2 * lam)
-    return J
 
 
 def pair_meshes(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
@@ -91,7 +78,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     modes_c, shapes_c = solve(coarse)
     jt = joint_terms(cfg["joints"])
     terms = [{t: 1.0 for t in jt[n]} for n in names]
-    J_all = log_jacobian(coarse, modes_c.phi, modes_c.omega2, terms, theta)
+    J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
     n_dofs_c = coarse.n_dofs
     del coarse
     log(f"mesh_check[{state}]: building the mesh with {', '.join(halve)} cells halved")

@@ -214,6 +214,21 @@ def physical(x, lower, upper) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ FE polish
+def log_jacobian(stiffness: dict, phi: np.ndarray, lam: np.ndarray, terms: list[dict[str, float]],
+                 theta: np.ndarray) -> np.ndarray:
+    """``d ln f / d log10 theta_i`` of mass-normalised modes ``phi`` (columns) with eigenvalues ``lam``.
+
+    Exact modal sensitivities: ``d lambda / d theta_i = sum_t c phi^T K_t phi`` over the stiffness
+    terms ``terms[i] = {name: c}`` of parameter i (``stiffness[name]`` the matrices, in the space of
+    ``phi``); ``d ln f = d lambda / (2 lambda)``.  Returns ``(n_modes, n_params)``.
+    """
+    J = np.empty((phi.shape[1], len(theta)))
+    for i, (tm, th) in enumerate(zip(terms, theta)):
+        dlam = sum(c * np.einsum("ij,ij->j", phi, stiffness[t] @ phi) for t, c in tm.items())
+        J[:, i] = dlam * th * np.log(10) / (2 * lam)
+    return J
+
+
 def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
               target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
               max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print,
@@ -250,12 +265,9 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
                             "or check the pairing in results/identify/<state>/params.json")
         f = freqs[index]
         r = np.sqrt(w) * (f - f_meas) / f_meas
-        J = np.empty((len(f), len(y)))
-        for i in range(len(y)):
-            ph = phi[:, index]
-            dlam = sum(c * np.einsum("ij,ij->j", ph, stiff[t] @ ph) for t, c in terms[i].items())
-            dlam_dlog10 = dlam * (10 ** y[i]) * np.log(10)
-            J[:, i] = np.sqrt(w) * dlam_dlog10 / (8 * np.pi**2 * f) / f_meas
+        # d(f / f_meas) / d log10 theta = (f / f_meas) d ln f / d log10 theta
+        J = (np.sqrt(w) * f / f_meas)[:, None] * log_jacobian(stiff, phi[:, index], (2 * np.pi * f) ** 2,
+                                                               terms, 10 ** y)
         history.append(float(r @ r))
         if best is None or history[-1] < best[0]:
             best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs))
