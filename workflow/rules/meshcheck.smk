@@ -24,7 +24,7 @@ if config["mesh_check"]["enabled"]:
             "benchmarks/out/mesh_check/{state}.tsv"
         threads: 1
         resources:
-            mem_mb=12000,
+            mem_mb=15000,
             runtime=30,
         script:
             "../scripts/mesh_check.py"
