@@ -121,7 +121,8 @@ def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
         assert doc["n_dofs_refined"] > 2 * doc["n_dofs_default"]
         assert set(doc["parameters"]) == set(par["parameters"])
         for name, p in doc["parameters"].items():
-            assert p["value"] == pytest.approx(par["parameters"][name]["value"], rel=1e-12)
+            # JSON files keep 12 significant digits (jointid.io.write_json)
+            assert p["value"] == pytest.approx(par["parameters"][name]["value"], rel=1e-10)
             assert np.isfinite(p["change_pct"]) and p["ci95_half_width_pct"] > 0
             big = abs(p["change_pct"]) > doc["max_parameter_change_pct"]
             assert big == any(w.startswith(f"{name} would change") for w in doc["warnings"])
