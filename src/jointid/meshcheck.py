@@ -102,6 +102,10 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     limit = float(mc_cfg["max_parameter_change_pct"])
     params = {}
     warnings = []
+    lost = [i + 1 for i in np.flatnonzero((fe_mode >= 0) & ~use)]
+    if lost:
+        warnings.append(f"measured mode(s) {', '.join(map(str, lost))}: the paired mode has no partner with "
+                        "MAC >= 0.8 on the refined mesh; left out of the estimate")
     for n, th, d in zip(names, theta, delta):
         change = 100 * (10 ** d - 1)
         ci_half = 100 * (10 ** sigma_log10[n] - 1)
