@@ -218,6 +218,10 @@ BAD = [
      "rig.support.kind: 'clamp' is not allowed — did you mean 'clamped'? (allowed: mounts, clamped, free)"),
     ("type", lambda c: c["rig"]["base"].update(length_m="long"),
      "rig.base.length_m: 'long' is text, expected a number — give the base length in metres"),
+    ("true/false as text (snakemake --config)", lambda c: c["doe"]["zoom"].update(enabled="true"),
+     "doe.zoom.enabled: 'true' is text, expected true or false — see docs/config-reference.md for enabled "
+     "(snakemake --config passes the values inside a mapping as text: give this one in a config file added "
+     "with --configfile)"),
     ("integer", lambda c: c["rig"]["motors"].update(count=2.5),
      "rig.motors.count: 2.5 is a number, expected a whole number — give the number of motors as a whole number >= 0"),
     ("poisson", lambda c: c["materials"]["steel"].update(poisson_ratio=0.5),

@@ -264,6 +264,20 @@ def _show(value: Any, limit: int = 60) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def _text_of(text: str, expected: list[str]) -> bool:
+    """Whether ``text`` spells a value of one of the ``expected`` JSON-schema types (e.g. 'true', '8')."""
+    import yaml
+
+    try:
+        val = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return False
+    kinds = {"boolean": lambda v: isinstance(v, bool),
+             "integer": lambda v: isinstance(v, int) and not isinstance(v, bool),
+             "number": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)}
+    return any(kinds.get(e, lambda v: False)(val) for e in expected)
+
+
 def _kind(value: Any) -> str:
     if isinstance(value, bool):
         return "true/false"
@@ -543,7 +557,11 @@ def _translate(error) -> list[tuple[list, str]]:
         expected = [expected] if isinstance(expected, str) else list(expected)
         exp_text = " or ".join(_EXPECTED.get(e, e) for e in expected)
         shown = _show(val) if not isinstance(val, (Mapping, list)) else _kind(val)
-        out.append((path, f"{shown} is {_kind(val)}, expected {exp_text} — {_fix_phrase(sch, key)}"))
+        msg = f"{shown} is {_kind(val)}, expected {exp_text} — {_fix_phrase(sch, key)}"
+        if isinstance(val, str) and _text_of(val, expected):
+            msg += (" (snakemake --config passes the values inside a mapping as text: give this one in a "
+                    "config file added with --configfile)")
+        out.append((path, msg))
     elif v in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
         op = {"minimum": ">=", "exclusiveMinimum": ">", "maximum": "<=", "exclusiveMaximum": "<"}[v]
         out.append((path, f"{_show(val)} must be {op} {_fmt_num(error.validator_value)} — {_fix_phrase(sch, key)}"))
