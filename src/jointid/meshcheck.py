@@ -54,8 +54,8 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     import pandas as pd
 
     from . import io
-    from .model import base_coefficients, build_model, joint_terms, load_model
-    from .modal import solve_modes
+    from .model import build_model, joint_terms, load_model
+    from .stages import solve_point
 
     mc_cfg = cfg["mesh_check"]
     halve = tuple(mc_cfg["halve"])
@@ -64,14 +64,9 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     names = list(par["parameters"])
     theta = np.array([par["parameters"][n]["value"] for n in names])
     theta_d = dict(zip(names, theta))
-    s = cfg["solver"]
-    n_modes = s["n_modes"]
-
     def solve(model):
-        kc, mcoef = base_coefficients(cfg, model, theta_d)
-        modes = solve_modes(model.K(kc), model.M(mcoef), n_modes, shift_Hz=s["shift_Hz"], fixed=model.fixed,
-                            backend=s["backend"])
-        return modes, model.probe @ modes.phi
+        _, shapes, _, modes = solve_point(cfg, model, theta_d, describe=False)
+        return modes, shapes
 
     log(f"mesh_check[{state}]: default mesh at the identified parameters")
     coarse = load_model(matrices)
