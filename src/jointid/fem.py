@@ -143,19 +143,28 @@ def facet_mass(mesh, elem, facets: np.ndarray, intorder: int) -> sp.csr_matrix:
     return S
 
 
-def jump_operator(S: sp.csr_matrix, doflocs: np.ndarray, direction: int) -> sp.csr_matrix:
+def jump_operator(S: sp.csr_matrix, doflocs: np.ndarray, direction: int,
+                  dof_body: np.ndarray | None = None) -> sp.csr_matrix:
     """Jump ``u_side - u_partner`` in one direction for the facet dofs of ``S``.
 
-    The partner of each facet dof is the dof of the other body at the same location (duplicated node).
-    Returns D with shape (N, 3N).
+    The partner of each facet dof is a dof of the other body at the same location (duplicated node);
+    ``dof_body`` (body of each scalar dof) tells the bodies apart where one body has several dofs at
+    one place (hanging nodes, ``jointid.localrefine``).  Returns D with shape (N, 3N).
     """
     n = S.shape[0]
     rowsum = np.asarray(abs(S).sum(axis=1)).ravel()
     active = np.flatnonzero(rowsum > 1e-10 * rowsum.max())
     tree = cKDTree(doflocs.T)
-    dist, idx = tree.query(doflocs[:, active].T, k=2)
-    partner = np.where(idx[:, 0] == active, idx[:, 1], idx[:, 0])
-    d_partner = np.where(idx[:, 0] == active, dist[:, 1], dist[:, 0])
+    k = 2 if dof_body is None else 8
+    dist, idx = tree.query(doflocs[:, active].T, k=k)
+    if dof_body is None:
+        other = idx != active[:, None]
+    else:
+        other = dof_body[np.minimum(idx, n - 1)] != dof_body[active][:, None]
+    first = np.argmax(other, axis=1)
+    rows_ = np.arange(len(active))
+    partner = idx[rows_, first]
+    d_partner = np.where(other[rows_, first], dist[rows_, first], np.inf)
     scale = np.ptp(doflocs, axis=1).max()
     if np.any(d_partner > 1e-9 * scale):
         raise ValueError("joint face dofs without a partner on the other body: mesh interface is broken")
@@ -165,9 +174,10 @@ def jump_operator(S: sp.csr_matrix, doflocs: np.ndarray, direction: int) -> sp.c
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, 3 * n))
 
 
-def spring_layer(S: sp.csr_matrix, doflocs: np.ndarray, direction: int) -> sp.csr_matrix:
+def spring_layer(S: sp.csr_matrix, doflocs: np.ndarray, direction: int,
+                 dof_body: np.ndarray | None = None) -> sp.csr_matrix:
     """Unit (1 N/m^3) spring layer ``D^T S D`` between the two bodies in one direction."""
-    D = jump_operator(S, doflocs, direction)
+    D = jump_operator(S, doflocs, direction, dof_body)
     return (D.T @ S @ D).tocsr()
 
 

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from skfem import MeshHex
 
-from .rig import BODY_OF_PART, Box, Rig, grid_lines
+from . import localrefine
+from .rig import BODY_OF_PART, BONDED_GROUP_OF_PART, Box, Rig, grid_lines
 
 _TOL = 1e-9
 
@@ -33,6 +34,12 @@ class RigMesh:
     mesh: MeshHex
     part: np.ndarray
     facets: dict[str, np.ndarray]
+    boxes: tuple[np.ndarray, np.ndarray] | None = None  # (lo, hi) of every cell when nodes hang
+
+    @property
+    def body(self) -> np.ndarray:
+        """Body of each element (``jointid.rig.BODY_OF_PART``)."""
+        return np.vectorize(BODY_OF_PART.get)(self.part)
 
 
 def _in_patch(mid: np.ndarray, boxes: list[Box]) -> np.ndarray:
@@ -47,7 +54,7 @@ HALVE_CLASSES = ("plan", "thickness", "joint_zone")
 
 
 def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float | None = None,
-               max_height_m: float | None = None, halve: tuple[str, ...] = ()) -> RigMesh:
+               max_height_m: float | None = None, halve: tuple[str, ...] = (), edge_levels: int = 0) -> RigMesh:
     """Mesh the rig with hexahedra whose grid lines pass through every part boundary.
 
     ``max_height_m`` (m) caps the cell edge along Y, through the thickness of the plates, where the
@@ -56,13 +63,19 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
     strips load rail and carriage locally.  ``halve`` names classes of cells split in two, on top of
     ``refine``: ``plan`` (along X and Z), ``thickness`` (along Y), ``joint_zone`` (every axis, inside
     the joint zone); the result is the same mesh with those cells bisected (nested), so a solve on it
-    is a one-step refinement study of the mesh without them.
+    is a one-step refinement study of the mesh without them.  ``edge_levels`` splits the cells that
+    touch a re-entrant edge into eight, that many times (``jointid.localrefine``; the mesh then has
+    hanging nodes and ``boxes`` set); ``halve`` then bisects the cells of the locally refined mesh.
     """
     unknown = set(halve) - set(HALVE_CLASSES)
     if unknown:
         raise ValueError(f"unknown cell classes to halve: {sorted(unknown)} (choose from {HALVE_CLASSES})")
     h_axes = (max_cell_m, min(max_cell_m, max_height_m or max_cell_m), max_cell_m)
     axis_halved = ("plan" in halve, "thickness" in halve, "plan" in halve)
+    if edge_levels:
+        lines = [grid_lines(bp, h, refine, zones, joint_cell_m)
+                 for bp, h, zones in zip(rig.breakpoints, h_axes, rig.joint_zone)]
+        return _edge_refined_mesh(rig, lines, int(edge_levels), halve, joint_cell_m or max_cell_m)
     zone_refine = 2 * refine if "joint_zone" in halve else refine
     x, y, z = (grid_lines(bp, h, refine * (2 if halved else 1), zones, joint_cell_m, zone_refine)
                for bp, h, zones, halved in zip(rig.breakpoints, h_axes, rig.joint_zone, axis_halved))
@@ -102,13 +115,64 @@ def mesh_from_config(rig: Rig, mesh_cfg: dict, refine: int | None = None, halve:
     h = mesh_cfg["max_cell_size_m"]
     return build_mesh(rig, h, refine or mesh_cfg.get("refine", 1),
                       joint_cell_m=h * mesh_cfg.get("joint_cell_fraction", 1.0),
-                      max_height_m=h * mesh_cfg.get("height_cell_fraction", 1.0), halve=tuple(halve))
+                      max_height_m=h * mesh_cfg.get("height_cell_fraction", 1.0), halve=tuple(halve),
+                      edge_levels=mesh_cfg.get("edge_refine_levels", 0))
+
+
+def _edge_refined_mesh(rig: Rig, lines: list[np.ndarray], levels: int, halve: tuple[str, ...],
+                       margin_m: float) -> RigMesh:
+    """Tensor grid on ``lines`` with the cells at re-entrant edges (within ``margin_m`` of the joint
+    zone) split ``levels`` times, then the
+    ``halve`` classes bisected, then split further until the cells on either side of every joint face
+    match (so that each node of a joint face has its partner on the other body)."""
+    lo = np.stack(np.meshgrid(*[g[:-1] for g in lines], indexing="ij"), axis=-1).reshape(-1, 3)
+    hi = np.stack(np.meshgrid(*[g[1:] for g in lines], indexing="ij"), axis=-1).reshape(-1, 3)
+    part = rig.part_at(0.5 * (lo + hi))
+    solid = part >= 0
+    group = np.where(solid, np.vectorize(BONDED_GROUP_OF_PART.get)(np.maximum(part, 0)), -1)
+    segments = localrefine.reentrant_segments(tuple(lines), group.reshape([len(g) - 1 for g in lines]))
+    # only the edges in and around the joint zone (where the joints load the parts) are refined
+    zone_lo = np.array([min(a for a, _ in z) for z in rig.joint_zone]) - margin_m
+    zone_hi = np.array([max(b for _, b in z) for z in rig.joint_zone]) + margin_m
+    segments = localrefine.clip_segments(segments, zone_lo, zone_hi)
+    lo, hi, part = lo[solid], hi[solid], part[solid]
+    lo, hi, part = localrefine.refine_at(lo, hi, segments, levels, part)
+    for axis in range(3):
+        mask = np.zeros(len(lo), bool)
+        if "plan" in halve and axis != 1:
+            mask[:] = True
+        if "thickness" in halve and axis == 1:
+            mask[:] = True
+        if "joint_zone" in halve:
+            mask |= np.array([any(a - 1e-9 <= l_ and h_ <= b + 1e-9 for a, b in rig.joint_zone[axis])
+                              for l_, h_ in zip(lo[:, axis], hi[:, axis])], bool)
+        lo, hi, part = localrefine.bisect(lo, hi, mask, axis, part)
+    body = np.vectorize(BODY_OF_PART.get)(part)
+    for _ in range(64):
+        mesh = localrefine.box_mesh(lo, hi, body)
+        facets = _tag_facets(mesh, part, rig)
+        mask = localrefine.unmatched_across(mesh, body, lo, hi,
+                                            np.concatenate([facets[f] for f in ("top", "flank", "railfix")]))
+        if not mask.any():
+            return RigMesh(mesh=mesh, part=part, facets=facets, boxes=(lo, hi))
+        for axis in range(3):
+            lo, hi, mask, part, body = localrefine.bisect(lo, hi, mask[:, axis], axis, mask, part, body)
+    raise RuntimeError("joint faces of the locally refined mesh do not match after 64 passes")
 
 
 def _tag_facets(mesh: MeshHex, part: np.ndarray, rig: Rig) -> dict[str, np.ndarray]:
     bnd = mesh.boundary_facets()
     mid = mesh.p[:, mesh.facets[:, bnd]].mean(axis=1).T
     owner = mesh.f2t[0, bnd]
+    # a facet between cells of different size (hanging nodes) is unmatched but inside the body: drop it
+    out_dir = mid - mesh.p[:, mesh.t[:, owner]].mean(axis=1).T
+    axis = np.argmax(np.abs(out_dir), axis=1)
+    beyond = mid.copy()
+    beyond[np.arange(len(mid)), axis] += 1e-7 * np.sign(out_dir[np.arange(len(mid)), axis])
+    outside = rig.part_at(beyond)
+    inner = (outside >= 0) & (np.vectorize(BODY_OF_PART.get)(np.maximum(outside, 0)) ==
+                              np.vectorize(BODY_OF_PART.get)(part[owner]))
+    bnd, mid, owner = bnd[~inner], mid[~inner], owner[~inner]
     body1 = np.isin(part[owner], [2, 3])
     out = {}
     for name in ("top", "flank"):

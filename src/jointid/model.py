@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 from skfem import Basis
 
-from . import fem
+from . import fem, localrefine
 from .mesh import mesh_from_config
 from .points import measuring_points
 from .rig import PART_IDS, build_rig
@@ -93,12 +93,16 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     K0, M0 = fem.assemble_elasticity(basis, lam, mu, rho)
     stiffness = {"K0": K0}
     doflocs = basis.doflocs
+    dof_body = None
+    if rmesh.boxes is not None:
+        dof_body = np.empty(basis.N, np.int64)
+        dof_body[basis.element_dofs] = rmesh.body[None, :]
     for face in ("top", "flank"):
         S = fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder)
         for d, i in fem.DIRS.items():
-            stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, doflocs, i)
+            stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, doflocs, i, dof_body)
     S_fix = fem.facet_mass(rmesh.mesh, elem, rmesh.facets["railfix"], intorder)
-    stiffness["K_railfix"] = sum(fem.spring_layer(S_fix, doflocs, i) for i in range(3)).tocsr()
+    stiffness["K_railfix"] = sum(fem.spring_layer(S_fix, doflocs, i, dof_body) for i in range(3)).tocsr()
     stiffness["K_foundation"] = fem.ground_springs(
         fem.facet_mass(rmesh.mesh, elem, rmesh.facets["bottom"], intorder))
     support = rig_cfg["support"]["kind"]
@@ -138,7 +142,37 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     model = fem.Model(stiffness=stiffness, mass=mass, fixed=fixed, probe=probe, doflocs=doflocs,
                       dof_part=dof_part, meta=meta)
     model.meta["mesh"] = {"p": rmesh.mesh.p, "t": rmesh.mesh.t, "part": rmesh.part}
+    if rmesh.boxes is not None:
+        lo, hi = rmesh.boxes
+        T, free = localrefine.hanging_constraints(doflocs, basis.element_dofs, lo, hi, rmesh.body,
+                                                  localrefine.ORDER[mesh_cfg["element"]])
+        say(f"hanging nodes: {basis.N - len(free)} of {basis.N} nodes tied, {3 * len(free)} DOFs left")
+        model = _constrained(model, T, free)
     return model
+
+
+def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Model:
+    """``model`` on the free nodes of a mesh with hanging nodes: every matrix projected with the
+    scalar map ``T`` (all nodes from the free ones, ``jointid.localrefine.hanging_constraints``);
+    ``free[j]`` is a node standing for free node j (its location and part)."""
+    Tv = sp.kron(T, sp.eye(3), format="csr")
+    Tt = Tv.T.tocsr()
+    project = {g: {name: (Tt @ A @ Tv).tocsr() for name, A in getattr(model, g).items()}
+               for g in ("stiffness", "mass")}
+    fixed_nodes = np.unique(model.fixed // 3)
+    nodes_of_free = np.full(T.shape[0], -1)
+    nodes_of_free[free] = np.arange(len(free))
+    # a fixed node that is free keeps its DOFs fixed; a hanging one is tied to nodes on the same face
+    fixed_free = nodes_of_free[fixed_nodes]
+    fixed = np.sort(np.concatenate([3 * fixed_free[fixed_free >= 0] + c for c in range(3)]))
+    meta = dict(model.meta)
+    meta["n_dofs"] = int(3 * len(free))
+    vertex = T[: model.meta["mesh"]["p"].shape[1]].tocsr()  # vertex dofs come first
+    meta["mesh"] = dict(model.meta["mesh"], vertex_data=vertex.data, vertex_indices=vertex.indices,
+                        vertex_indptr=vertex.indptr)
+    return fem.Model(stiffness=project["stiffness"], mass=project["mass"], fixed=fixed,
+                     probe=(model.probe @ Tv).tocsr(), doflocs=model.doflocs[:, free],
+                     dof_part=model.dof_part[free], meta=meta)
 
 
 def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | None = None,

@@ -21,6 +21,7 @@ import numpy as np
 
 PART_IDS = {"void": -1, "base": 0, "rail": 1, "carriage": 2, "table": 3}
 BODY_OF_PART = {0: 0, 1: 2, 2: 1, 3: 1}  # base | carriages + table | rails
+BONDED_GROUP_OF_PART = {0: 0, 1: 0, 2: 1, 3: 1}  # base + rails (stiff fixing layer) | carriages + table
 
 
 @dataclass(frozen=True)
