@@ -69,7 +69,10 @@ def test_reentrant_edges_of_an_l_shape_and_clipping():
 def test_refinement_cuts_across_the_edge_only():
     lo, hi = np.array([[0.0, 0, 0]]), np.array([[1.0, 1, 4]])
     segs = [np.zeros((0, 4)), np.zeros((0, 4)), np.array([[0.0, 0.0, 0.0, 4.0]])]  # along Z at x = y = 0
-    lo2, hi2 = localrefine.refine_at(lo, hi, segs, 2)
+    level = np.zeros(1, int)
+    for _ in range(2):
+        lo, hi, level = localrefine.refine_at(lo, hi, segs, level)
+    lo2, hi2 = lo, hi
     size = hi2 - lo2
     assert np.allclose(size[:, 2], 4.0)  # never cut along the edge
     assert np.isclose(size[:, 0].min(), 0.25) and np.isclose(np.prod(size, axis=1).sum(), 4.0)
@@ -93,8 +96,9 @@ def _cantilever_freqs(levels, n=6, elem=ElementHex2, order=2):
         segs = [np.zeros((0, 4)),
                 np.array([[0.0, 0.0, 0.0, 0.04], [0.0, 0.04, 0.0, 0.04]]),
                 np.array([[0.0, 0.0, 0.0, 0.04], [0.0, 0.04, 0.0, 0.04]])]
-        lo, hi, wall = localrefine.refine_at(lo, hi, segs, levels, wall)
-        body = np.zeros(len(lo), int)
+        level = np.zeros(len(lo), int)
+        for _ in range(levels):
+            lo, hi, level, wall = localrefine.refine_at(lo, hi, segs, level, wall)
     body = np.zeros(len(lo), int)
     basis = Basis(localrefine.box_mesh(lo, hi, body), elem(), intorder=2 * order)
     lam, mu = fem.lame(2.06e11, 0.3)
@@ -168,3 +172,24 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
     assert len(single) > 0 and np.all(np.isfinite(u))
     phi = modes.phi[:, 0].reshape(-1, 3)
     assert np.allclose(u[single], phi[Tv.indices[Tv.indptr[single]]], atol=1e-12 * np.abs(phi).max())
+
+
+def test_edges_class_adds_one_nested_level():
+    from jointid.config import load_config
+    from jointid.mesh import mesh_from_config
+    from jointid.rig import build_rig
+
+    from conftest import REPO
+
+    cfg = load_config(REPO / "config.yaml")
+    rig = build_rig(cfg["rig"])
+    one = mesh_from_config(rig, dict(cfg["mesh"], edge_refine_levels=1))
+    two = mesh_from_config(rig, dict(cfg["mesh"], edge_refine_levels=1), halve=("edges",))
+    assert (two.boxes[0].shape[0] > one.boxes[0].shape[0]
+            and np.array_equal(two.boxes[0], mesh_from_config(rig, dict(cfg["mesh"], edge_refine_levels=2)).boxes[0]))
+    # nested: every cell of the finer mesh lies inside one cell of the coarser
+    (lo1, hi1), (lo2, hi2) = one.boxes, two.boxes
+    c2 = 0.5 * (lo2 + hi2)
+    for found, lo, hi in zip(localrefine.boxes_at(lo1, hi1, c2), lo2, hi2):
+        assert len(found) == 1
+        assert np.all(lo >= lo1[found[0]] - 1e-12) and np.all(hi <= hi1[found[0]] + 1e-12)

@@ -85,19 +85,18 @@ def touching(lo: np.ndarray, hi: np.ndarray, segments: list[np.ndarray]) -> np.n
     return hit
 
 
-def refine_at(lo: np.ndarray, hi: np.ndarray, segments: list[np.ndarray], levels: int, *attrs: np.ndarray):
-    """Halve the boxes touching a segment across the segment, ``levels`` times over (each time the
-    halves that still touch it): a box at an edge along Z is cut in X and Y only, since the field
-    near an edge varies fast only across it.  ``attrs`` (per-box arrays) are inherited."""
-    level = np.zeros(len(lo), int)
-    for lev in range(levels):
-        hit = touching(lo, hi, segments) & (level == lev)[:, None]
-        cut = np.stack([hit[:, [1, 2]].any(axis=1), hit[:, [0, 2]].any(axis=1), hit[:, [0, 1]].any(axis=1)], axis=1)
-        chosen = cut.any(axis=1)
-        level[chosen] = lev + 1
-        for axis in range(3):
-            lo, hi, cut, level, *attrs = bisect(lo, hi, cut[:, axis], axis, cut, level, *attrs)
-    return (lo, hi, *attrs)
+def refine_at(lo: np.ndarray, hi: np.ndarray, segments: list[np.ndarray], level: np.ndarray, *attrs: np.ndarray):
+    """One level of refinement at the segments: the boxes of the deepest ``level`` that touch a
+    segment are halved across it (a box at an edge along Z is cut in X and Y only, since the field
+    near an edge varies fast only across it); their halves get the next level.  ``attrs`` (per-box
+    arrays) are inherited.  Returns ``(lo, hi, level, *attrs)``."""
+    lev = level.max() if len(level) else 0
+    hit = touching(lo, hi, segments) & (level == lev)[:, None]
+    cut = np.stack([hit[:, [1, 2]].any(axis=1), hit[:, [0, 2]].any(axis=1), hit[:, [0, 1]].any(axis=1)], axis=1)
+    level = np.where(cut.any(axis=1), lev + 1, level)
+    for axis in range(3):
+        lo, hi, cut, level, *attrs = bisect(lo, hi, cut[:, axis], axis, cut, level, *attrs)
+    return (lo, hi, level, *attrs)
 
 
 def bisect(lo: np.ndarray, hi: np.ndarray, mask: np.ndarray, axis: int, *attrs: np.ndarray):

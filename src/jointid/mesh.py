@@ -50,7 +50,7 @@ def _in_patch(mid: np.ndarray, boxes: list[Box]) -> np.ndarray:
     return mask
 
 
-HALVE_CLASSES = ("plan", "thickness", "joint_zone")
+HALVE_CLASSES = ("plan", "thickness", "joint_zone", "edges")
 
 
 def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float | None = None,
@@ -62,9 +62,10 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
     joint zone (carriage footprints between the base top and the carriage top), where the contact
     strips load rail and carriage locally.  ``halve`` names classes of cells split in two, on top of
     ``refine``: ``plan`` (along X and Z), ``thickness`` (along Y), ``joint_zone`` (every axis, inside
-    the joint zone); the result is the same mesh with those cells bisected (nested), so a solve on it
-    is a one-step refinement study of the mesh without them.  ``edge_levels`` splits the cells that
-    touch a re-entrant edge into eight, that many times (``jointid.localrefine``; the mesh then has
+    the joint zone), ``edges`` (the cells at re-entrant edges, across the edge: one more
+    ``edge_levels``); the result is the same mesh with those cells bisected (nested), so a solve on it
+    is a one-step refinement study of the mesh without them.  ``edge_levels`` halves the cells that
+    touch a re-entrant edge across it, that many times (``jointid.localrefine``; the mesh then has
     hanging nodes and ``boxes`` set); ``halve`` then bisects the cells of the locally refined mesh.
     """
     unknown = set(halve) - set(HALVE_CLASSES)
@@ -72,10 +73,11 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
         raise ValueError(f"unknown cell classes to halve: {sorted(unknown)} (choose from {HALVE_CLASSES})")
     h_axes = (max_cell_m, min(max_cell_m, max_height_m or max_cell_m), max_cell_m)
     axis_halved = ("plan" in halve, "thickness" in halve, "plan" in halve)
+    edge_levels = int(edge_levels) + ("edges" in halve)
     if edge_levels:
         lines = [grid_lines(bp, h, refine, zones, joint_cell_m)
                  for bp, h, zones in zip(rig.breakpoints, h_axes, rig.joint_zone)]
-        return _edge_refined_mesh(rig, lines, int(edge_levels), halve, joint_cell_m or max_cell_m)
+        return _edge_refined_mesh(rig, lines, edge_levels, halve, joint_cell_m or max_cell_m)
     zone_refine = 2 * refine if "joint_zone" in halve else refine
     x, y, z = (grid_lines(bp, h, refine * (2 if halved else 1), zones, joint_cell_m, zone_refine)
                for bp, h, zones, halved in zip(rig.breakpoints, h_axes, rig.joint_zone, axis_halved))
@@ -136,7 +138,10 @@ def _edge_refined_mesh(rig: Rig, lines: list[np.ndarray], levels: int, halve: tu
     zone_hi = np.array([max(b for _, b in z) for z in rig.joint_zone]) + margin_m
     segments = localrefine.clip_segments(segments, zone_lo, zone_hi)
     lo, hi, part = lo[solid], hi[solid], part[solid]
-    lo, hi, part = localrefine.refine_at(lo, hi, segments, levels, part)
+    level = np.zeros(len(lo), int)
+    for _ in range(levels):  # each level made to match across the joint faces before the next
+        lo, hi, level, part = localrefine.refine_at(lo, hi, segments, level, part)
+        lo, hi, level, part = _match_joint_faces(rig, lo, hi, level, part)[:4]
     for axis in range(3):
         mask = np.zeros(len(lo), bool)
         if "plan" in halve and axis != 1:
@@ -146,17 +151,24 @@ def _edge_refined_mesh(rig: Rig, lines: list[np.ndarray], levels: int, halve: tu
         if "joint_zone" in halve:
             mask |= np.array([any(a - 1e-9 <= l_ and h_ <= b + 1e-9 for a, b in rig.joint_zone[axis])
                               for l_, h_ in zip(lo[:, axis], hi[:, axis])], bool)
-        lo, hi, part = localrefine.bisect(lo, hi, mask, axis, part)
-    body = np.vectorize(BODY_OF_PART.get)(part)
+        lo, hi, level, part = localrefine.bisect(lo, hi, mask, axis, level, part)
+    lo, hi, level, part, mesh, facets = _match_joint_faces(rig, lo, hi, level, part)
+    return RigMesh(mesh=mesh, part=part, facets=facets, boxes=(lo, hi))
+
+
+def _match_joint_faces(rig: Rig, lo, hi, level, part):
+    """Split cells until the cells on either side of every joint face match (so that each node of a
+    joint face has its partner on the other body).  Returns ``(lo, hi, level, part, mesh, facets)``."""
     for _ in range(64):
+        body = np.vectorize(BODY_OF_PART.get)(part)
         mesh = localrefine.box_mesh(lo, hi, body)
         facets = _tag_facets(mesh, part, rig)
         mask = localrefine.unmatched_across(mesh, body, lo, hi,
                                             np.concatenate([facets[f] for f in ("top", "flank", "railfix")]))
         if not mask.any():
-            return RigMesh(mesh=mesh, part=part, facets=facets, boxes=(lo, hi))
+            return lo, hi, level, part, mesh, facets
         for axis in range(3):
-            lo, hi, mask, part, body = localrefine.bisect(lo, hi, mask[:, axis], axis, mask, part, body)
+            lo, hi, mask, level, part = localrefine.bisect(lo, hi, mask[:, axis], axis, mask, level, part)
     raise RuntimeError("joint faces of the locally refined mesh do not match after 64 passes")
 
 
