@@ -8,6 +8,11 @@ with the default mesh's by MAC at the measuring points and prints how far each e
 two modes that move most (and every other mode at most).  The edge sets: the base top (rail foot),
 the rail top (the block's inner corner above the rail), the carriage top (block-to-table junction),
 the rail and block sides along X, the block ends along Z, and all of them together.
+
+Then the cure: local refinement at the re-entrant edges (``mesh.edge_refine_levels`` 1 to 4, cells
+halved across the edges only, hanging nodes tied) — each level's frequency change against the default
+mesh and, with the default run's ``verify.csv`` present, the first-order change of the identified
+parameters that a re-identification on that mesh would give (the mesh check's formula).
 """
 
 from __future__ import annotations
@@ -53,9 +58,10 @@ def with_lines(rig, coords: dict[int, list[float]], offset: float):
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     from jointid.config import load_config
     from jointid.meshcheck import pair_meshes
-    from jointid.model import build_model
+    from jointid.model import build_model, joint_terms
     from jointid.rig import build_rig
     from jointid.stages import solve_point
+    from jointid.updating import log_jacobian
 
     res = Result("g")
     cfg = load_config(ROOT / "config.yaml", overrides=COARSE if quick else None)
@@ -70,9 +76,12 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     n_modes = 14
     rig = build_rig(cfg["rig"])
     ref = build_model(cfg, rig=rig)
-    f0, s0, _, _ = solve_point(cfg, ref, theta, n_modes=n_modes, describe=False)
+    f0, s0, _, modes0 = solve_point(cfg, ref, theta, n_modes=n_modes, describe=False)
     n0 = ref.n_dofs
-    del ref
+    jt = joint_terms(cfg["joints"])
+    J = log_jacobian(ref.stiffness, modes0.phi, modes0.omega2, [{t: 1.0 for t in jt[n]} for n in names],
+                     np.array([theta[n] for n in names]))  # d ln f / d log10 theta on the default mesh
+    del ref, modes0
     data = {"theta": theta, "offset_m": OFFSET_M, "n_dofs_default": n0, "freqs_default_Hz": f0.tolist(),
             "sets": {}}
     track = f0 > cfg["solver"]["min_freq_Hz"]
@@ -91,7 +100,47 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
         data["sets"][label] = {"n_dofs": model.n_dofs, "change_pct": change.tolist(), "mac": macs.tolist()}
         print(f"[g] {label}: {model.n_dofs} DOFs, " + ", ".join(f"{c:+.2f}" for c in change), flush=True)
         del model
+    _edge_levels(res, cfg, theta, J, f0, s0, track, n0, data, quick)
     res.notes.append(f"grid lines {1e3 * OFFSET_M:g} mm either side of each edge set; default mesh {n0:,} DOFs; "
                      "modes paired by MAC at the measuring points; frequency change vs the default mesh")
     res.data = data
     return res
+
+
+def _edge_levels(res: Result, cfg, theta, J, f0, s0, track, n0, data, quick):
+    """Local refinement at the re-entrant edges, 1 to 4 levels (1 to 2 with ``quick``)."""
+    import pandas as pd
+
+    from jointid.meshcheck import first_order_shift, pair_meshes
+    from jointid.model import build_model
+    from jointid.stages import solve_point
+
+    names = list(theta)
+    verify = ROOT / "results" / "identify" / "power_off" / "verify.csv"
+    # the default run's pairing (measured mode -> model mode) holds for the default mesh only
+    fe_mode = pd.read_csv(verify)["fe_mode"].to_numpy(int) - 1 if verify.exists() and not quick else None
+    if fe_mode is None:
+        res.notes.append("no parameter changes for the edge levels (needs the default run's "
+                         f"{verify.relative_to(ROOT)}, full mesh)")
+    data["edge_levels"] = {}
+    for levels in range(1, 3 if quick else 5):
+        c = json.loads(json.dumps(cfg))
+        c["mesh"]["edge_refine_levels"] = levels
+        model = build_model(c)
+        f, s, _, _ = solve_point(c, model, theta, n_modes=len(f0), describe=False)
+        index, macs = pair_meshes(s0, s)
+        ok = track & (index >= 0)
+        change = np.full(len(f0), np.nan)
+        change[ok] = 100 * (f[index[ok]] / f0[ok] - 1)
+        order = np.argsort(np.nan_to_num(change, nan=0.0))
+        text = ", ".join(f"{f0[i]:.0f} Hz {change[i]:+.2f} %" for i in order[:2])
+        entry = {"n_dofs": model.n_dofs, "change_pct": change.tolist(), "mac": macs.tolist()}
+        if fe_mode is not None:
+            rows = fe_mode[(fe_mode >= 0) & ok[np.clip(fe_mode, 0, None)]]
+            delta = first_order_shift(J[rows], np.log(f[index[rows]] / f0[rows]))
+            entry["parameter_change_pct"] = dict(zip(names, (100 * (10 ** delta - 1)).tolist()))
+            text += "; " + ", ".join(f"{n.split('_')[1]} {v:+.1f} %" for n, v in entry["parameter_change_pct"].items())
+        res.add(f"edge_refine_levels {levels}: +{model.n_dofs - n0:,} DOFs", text)
+        data["edge_levels"][levels] = entry
+        print(f"[g] edge levels {levels}: {model.n_dofs} DOFs, {text}", flush=True)
+        del model
