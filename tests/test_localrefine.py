@@ -148,6 +148,9 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
     # a rigid translation of everything strains no solid and stretches no joint
     for name in ("K0", "K_top_y", "K_flank_x", "K_railfix"):
         assert np.abs(model.stiffness[name] @ ones).max() < 1e-6 * abs(model.stiffness[name]).max()
+    # the clamped base bottom: exactly the free nodes there are fixed (some hang on coarser faces)
+    bottom = np.flatnonzero((model.doflocs[1] < 1e-9) & (model.dof_part == 0))
+    assert np.array_equal(np.unique(model.fixed // 3), bottom)
     # nested space: no frequency rises
     freqs = []
     for m in (ref, model):

@@ -181,8 +181,8 @@ def hanging_constraints(doflocs: np.ndarray, element_dofs: np.ndarray, lo: np.nd
             better = (owner[hang] < 0) | (volume[np.maximum(owner[hang], 0)] < volume[e])
             owner[hang[better]] = e
     hanging = np.flatnonzero(owner >= 0)
-    rows, cols, vals = [np.arange(n_nodes)], [np.arange(n_nodes)], [np.ones(n_nodes)]
-    rows[0], cols[0], vals[0] = (x[owner < 0] for x in (rows[0], cols[0], vals[0]))
+    free_nodes = np.flatnonzero(owner < 0)
+    rows, cols, vals = [free_nodes], [free_nodes], [np.ones(len(free_nodes))]
     if len(hanging):
         e = owner[hanging]
         xi = (xyz[hanging] - lo[e]) / (hi[e] - lo[e])  # (nh, 3) local coordinates of the hanging nodes
@@ -208,7 +208,6 @@ def hanging_constraints(doflocs: np.ndarray, element_dofs: np.ndarray, lo: np.nd
         C.eliminate_zeros()
     else:
         raise RuntimeError("hanging-node constraints do not resolve (cyclic dependency in the mesh)")
-    free_nodes = np.flatnonzero(~is_hanging)
     Cf = C[:, free_nodes].tocsr()
     T = Cf[node].tocsr()
     return T, rep[free_nodes]

@@ -159,12 +159,10 @@ def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Mo
     Tt = Tv.T.tocsr()
     project = {g: {name: (Tt @ A @ Tv).tocsr() for name, A in getattr(model, g).items()}
                for g in ("stiffness", "mass")}
-    fixed_nodes = np.unique(model.fixed // 3)
-    nodes_of_free = np.full(T.shape[0], -1)
-    nodes_of_free[free] = np.arange(len(free))
-    # a fixed node that is free keeps its DOFs fixed; a hanging one is tied to nodes on the same face
-    fixed_free = nodes_of_free[fixed_nodes]
-    fixed = np.sort(np.concatenate([3 * fixed_free[fixed_free >= 0] + c for c in range(3)]))
+    # the free nodes a clamped node is made of: itself, or (hanging) the nodes of the clamped face
+    # it hangs on, which are clamped too
+    fixed_free = np.unique(T[np.unique(model.fixed // 3)].indices)
+    fixed = np.sort(np.concatenate([3 * fixed_free + c for c in range(3)]))
     meta = dict(model.meta)
     meta["n_dofs"] = int(3 * len(free))
     vertex = T[: model.meta["mesh"]["p"].shape[1]].tocsr()  # vertex dofs come first
