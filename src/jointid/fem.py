@@ -155,7 +155,7 @@ def jump_operator(S: sp.csr_matrix, doflocs: np.ndarray, direction: int,
     rowsum = np.asarray(abs(S).sum(axis=1)).ravel()
     active = np.flatnonzero(rowsum > 1e-10 * rowsum.max())
     tree = cKDTree(doflocs.T)
-    k = 2 if dof_body is None else 8
+    k = 2 if dof_body is None else 16  # hanging nodes: a few dofs of one body may share a place
     dist, idx = tree.query(doflocs[:, active].T, k=k)
     if dof_body is None:
         other = idx != active[:, None]
