@@ -57,7 +57,6 @@ def with_lines(rig, coords: dict[int, list[float]], offset: float):
 
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     from jointid.config import load_config
-    from jointid.meshcheck import pair_meshes
     from jointid.model import build_model, joint_terms
     from jointid.rig import build_rig
     from jointid.stages import solve_point
@@ -88,11 +87,7 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     for label, coords in edge_sets(rig).items():
         model = build_model(cfg, rig=with_lines(rig, coords, OFFSET_M))
         f, s, _, _ = solve_point(cfg, model, theta, n_modes=n_modes, describe=False)
-        index, macs = pair_meshes(s0, s)
-        ok = track & (index >= 0)
-        change = np.full(len(f0), np.nan)
-        change[ok] = 100 * (f[index[ok]] / f0[ok] - 1)
-        order = np.argsort(np.nan_to_num(change, nan=0.0))
+        index, macs, ok, change, order = _change(f0, s0, track, f, s)
         top2, rest = order[:2], order[2:]
         res.add(f"{label}: +{model.n_dofs - n0:,} DOFs",
                 ", ".join(f"{f0[i]:.0f} Hz {change[i]:+.2f} %" for i in top2)
@@ -107,11 +102,23 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     return res
 
 
+def _change(f0, s0, track, f, s):
+    """Modes of a refined mesh paired with the default mesh's by MAC: ``(index, macs, ok, change %,
+    modes ordered by change)``."""
+    from jointid.meshcheck import pair_meshes
+
+    index, macs = pair_meshes(s0, s)
+    ok = track & (index >= 0)
+    change = np.full(len(f0), np.nan)
+    change[ok] = 100 * (f[index[ok]] / f0[ok] - 1)
+    return index, macs, ok, change, np.argsort(np.nan_to_num(change, nan=0.0))
+
+
 def _edge_levels(res: Result, cfg, theta, J, f0, s0, track, n0, data, quick):
     """Local refinement at the re-entrant edges, 1 to 4 levels (1 to 2 with ``quick``)."""
     import pandas as pd
 
-    from jointid.meshcheck import first_order_shift, pair_meshes
+    from jointid.meshcheck import first_order_shift
     from jointid.model import build_model
     from jointid.stages import solve_point
 
@@ -128,11 +135,7 @@ def _edge_levels(res: Result, cfg, theta, J, f0, s0, track, n0, data, quick):
         c["mesh"]["edge_refine_levels"] = levels
         model = build_model(c)
         f, s, _, _ = solve_point(c, model, theta, n_modes=len(f0), describe=False)
-        index, macs = pair_meshes(s0, s)
-        ok = track & (index >= 0)
-        change = np.full(len(f0), np.nan)
-        change[ok] = 100 * (f[index[ok]] / f0[ok] - 1)
-        order = np.argsort(np.nan_to_num(change, nan=0.0))
+        index, macs, ok, change, order = _change(f0, s0, track, f, s)
         text = ", ".join(f"{f0[i]:.0f} Hz {change[i]:+.2f} %" for i in order[:2])
         entry = {"n_dofs": model.n_dofs, "change_pct": change.tolist(), "mac": macs.tolist()}
         if fe_mode is not None:

@@ -12,7 +12,7 @@ import numpy as np
 from skfem import MeshHex
 
 from . import localrefine
-from .rig import BODY_OF_PART, BONDED_GROUP_OF_PART, Box, Rig, grid_lines
+from .rig import BONDED_GROUP_OF_PART, Box, Rig, body_of, grid_lines
 
 _TOL = 1e-9
 
@@ -39,7 +39,7 @@ class RigMesh:
     @property
     def body(self) -> np.ndarray:
         """Body of each element (``jointid.rig.BODY_OF_PART``)."""
-        return np.vectorize(BODY_OF_PART.get)(self.part)
+        return body_of(self.part)
 
 
 def _in_patch(mid: np.ndarray, boxes: list[Box]) -> np.ndarray:
@@ -87,7 +87,7 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
     keep = part >= 0
     t = full.t[:, keep]
     part = part[keep]
-    body = np.vectorize(BODY_OF_PART.get)(part)
+    body = body_of(part)
     # every body after the first gets its own copies of the nodes it shares with earlier bodies
     p = full.p
     t = t.copy()
@@ -124,9 +124,8 @@ def mesh_from_config(rig: Rig, mesh_cfg: dict, refine: int | None = None, halve:
 def _edge_refined_mesh(rig: Rig, lines: list[np.ndarray], levels: int, halve: tuple[str, ...],
                        margin_m: float) -> RigMesh:
     """Tensor grid on ``lines`` with the cells at re-entrant edges (within ``margin_m`` of the joint
-    zone) split ``levels`` times, then the
-    ``halve`` classes bisected, then split further until the cells on either side of every joint face
-    match (so that each node of a joint face has its partner on the other body)."""
+    zone) refined ``levels`` times, then the ``halve`` classes bisected; after each step the cells
+    on either side of every joint face are made to match (:func:`_match_joint_faces`)."""
     lo = np.stack(np.meshgrid(*[g[:-1] for g in lines], indexing="ij"), axis=-1).reshape(-1, 3)
     hi = np.stack(np.meshgrid(*[g[1:] for g in lines], indexing="ij"), axis=-1).reshape(-1, 3)
     part = rig.part_at(0.5 * (lo + hi))
@@ -160,7 +159,7 @@ def _match_joint_faces(rig: Rig, lo, hi, level, part):
     """Split cells until the cells on either side of every joint face match (so that each node of a
     joint face has its partner on the other body).  Returns ``(lo, hi, level, part, mesh, facets)``."""
     for _ in range(64):
-        body = np.vectorize(BODY_OF_PART.get)(part)
+        body = body_of(part)
         mesh = localrefine.box_mesh(lo, hi, body)
         facets = _tag_facets(mesh, part, rig)
         mask = localrefine.unmatched_across(mesh, body, lo, hi,
@@ -182,8 +181,7 @@ def _tag_facets(mesh: MeshHex, part: np.ndarray, rig: Rig) -> dict[str, np.ndarr
     beyond = mid.copy()
     beyond[np.arange(len(mid)), axis] += 1e-7 * np.sign(out_dir[np.arange(len(mid)), axis])
     outside = rig.part_at(beyond)
-    inner = (outside >= 0) & (np.vectorize(BODY_OF_PART.get)(np.maximum(outside, 0)) ==
-                              np.vectorize(BODY_OF_PART.get)(part[owner]))
+    inner = (outside >= 0) & (body_of(outside) == body_of(part[owner]))
     bnd, mid, owner = bnd[~inner], mid[~inner], owner[~inner]
     body1 = np.isin(part[owner], [2, 3])
     out = {}

@@ -24,6 +24,12 @@ BODY_OF_PART = {0: 0, 1: 2, 2: 1, 3: 1}  # base | carriages + table | rails
 BONDED_GROUP_OF_PART = {0: 0, 1: 0, 2: 1, 3: 1}  # base + rails (stiff fixing layer) | carriages + table
 
 
+def body_of(part: np.ndarray) -> np.ndarray:
+    """Body of each part id (``BODY_OF_PART``); -1 (void) stays -1."""
+    part = np.asarray(part)
+    return np.where(part >= 0, np.array([BODY_OF_PART[i] for i in range(len(BODY_OF_PART))])[np.maximum(part, 0)], -1)
+
+
 @dataclass(frozen=True)
 class Box:
     """An axis-aligned box ``[lo, hi]`` in metres, tagged with a part name."""
