@@ -135,6 +135,12 @@ class System:
     def n_carriages(self) -> int:
         return len(self.carriage_xz_m)
 
+    @property
+    def ordering(self):
+        """The model's cached fill-reducing ordering when the free DOFs are the model's."""
+        same = np.array_equal(np.asarray(self.fixed), np.asarray(self.model.fixed))
+        return self.model.ordering if same else None
+
     def K(self, kc: dict) -> sp.csr_matrix:
         """``K0 + sum kc[name] * stiffness[name]`` (CSR)."""
         out = self.stiffness["K0"].copy()

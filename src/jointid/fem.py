@@ -40,6 +40,9 @@ class Model:
     doflocs: np.ndarray  # (3, n_scalar_dofs)
     dof_part: np.ndarray  # (n_scalar_dofs,) part id owning each scalar dof (-1 if ambiguous)
     meta: dict = field(default_factory=dict)
+    # fill-reducing ordering of K - sigma M on the free DOFs (PARDISO, 1-based), cached with the
+    # model by the mesh stage so that no later factorisation has to reorder (None: not computed)
+    ordering: np.ndarray | None = None
 
     @property
     def n_dofs(self) -> int:

@@ -105,7 +105,7 @@ class ShiftedFactor:
 
 def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, shift_Hz: float = -10.0,
                      backend: str = "auto", factor: float = MODE_FACTOR, max_modes: int = MAX_MODES,
-                     progress=None, keep_factor: bool = False):
+                     progress=None, keep_factor: bool = False, ordering=None):
     """All modes up to ``factor * f_top_Hz`` (and possibly a few above).
 
     Solves ``n_start`` modes and grows the count (about as ``f^1.5``, between plate-like ``f`` and
@@ -128,6 +128,8 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
     max_modes : int
         Upper limit on the number of modes.
 
+    ordering : ndarray, optional
+        Cached fill-reducing ordering of the free DOFs (``model.ordering``, :func:`jointid.modal.factorize`).
     keep_factor : bool
         Also return the factorisation of ``K - sigma M`` (a :class:`ShiftedFactor`, for
         :func:`static_residual`); the caller frees it with ``free_memory()``.
@@ -154,7 +156,7 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
     Kf = sp.csr_matrix(K)[free][:, free].tocsr() if n_free < n_all else sp.csr_matrix(K)
     Mf = sp.csr_matrix(M)[free][:, free].tocsr() if n_free < n_all else sp.csr_matrix(M)
     sigma = shift_sigma(shift_Hz)
-    shifted = ShiftedFactor(factorize_shifted(Kf, Mf, sigma, backend), sigma, free)
+    shifted = ShiftedFactor(factorize_shifted(Kf, Mf, sigma, backend, ordering), sigma, free)
     try:  # one factorisation serves every attempt (and the static solve, with keep_factor)
         while True:
             modes = solve_modes(K, M, n, shift_Hz=shift_Hz, fixed=fixed, backend=backend, factor=shifted.fac)
@@ -599,7 +601,7 @@ def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
     K, M = model.K(kc), model.M(mc)
     modes, shifted = solve_band_modes(K, M, band[1], fixed=model.fixed, n_start=max(int(s["n_modes"]), 12),
                                       shift_Hz=s["shift_Hz"], backend=s["backend"], progress=progress,
-                                      keep_factor=True)
+                                      keep_factor=True, ordering=model.ordering)
     try:
         p = drive_vector(model, h["drive_point"], h.get("direction", "y"))
         R, H0, note = static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed, backend=s["backend"],

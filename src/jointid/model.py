@@ -217,6 +217,8 @@ def save_model(model: fem.Model, path: str | Path) -> None:
     arrays["fixed"] = model.fixed
     arrays["doflocs"] = model.doflocs
     arrays["dof_part"] = model.dof_part
+    if model.ordering is not None:
+        arrays["ordering"] = model.ordering
     mesh = model.meta.get("mesh", {})
     for k, v in mesh.items():
         arrays[f"mesh/{k}"] = v
@@ -247,4 +249,5 @@ def load_model(path: str | Path) -> fem.Model:
     meta = json.loads(bytes(z["meta"]).decode())
     meta["mesh"] = {k.split("/")[1]: z[k] for k in z.files if k.startswith("mesh/")}
     return fem.Model(stiffness=groups["stiffness"], mass=groups["mass"], fixed=z["fixed"], probe=probe,
-                     doflocs=z["doflocs"], dof_part=z["dof_part"], meta=meta)
+                     doflocs=z["doflocs"], dof_part=z["dof_part"], meta=meta,
+                     ordering=z["ordering"] if "ordering" in z.files else None)

@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .errors import ModelError
-from .modal import TWO_PI, factorize
+from .modal import TWO_PI, factorize_pencil, shift_invert_lanczos
+from .pencil import FreePencil
 
 if TYPE_CHECKING:
     from .effects import System
@@ -80,25 +80,16 @@ class ReducedSolver:
         self.backend = backend
         self.max_basis = max_basis
         self.sigma = -abs(TWO_PI * shift_Hz) ** 2 if shift_Hz <= 0 else (TWO_PI * shift_Hz) ** 2
-        n = system.n_dofs
-        self.free = np.setdiff1d(np.arange(n), system.fixed) if len(system.fixed) else np.arange(n)
-        sel = self.free
-
-        def restrict(A):
-            return A[sel][:, sel].tocsr() if len(sel) < n else A.tocsr()
-
-        self.K_terms = {k: restrict(A) for k, A in system.stiffness.items()}
-        self.M_terms = {k: restrict(A) for k, A in system.mass.items()}
+        self.pencil = FreePencil(system)
+        self.free = self.pencil.free
+        sel, n = self.free, system.n_dofs
+        self.K_terms, self.M_terms = self.pencil.K_terms, self.pencil.M_terms
         # rows touched by each (mostly very sparse) term: projections only need those rows
         self._rows = {}
         for terms in (self.K_terms, self.M_terms):
             for k, A in terms.items():
                 rows = np.flatnonzero(np.diff(A.indptr) > 0)
                 self._rows[k] = (rows, A[rows][:, rows].tocsr()) if len(rows) < 0.5 * A.shape[0] else None
-        self._kaff = self._affine({"K0": self.K_terms["K0"], **{k: A for k, A in self.K_terms.items() if k != "K0"}})
-        self._maff = self._affine({"M0": self.M_terms["M0"], **{k: A for k, A in self.M_terms.items() if k != "M0"}})
-        self._index = {"K": {n: i for i, n in enumerate(self._kaff[0])},
-                       "M": {n: i for i, n in enumerate(self._maff[0])}}
         self.P = system.probe[:, sel].tocsr() if len(sel) < n else system.probe.tocsr()
         self.n_full_solves = 0
         self.n_refine = 0
@@ -108,7 +99,8 @@ class ReducedSolver:
         self.Mr = {k: np.zeros((0, 0)) for k in self.M_terms}
         self.M_ref = None
         self._refactor(kc, mc)
-        lam, phi = self._lanczos(kc, mc, self.n_modes + 4)
+        phi, f = self._lanczos(kc, mc, self.n_modes + 4)
+        lam = (TWO_PI * f) ** 2
         self._append(phi)
         lam, phi = lam[: n_seed or len(lam)], phi[:, : n_seed or len(lam)]
         blocks = []
@@ -124,67 +116,30 @@ class ReducedSolver:
             self._append(np.hstack(blocks))
 
     # ------------------------------------------------------------ assembly helpers
-    @staticmethod
-    def _affine(terms: dict):
-        """Union sparsity pattern of ``terms`` and the map ``data = T @ coefficients``."""
-        names = list(terms)
-        U = None
-        for A in terms.values():
-            B = A.copy()
-            B.data = np.ones_like(B.data)
-            U = B if U is None else U + B
-        U = U.tocsr()
-        U.sort_indices()
-        n = U.shape[0]
-        ukeys = np.repeat(np.arange(n, dtype=np.int64), np.diff(U.indptr)) * n + U.indices
-        rows, cols, vals = [], [], []
-        for j, name in enumerate(names):
-            C = terms[name].tocoo()
-            pos = np.searchsorted(ukeys, C.row.astype(np.int64) * n + C.col)
-            rows.append(pos)
-            cols.append(np.full(len(pos), j))
-            vals.append(C.data)
-        T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                          shape=(len(ukeys), len(names)))
-        return names, U, T
-
-    def _assemble(self, which: str, coeffs: dict) -> sp.csr_matrix:
-        names, U, T = self._kaff if which == "K" else self._maff
-        c = np.zeros(len(names))
-        c[0] = 1.0
-        for name, v in coeffs.items():
-            c[self._index[which][name]] += v
-        return sp.csr_matrix((T @ c, U.indices, U.indptr), shape=U.shape)
-
     def K(self, kc: dict) -> sp.csr_matrix:
         """Full stiffness matrix (free DOFs) at coefficients ``kc``."""
-        return self._assemble("K", kc)
+        return self.pencil.K(kc)
 
     def M(self, mc: dict) -> sp.csr_matrix:
         """Full mass matrix (free DOFs) at coefficients ``mc``."""
-        return self._assemble("M", mc)
+        return self.pencil.M(mc)
 
     def _refactor(self, kc, mc):
-        K, M = self.K(kc), self.M(mc)
         if getattr(self, "fac", None) is not None:
             self.fac.free()
         self.n_factorizations = getattr(self, "n_factorizations", 0) + 1
         try:
-            self.fac = factorize((K - self.sigma * M).tocsr(), self.backend)
-        except Exception as exc:
-            raise ModelError(f"diagnosis: factorisation of K - sigma M failed ({exc}) — a stiffness "
-                             "coefficient is zero or negative; check the joint parameters and effects") from None
+            self.fac = factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend)
+        except ModelError as exc:
+            raise ModelError(f"diagnosis: {exc} — a stiffness coefficient is zero or negative; check "
+                             "the joint parameters and effects") from None
         if self.M_ref is None:
-            self.M_ref = M
+            self.M_ref = self.M(mc)
 
     def _lanczos(self, kc, mc, k):
-        K, M = self.K(kc), self.M(mc)
-        op = spla.LinearOperator(K.shape, matvec=self.fac.solve, dtype=np.float64)
-        v0 = np.ones(K.shape[0]) / np.sqrt(K.shape[0])
-        lam, vec = spla.eigsh(K, k=k, M=M, sigma=self.sigma, which="LM", OPinv=op, v0=v0)
-        order = np.argsort(lam)
+        """Exact modes at ``(kc, mc)`` with the current factorisation: mass-normalised vectors, Hz."""
         self.n_full_solves += 1
-        return lam[order], vec[:, order]
+        return shift_invert_lanczos(self.K(kc), self.M(mc), self.fac, k, self.sigma)
 
     def _append(self, W: np.ndarray) -> int:
         """M_ref-orthonormalise ``W`` against the basis, drop dependent columns, project the terms."""
@@ -286,12 +241,12 @@ class ReducedSolver:
                 self.n_refine += 1
                 if self.V.shape[1] > self.max_basis:
                     self._refactor(kc, mc)
-                    self._reset(self._lanczos(kc, mc, n + 4)[1])
+                    self._reset(self._lanczos(kc, mc, n + 4)[0])
                 elif worst > 1e-2 or worst > 0.5 * last:
                     # far from the reference or slow progress: exact modes at this point, which
                     # also becomes the new preconditioner
                     self._refactor(kc, mc)
-                    self._append(self._lanczos(kc, mc, n + 4)[1])
+                    self._append(self._lanczos(kc, mc, n + 4)[0])
                 else:
                     self._append(D[:, err > self.tol])
                 last = worst
@@ -323,8 +278,8 @@ class ReducedSolver:
         n = n or self.n_modes
         red = self.solve(kc, mc, n, refine=True)
         self._refactor(kc, mc)
-        lam, phi = self._lanczos(kc, mc, n + 2)
-        f_full = np.sqrt(np.clip(lam[:n], 0, None)) / TWO_PI
+        phi, f_full = self._lanczos(kc, mc, n + 2)
+        f_full = f_full[:n]
         self._append(phi)
         return float(np.max(np.abs(red.freqs_Hz - f_full) / np.maximum(f_full, 1.0)))
 

@@ -394,7 +394,7 @@ class _Builder:
 
 def _full_solve(model, kc, mc, n, solver):
     return solve_modes(model.K(kc), model.M(mc), n, shift_Hz=solver.get("shift_Hz", -10.0),
-                       fixed=model.fixed, backend=solver.get("backend", "auto"))
+                       fixed=model.fixed, backend=solver.get("backend", "auto"), ordering=model.ordering)
 
 
 def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver, n_inverse: int, labels) -> int:
@@ -407,7 +407,7 @@ def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver, n_inverse: int, l
     K, M = model.K(kc), model.M(mc)
     A = (K - sigma * M)[free][:, free].tocsr()
     try:
-        fac = factorize(A, solver.get("backend", "auto"))
+        fac = factorize(A, solver.get("backend", "auto"), model.ordering)
     except Exception as exc:
         raise ModelError(f"rom: factorisation of K - sigma*M failed at a training point ({exc}) — check "
                          "the joint stiffness bounds and supports, or use solver.shift_Hz < 0") from None

@@ -29,9 +29,11 @@ def run_mesh(cfg: dict, matrices: str, points_csv: str, vtu: str | None = None) 
     """Build and cache the model matrices, the measuring-point table and a VTK file of the mesh."""
     import pandas as pd
 
+    from .modal import model_ordering
     from .model import build_model, save_model
 
     model = build_model(cfg, progress=_log)
+    model.ordering = model_ordering(model)  # the pattern, so its ordering, is the same at any shift
     save_model(model, matrices)
     pts = pd.DataFrame(model.meta["points"])
     io.write_csv(pts, points_csv)
@@ -169,7 +171,7 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
     s = cfg["solver"]
     kc, mc = base_coefficients(cfg, model, theta)
     modes = solve_modes(model.K(kc), model.M(mc), n_modes or s["n_modes"], shift_Hz=s["shift_Hz"],
-                        fixed=model.fixed, backend=s["backend"])
+                        fixed=model.fixed, backend=s["backend"], ordering=model.ordering)
     shapes = model.probe @ modes.phi
     desc = None
     if describe:

@@ -152,7 +152,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         _perturb(system, kc, mc, truth.get("perturbations"))
         n = int(meas["max_modes"]) + 8
         modes = solve_modes(system.K(kc), system.M(mc), n, shift_Hz=cfg["solver"]["shift_Hz"],
-                            fixed=system.fixed, backend=cfg["solver"]["backend"])
+                            fixed=system.fixed, backend=cfg["solver"]["backend"], ordering=system.ordering)
         sel = np.flatnonzero((modes.freqs_Hz >= lo) & (modes.freqs_Hz <= hi))[: int(meas["max_modes"])]
         f_true = modes.freqs_Hz[sel]
         clean[sname] = f_true
