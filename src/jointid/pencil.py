@@ -52,8 +52,18 @@ class FreePencil:
             A.sum_duplicates()
             A.sort_indices()
         self.pattern = _union_pattern([*self.K_terms.values(), *self.M_terms.values()])
-        self._pos = {("K", k): _positions(self.pattern, A) for k, A in self.K_terms.items()}
-        self._pos.update({("M", k): _positions(self.pattern, A) for k, A in self.M_terms.items()})
+        # the base terms K0 and M0 (nearly the whole pattern) are kept aligned with the pattern, so
+        # assembling is one copy plus a scatter of the few entries of each other term
+        self._base = {}
+        self._pos = {}
+        for group, terms, base in (("K", self.K_terms, "K0"), ("M", self.M_terms, "M0")):
+            for k, A in terms.items():
+                pos = _positions(self.pattern, A)
+                if k == base:
+                    self._base[group] = np.zeros(self.pattern.nnz)
+                    self._base[group][pos] = A.data
+                else:
+                    self._pos[(group, k)] = pos
         P = self.pattern
         rows = np.repeat(np.arange(P.shape[0]), np.diff(P.indptr))
         upper = P.indices >= rows
@@ -74,12 +84,14 @@ class FreePencil:
         unknown = set(coeffs) - set(terms)
         if unknown:
             raise KeyError(f"no {group} term named {sorted(unknown)}; the model has {sorted(terms)}")
-        data = np.zeros(self.pattern.nnz) if out is None else out
-        for name in terms:
-            c = 1.0 if name == base else coeffs.get(name, 0.0)
-            if name == base and name in coeffs:
-                c += coeffs[name]
-            if c != 0.0:
+        c0 = scale * (1.0 + coeffs.get(base, 0.0))
+        if out is None:
+            data = self._base[group] * c0
+        else:
+            data = out
+            data += self._base[group] * c0
+        for name, c in coeffs.items():
+            if name != base and c != 0.0:
                 data[self._pos[(group, name)]] += (scale * c) * terms[name].data
         return data
 
