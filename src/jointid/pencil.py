@@ -52,22 +52,23 @@ class FreePencil:
             A.sum_duplicates()
             A.sort_indices()
         self.pattern = _union_pattern([*self.K_terms.values(), *self.M_terms.values()])
-        # the base terms K0 and M0 (nearly the whole pattern) are kept aligned with the pattern, so
-        # assembling is one copy plus a scatter of the few entries of each other term
-        self._base = {}
+        # K0 (nearly the whole pattern) is kept aligned with the pattern, and is the stiffness term
+        # K0 itself (no second copy): assembling is one copy plus a scatter of the few entries of
+        # each other term (the mass terms, M0 included, are scattered: a third of the pattern)
         self._pos = {}
-        for group, terms, base in (("K", self.K_terms, "K0"), ("M", self.M_terms, "M0")):
+        for group, terms in (("K", self.K_terms), ("M", self.M_terms)):
             for k, A in terms.items():
                 pos = _positions(self.pattern, A)
-                if k == base:
-                    self._base[group] = np.zeros(self.pattern.nnz)
-                    self._base[group][pos] = A.data
+                if (group, k) == ("K", "K0"):
+                    self._K0 = np.zeros(self.pattern.nnz)
+                    self._K0[pos] = A.data
                 else:
                     self._pos[(group, k)] = pos
+        self.K_terms["K0"] = self._csr(self._K0)
         P = self.pattern
         rows = np.repeat(np.arange(P.shape[0]), np.diff(P.indptr))
         upper = P.indices >= rows
-        self._upper = np.flatnonzero(upper)
+        self._upper = np.flatnonzero(upper).astype(np.int32 if P.nnz < 2**31 else np.int64)
         counts = np.bincount(rows[upper], minlength=P.shape[0])
         indptr = np.zeros(P.shape[0] + 1, dtype=P.indptr.dtype)
         np.cumsum(counts, out=indptr[1:])
@@ -85,11 +86,11 @@ class FreePencil:
         if unknown:
             raise KeyError(f"no {group} term named {sorted(unknown)}; the model has {sorted(terms)}")
         c0 = scale * (1.0 + coeffs.get(base, 0.0))
-        if out is None:
-            data = self._base[group] * c0
+        data = np.zeros(self.pattern.nnz) if out is None else out
+        if group == "K":
+            data += self._K0 * c0
         else:
-            data = out
-            data += self._base[group] * c0
+            data[self._pos[("M", "M0")]] += c0 * terms["M0"].data
         for name, c in coeffs.items():
             if name != base and c != 0.0:
                 data[self._pos[(group, name)]] += (scale * c) * terms[name].data

@@ -131,8 +131,9 @@ class ReducedSolver:
         try:
             self.fac = factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend)
         except ModelError as exc:
-            raise ModelError(f"diagnosis: {exc} — a stiffness coefficient is zero or negative; check "
-                             "the joint parameters and effects") from None
+            detail = getattr(exc, "detail", exc)
+            raise ModelError(f"diagnosis: factorisation of K - sigma M failed ({detail}) — a stiffness "
+                             "coefficient is zero or negative; check the joint parameters and effects") from None
         if self.M_ref is None:
             self.M_ref = self.M(mc)
 

@@ -52,7 +52,7 @@ from scipy.linalg import lapack
 from . import io
 from .doe import to_physical
 from .errors import ModelError, NumericalWarning
-from .modal import TWO_PI, Modes, factorize, solve_modes
+from .modal import TWO_PI, Modes, factorize, solve_model
 from .model import base_coefficients, joint_terms
 
 __all__ = ["ROM", "build_rom", "training_points", "load_rom", "frequency_error", "residual_indicator",
@@ -393,8 +393,8 @@ class _Builder:
 
 
 def _full_solve(model, kc, mc, n, solver):
-    return solve_modes(model.K(kc), model.M(mc), n, shift_Hz=solver.get("shift_Hz", -10.0),
-                       fixed=model.fixed, backend=solver.get("backend", "auto"), ordering=model.ordering)
+    return solve_model(model, kc, mc, n, shift_Hz=solver.get("shift_Hz", -10.0),
+                       backend=solver.get("backend", "auto"))
 
 
 def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver, n_inverse: int, labels) -> int:

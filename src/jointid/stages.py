@@ -165,13 +165,12 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
 
     Returns ``(freqs_Hz, shapes at measuring points (n_labels, n_modes), description table, modes)``.
     """
-    from .modal import solve_modes
+    from .modal import solve_model
     from .model import base_coefficients
 
     s = cfg["solver"]
     kc, mc = base_coefficients(cfg, model, theta)
-    modes = solve_modes(model.K(kc), model.M(mc), n_modes or s["n_modes"], shift_Hz=s["shift_Hz"],
-                        fixed=model.fixed, backend=s["backend"], ordering=model.ordering)
+    modes = solve_model(model, kc, mc, n_modes or s["n_modes"], shift_Hz=s["shift_Hz"], backend=s["backend"])
     shapes = model.probe @ modes.phi
     desc = None
     if describe:

@@ -39,7 +39,7 @@ import yaml
 
 from .effects import StateInfo, apply_effects, baseline_coefficients, build_system, enabled_effects
 from .errors import ConfigError, JointidError
-from .modal import solve_modes
+from .modal import solve_model
 
 __all__ = ["synthesise", "write_synthetic", "load_truth", "main"]
 
@@ -151,8 +151,8 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         kc, mc = apply_effects(system, kc, mc, state, [(s.effect, s.values, s.options) for s in specs])
         _perturb(system, kc, mc, truth.get("perturbations"))
         n = int(meas["max_modes"]) + 8
-        modes = solve_modes(system.K(kc), system.M(mc), n, shift_Hz=cfg["solver"]["shift_Hz"],
-                            fixed=system.fixed, backend=cfg["solver"]["backend"], ordering=system.ordering)
+        modes = solve_model(system, kc, mc, n, shift_Hz=cfg["solver"]["shift_Hz"],
+                            backend=cfg["solver"]["backend"])
         sel = np.flatnonzero((modes.freqs_Hz >= lo) & (modes.freqs_Hz <= hi))[: int(meas["max_modes"])]
         f_true = modes.freqs_Hz[sel]
         clean[sname] = f_true
