@@ -86,10 +86,10 @@ class FreePencil:
         if unknown:
             raise KeyError(f"no {group} term named {sorted(unknown)}; the model has {sorted(terms)}")
         c0 = scale * (1.0 + coeffs.get(base, 0.0))
-        data = np.zeros(self.pattern.nnz) if out is None else out
         if group == "K":
-            data += self._K0 * c0
+            data = np.multiply(self._K0, c0) if out is None else np.add(out, self._K0 * c0, out=out)
         else:
+            data = np.zeros(self.pattern.nnz) if out is None else out
             data[self._pos[("M", "M0")]] += c0 * terms["M0"].data
         for name, c in coeffs.items():
             if name != base and c != 0.0:

@@ -230,9 +230,11 @@ class ReducedSolver:
         lam, Y = self._ritz(kc, mc, n)
         if refine:
             last = np.inf
+            K = M = None
             for it in range(12):
                 phi = self.V @ Y[:, :n]
-                K, M = self.K(kc), self.M(mc)
+                if K is None:  # assembled once per point, on the first residual check
+                    K, M = self.K(kc), self.M(mc)
                 R = K @ phi - (M @ phi) * lam[None, :n]
                 D = self.fac.solve(R)
                 err = np.abs(np.einsum("ij,ij->j", R, D)) / np.maximum(np.abs(lam[:n]), 1.0)
