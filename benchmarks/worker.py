@@ -28,11 +28,10 @@ def _peak_rss_MB() -> float:
 
 
 def _full_solve(cfg, model, kc, mc, n, backend=None):
-    from jointid.modal import solve_modes
+    from jointid.modal import solve_model
 
     s = cfg["solver"]
-    return solve_modes(model.K(kc), model.M(mc), n, shift_Hz=s["shift_Hz"], fixed=model.fixed,
-                       backend=backend or s["backend"])
+    return solve_model(model, kc, mc, n, shift_Hz=s["shift_Hz"], backend=backend or s["backend"])
 
 
 def task_solve(args: dict) -> dict:
