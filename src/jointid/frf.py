@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 from . import damping as dm
 from . import harmonic as hm
 from .errors import ConfigError, DataError, ModelError, NumericalWarning
-from .modal import Modes, factorize, solve_modes
+from .modal import Modes, factorize, free_dofs, solve_modes
 from .points import dof_labels
 
 __all__ = [
@@ -148,7 +148,7 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
 
     say = progress or (lambda msg: None)
     n_all = K.shape[0]
-    free = np.setdiff1d(np.arange(n_all), fixed) if fixed is not None and len(fixed) else np.arange(n_all)
+    free = free_dofs(n_all, fixed)
     n_free = len(free)
     limit = min(int(max_modes), n_free - 2)
     target = factor * float(f_top_Hz)
@@ -232,7 +232,7 @@ def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto"
                             "is singular (support.kind free?); FRF from the kept modes only, static stiffness 0")
     p = np.asarray(load, dtype=float).ravel()
     n = K.shape[0]
-    free = np.setdiff1d(np.arange(n), fixed) if fixed is not None and len(fixed) else np.arange(n)
+    free = free_dofs(n, fixed)
     Kf = sp.csr_matrix(K)[free][:, free].tocsr()
     b = p[free]
     try:
@@ -359,7 +359,7 @@ def direct_frf(K, M, C, load, f_Hz, *, fixed=None) -> np.ndarray:
         ``p^T x`` in m/N.
     """
     n = K.shape[0]
-    free = np.setdiff1d(np.arange(n), fixed) if fixed is not None and len(fixed) else np.arange(n)
+    free = free_dofs(n, fixed)
     sub = lambda A: sp.csr_matrix(A)[free][:, free].tocsc()  # noqa: E731
     Kf, Mf = sub(K), sub(M)
     Cf = sp.csc_matrix(Kf.shape) if C is None else sub(C)

@@ -3,9 +3,9 @@
 ``K(c) = K0 + sum c_a K_a`` and ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fem.Model`, or the
 diagnosis' :class:`jointid.effects.System` with its effect terms) change only in their coefficients
 from one parameter point to the next.  :class:`FreePencil` restricts every term to the free DOFs once,
-places all of them on the union of their sparsity patterns, and then assembles a matrix at new
+places all of them on the union of their sparsity patterns, and then assembles the stiffness at new
 coefficients as one scatter-add per term into that pattern: no sparse additions, no slicing and no
-triangle extraction per point.  ``shifted_upper`` gives the upper triangle of ``K - sigma M`` that
+triangle extraction per point (the mass, a third of the pattern, keeps its own).  ``shifted_upper`` gives the upper triangle of ``K - sigma M`` that
 the sparse Cholesky backend factorises, with the same pattern at every point (its fill-reducing
 ordering can be reused: :attr:`FreePencil.ordering`).
 """
@@ -37,17 +37,12 @@ class FreePencil:
     """
 
     def __init__(self, system):
-        n = system.n_dofs
-        fixed = np.asarray(system.fixed, dtype=np.int64)
-        self.n_dofs = n
-        self.free = np.setdiff1d(np.arange(n), fixed) if len(fixed) else np.arange(n)
-        sel = self.free
+        from .modal import free_dofs, restrict
 
-        def restrict(A):
-            return A[sel][:, sel].tocsr() if len(sel) < n else A.tocsr()
-
-        self.K_terms = {k: restrict(A) for k, A in system.stiffness.items()}
-        self.M_terms = {k: restrict(A) for k, A in system.mass.items()}
+        self.n_dofs = system.n_dofs
+        self.free = free_dofs(system.n_dofs, system.fixed)
+        self.K_terms = {k: restrict(A, self.free) for k, A in system.stiffness.items()}
+        self.M_terms = {k: restrict(A, self.free) for k, A in system.mass.items()}
         for A in (*self.K_terms.values(), *self.M_terms.values()):
             A.sum_duplicates()
             A.sort_indices()

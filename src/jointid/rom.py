@@ -52,7 +52,7 @@ from scipy.linalg import lapack
 from . import io
 from .doe import to_physical
 from .errors import ModelError, NumericalWarning
-from .modal import TWO_PI, Modes, factorize, solve_model
+from .modal import TWO_PI, Modes, factorize, free_dofs, solve_model
 from .model import base_coefficients, joint_terms
 
 __all__ = ["ROM", "build_rom", "training_points", "load_rom", "frequency_error", "residual_indicator",
@@ -403,7 +403,7 @@ def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver, n_inverse: int, l
     Returns the number of basis vectors added."""
     shift = float(solver.get("shift_Hz", -10.0))
     sigma = -abs(TWO_PI * shift) ** 2 if shift <= 0 else (TWO_PI * shift) ** 2
-    free = np.setdiff1d(np.arange(model.n_dofs), model.fixed) if len(model.fixed) else np.arange(model.n_dofs)
+    free = free_dofs(model.n_dofs, model.fixed)
     K, M = model.K(kc), model.M(mc)
     A = (K - sigma * M)[free][:, free].tocsr()
     try:
