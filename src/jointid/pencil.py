@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .modal import free_dofs, restrict
+
 
 class FreePencil:
     """``K(c)``, ``M(m)`` and ``K - sigma M`` of an affine model on its free DOFs.
@@ -37,8 +39,6 @@ class FreePencil:
     """
 
     def __init__(self, system):
-        from .modal import free_dofs, restrict
-
         self.n_dofs = system.n_dofs
         self.free = free_dofs(system.n_dofs, system.fixed)
         self.K_terms = {k: restrict(A, self.free) for k, A in system.stiffness.items()}
