@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 from . import damping as dm
 from . import harmonic as hm
 from .errors import ConfigError, DataError, ModelError, NumericalWarning
-from .modal import Modes, factorize, free_dofs, solve_modes
+from .modal import Modes, factorize, free_dofs, restrict, solve_modes
 from .points import dof_labels
 
 __all__ = [
@@ -153,8 +153,7 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
     limit = min(int(max_modes), n_free - 2)
     target = factor * float(f_top_Hz)
     n = max(1, min(int(n_start), limit))
-    Kf = sp.csr_matrix(K)[free][:, free].tocsr() if n_free < n_all else sp.csr_matrix(K)
-    Mf = sp.csr_matrix(M)[free][:, free].tocsr() if n_free < n_all else sp.csr_matrix(M)
+    Kf, Mf = restrict(sp.csr_matrix(K), free), restrict(sp.csr_matrix(M), free)
     sigma = shift_sigma(shift_Hz)
     shifted = ShiftedFactor(factorize_shifted(Kf, Mf, sigma, backend, ordering), sigma, free)
     try:  # one factorisation serves every attempt (and the static solve, with keep_factor)
@@ -233,7 +232,7 @@ def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto"
     p = np.asarray(load, dtype=float).ravel()
     n = K.shape[0]
     free = free_dofs(n, fixed)
-    Kf = sp.csr_matrix(K)[free][:, free].tocsr()
+    Kf = restrict(sp.csr_matrix(K), free)
     b = p[free]
     try:
         x = None

@@ -52,7 +52,7 @@ from scipy.linalg import lapack
 from . import io
 from .doe import to_physical
 from .errors import ModelError, NumericalWarning
-from .modal import TWO_PI, Modes, factorize, free_dofs, solve_model
+from .modal import TWO_PI, Modes, factorize, free_dofs, restrict, solve_model
 from .model import base_coefficients, joint_terms
 
 __all__ = ["ROM", "build_rom", "training_points", "load_rom", "frequency_error", "residual_indicator",
@@ -405,7 +405,7 @@ def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver, n_inverse: int, l
     sigma = -abs(TWO_PI * shift) ** 2 if shift <= 0 else (TWO_PI * shift) ** 2
     free = free_dofs(model.n_dofs, model.fixed)
     K, M = model.K(kc), model.M(mc)
-    A = (K - sigma * M)[free][:, free].tocsr()
+    A = restrict(K - sigma * M, free)
     try:
         fac = factorize(A, solver.get("backend", "auto"), model.ordering)
     except Exception as exc:
