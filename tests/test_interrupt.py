@@ -68,6 +68,19 @@ def test_next_write_removes_stale_temp_file_of_a_killed_writer(tmp_path):
     assert temporary_files(tmp_path) == []
 
 
+def test_results_get_the_permissions_of_a_new_file_not_the_private_temporary_ones(tmp_path):
+    # the temporary file is created private (0600); a result shared with a group or read by batch
+    # jobs under another account must end up as any new file would (umask)
+    old = os.umask(0o027)
+    try:
+        io._UMASK = 0o027
+        io.write_text(tmp_path / "a.txt", "x")
+        assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o640
+    finally:
+        os.umask(old)
+        io._UMASK = old
+
+
 def _fake_temporary(target: Path, middle: str, age_s: float = 0.0) -> Path:
     p = target.with_name(f".{target.name}.{middle}.tmp")
     p.write_bytes(b"partial")

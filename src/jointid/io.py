@@ -103,6 +103,15 @@ def remove_in_flight() -> list[str]:
     return removed
 
 
+def _current_umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _current_umask()
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike):
     """Yield a temporary path beside ``path``; on success move it to ``path``, else delete it.
@@ -118,6 +127,8 @@ def atomic_path(path: str | os.PathLike):
     _IN_FLIGHT.add(tmp)
     try:
         yield Path(tmp)
+        # mkstemp creates the file private (0600); results get the permissions of any new file
+        os.chmod(tmp, 0o666 & ~_UMASK)
         os.replace(tmp, path)
     finally:
         _IN_FLIGHT.discard(tmp)

@@ -22,8 +22,6 @@ whose named terms are:
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +29,7 @@ import scipy.sparse as sp
 from skfem import Basis
 
 from . import fem, localrefine
+from .io import atomic_path
 from .mesh import mesh_from_config
 from .points import measuring_points
 from .rig import PART_IDS, build_rig
@@ -224,16 +223,8 @@ def save_model(model: fem.Model, path: str | Path) -> None:
         arrays[f"mesh/{k}"] = v
     meta = {k: v for k, v in model.meta.items() if k != "mesh"}
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-    os.close(fd)
-    try:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
 
 
 def load_model(path: str | Path) -> fem.Model:
