@@ -60,6 +60,25 @@ def test_score_test_one_sided_and_collinear():
     assert st["collinearity"] < 1e-8 and st["score"] == 0.0
 
 
+def test_score_test_ignores_round_off_columns_left_by_a_projection():
+    # between-state contrasts of a state-independent parameter's sensitivity are zero up to the
+    # solver's round-off; projecting a candidate onto the complement of that noise would remove an
+    # arbitrary direction from it, so the columns are dropped relative to their norm before projection
+    rng = np.random.default_rng(4)
+    n = 9
+    r, jt = rng.normal(size=n), rng.normal(size=(n, 1))
+    scale = np.array([50.0, 80.0])
+    noise = 1e-7 * rng.normal(size=(n, 2))  # what is left of two columns of norm 50 and 80
+    exact = score_test(r, np.zeros((n, 0)), jt, np.array([-np.inf]))
+    fragile = score_test(r, noise, jt, np.array([-np.inf]))
+    assert abs(fragile["explained_fraction"] - exact["explained_fraction"]) > 1e-3  # the failure
+    robust = score_test(r, noise, jt, np.array([-np.inf]), scale_x=scale)
+    assert robust["explained_fraction"] == pytest.approx(exact["explained_fraction"], rel=1e-12)
+    # a candidate with round-off sensitivity only explains nothing
+    st = score_test(r, noise, 1e-8 * jt, np.array([-np.inf]), scale_x=scale, scale_t=np.array([10.0]))
+    assert st["score"] == 0.0 and st["explained_fraction"] == 0.0
+
+
 def test_identifiability_names_the_weak_combination():
     rng = np.random.default_rng(0)
     a = rng.normal(size=12)
@@ -157,6 +176,29 @@ def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
     assert np.allclose(solver.sensitivity(sol, dk, {}), fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
 
 
+
+
+def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos(coarse, monkeypatch):
+    from jointid import reduced
+    from jointid.modal import solve_modes
+
+    cfg, system = coarse
+    theta = {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
+    kc, mc = E.baseline_coefficients(system, cfg, theta)
+    solver = ReducedSolver(system, kc, mc, 10, [({f"K_top_y@{c}": 1.0 for c in range(4)}, {})], n_seed=6)
+    near = {"k_normal_N_per_m3": 1.2e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
+    kc2, mc2 = E.baseline_coefficients(system, cfg, near)
+    full = solve_modes(system.K(kc2), system.M(mc2), 10, fixed=system.fixed)
+    lanczos_runs = solver.n_full_solves
+    err = solver.verify(kc2, mc2, 10)
+    assert solver.n_full_solves == lanczos_runs  # confirmed by the count, no eigen-solve
+    red = solver.solve(kc2, mc2, 10)
+    assert err < 1e-6
+    assert np.max(np.abs(red.freqs_Hz / full.freqs_Hz - 1)) < 1e-6
+    # a count above the Ritz values (a mode the subspace lacks) sends it to a full Lanczos solve
+    monkeypatch.setattr(reduced, "count_pencil_modes_below", lambda *a, **k: 11)
+    err = solver.verify(kc2, mc2, 10)
+    assert solver.n_full_solves == lanczos_runs + 1 and err < 1e-5
 def test_variant_coefficient_derivatives(coarse):
     cfg, system = coarse
     var = Variant(system, cfg, [EffectSpec.candidate(E.EFFECTS["em_preload"])])

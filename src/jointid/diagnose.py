@@ -10,8 +10,9 @@ Numerics (see ``docs/effects.md`` and ``shared/design/PHYSICS.md``)
   preconditioned residuals are added to the subspace (Davidson step with the reference
   factorisation, or a factorisation and Lanczos solve at a distant point).  The answers are therefore
   full-FE answers to ``tol`` (1e-6 relative eigenvalue error by default), at
-  the cost of a few dense ``r x r`` eigen-problems; each fitted variant is finally checked against a
-  full Lanczos solve (:meth:`ReducedSolver.verify`).
+  the cost of a few dense ``r x r`` eigen-problems; each fitted variant is finally checked against the
+  full model (:meth:`ReducedSolver.verify`: a Sturm count confirms that no mode is missing below the
+  refined Ritz pairs, else a full Lanczos solve).
 * Sensitivities are exact for the (converged) subspace: ``dlambda_i/dx = y_i^T (dK - lambda_i dM) y_i``.
 * Residual of mode i: ``r_i = ln(f_model / f_meas) / sigma`` (= relative error / sigma to first order),
   sigma the relative frequency uncertainty (dataset ``frequency_uncertainty_pct``, else
@@ -47,6 +48,9 @@ from .reduced import ReducedSolver, Solution, _pad  # noqa: F401  (re-exported)
 
 TWO_PI = 2.0 * np.pi
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
+# a Jacobian column that a projection shrinks below this fraction of its norm is round-off (the
+# reduced solver's eigenvalues are accurate to 1e-6; a real between-state sensitivity is O(1))
+NEGLIGIBLE = 1e-4
 
 
 def _log(msg: str) -> None:
@@ -516,7 +520,8 @@ def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -
     return np.vstack(out)
 
 
-def score_test(r: np.ndarray, Jx: np.ndarray, Jt: np.ndarray, t_lower: np.ndarray) -> dict:
+def score_test(r: np.ndarray, Jx: np.ndarray, Jt: np.ndarray, t_lower: np.ndarray, *,
+               scale_x: np.ndarray | None = None, scale_t: np.ndarray | None = None) -> dict:
     """Lagrange-multiplier (score) test of extra parameters ``t`` at ``t = 0``.
 
     Parameters
@@ -525,6 +530,11 @@ def score_test(r: np.ndarray, Jx: np.ndarray, Jt: np.ndarray, t_lower: np.ndarra
     Jx : (n, p) Jacobian of the fitted parameters.
     Jt : (n, q) Jacobian of the candidate's parameters at their null.
     t_lower : (q,) lower bounds of ``t`` (0 when the null is on the bound).
+    scale_x, scale_t : (p,), (q,) optional
+        Column norms of the Jacobians before a projection (e.g. onto between-state contrasts).  A
+        column that the projection shrinks below ``NEGLIGIBLE`` of its norm is round-off (a
+        parameter acting alike in every state has no between-state sensitivity) and is dropped:
+        its direction would otherwise be arbitrary.
 
     Returns
     -------
@@ -534,8 +544,13 @@ def score_test(r: np.ndarray, Jx: np.ndarray, Jt: np.ndarray, t_lower: np.ndarra
         explained by the fitted parameters).
     """
     n, q = Jt.shape
+    if scale_x is not None:
+        Jx = Jx[:, np.linalg.norm(Jx, axis=0) > NEGLIGIBLE * np.asarray(scale_x)]
+    if scale_t is not None:
+        Jt = np.where(np.linalg.norm(Jt, axis=0) > NEGLIGIBLE * np.asarray(scale_t), Jt, 0.0)
     if Jx.shape[1]:
-        Q, _ = np.linalg.qr(Jx)
+        U, sv, _ = np.linalg.svd(Jx, full_matrices=False)
+        Q = U[:, sv > 1e-10 * sv.max()] if sv.max() > 0 else U[:, :0]  # range of Jx (rank-revealing)
         PJ = Jt - Q @ (Q.T @ Jt)
     else:
         PJ = Jt
@@ -768,7 +783,8 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
                     "p_value": st["p_value"], "linear_estimate": p0.from_t(float(st["t_hat"][0])),
                     "collinearity": st["collinearity"], "note": ""})
         if len(C):
-            sd = score_test(C @ ev.r, C @ ev.J, C @ Jt, lower)
+            sd = score_test(C @ ev.r, C @ ev.J, C @ Jt, lower, scale_x=np.linalg.norm(ev.J, axis=0),
+                            scale_t=np.linalg.norm(Jt, axis=0))
             row.update({"between_states_fraction": sd["explained_fraction"],
                         "between_states_p_value": sd["p_value"]})
         if st["collinearity"] < 1e-3:

@@ -108,8 +108,12 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
                      progress=None, keep_factor: bool = False, ordering=None):
     """All modes up to ``factor * f_top_Hz`` (and possibly a few above).
 
-    Solves ``n_start`` modes and grows the count (about as ``f^1.5``, between plate-like ``f`` and
-    solid-like ``f^3``) until the highest solved mode reaches ``factor * f_top_Hz``.
+    A Sturm count (:func:`jointid.modal.count_modes_below`, one LDL^T factorisation) tells how many
+    modes lie below ``factor * f_top_Hz``; that many plus two are solved at once, and the solve is
+    checked against the count (a missed mode is recovered from a random start).  Where no count is
+    available (the SuperLU backend had to pivot off the diagonal), ``n_start`` modes are solved and
+    the count grows (about as ``f^1.5``, between plate-like ``f`` and solid-like ``f^3``) until the
+    highest solved mode reaches ``factor * f_top_Hz``.
 
     Parameters
     ----------
@@ -144,7 +148,7 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
     NumericalWarning
         If the limit of modes (or of DOFs) stops the solve below ``2 x f_top_Hz``.
     """
-    from .modal import factorize_shifted, shift_sigma
+    from .modal import count_modes_below, factorize_shifted, shift_sigma
 
     say = progress or (lambda msg: None)
     n_all = K.shape[0]
@@ -154,14 +158,32 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
     target = factor * float(f_top_Hz)
     n = max(1, min(int(n_start), limit))
     Kf, Mf = restrict(sp.csr_matrix(K), free), restrict(sp.csr_matrix(M), free)
+    count = count_modes_below(Kf, Mf, target, backend, ordering)
+    if count is not None:
+        n = max(1, min(count + 2, limit))
+        say(f"harmonic: Sturm count {count} modes below {target:.0f} Hz")
     sigma = shift_sigma(shift_Hz)
     shifted = ShiftedFactor(factorize_shifted(Kf, Mf, sigma, backend, ordering), sigma, free)
     try:  # one factorisation serves every attempt (and the static solve, with keep_factor)
+        seed = None
         while True:
-            modes = solve_modes(K, M, n, shift_Hz=shift_Hz, fixed=fixed, backend=backend, factor=shifted.fac)
+            modes = solve_modes(K, M, n, shift_Hz=shift_Hz, fixed=fixed, backend=backend, factor=shifted.fac,
+                                v0_seed=seed)
             top = float(modes.freqs_Hz[-1])
+            found = int(np.count_nonzero(modes.freqs_Hz < target))
             say(f"harmonic: {n} modes up to {top:.0f} Hz (target {target:.0f} Hz)")
-            if top >= target or n >= limit:
+            if n >= limit:
+                break
+            if count is not None:
+                if found >= count:
+                    break
+                if seed is not None:  # a second start missed modes too
+                    warnings.warn(f"harmonic: Sturm count {count} modes below {target:.0f} Hz, the solve "
+                                  f"found {found}", NumericalWarning, stacklevel=2)
+                    break
+                n, seed = min(limit, n + count - found), 0  # a missed mode: again from a random start
+                continue
+            if top >= target:
                 break
             ratio = (target / max(top, 1e-3 * target)) ** 1.5
             n = min(limit, max(n + 4, int(math.ceil(1.15 * n * ratio))))

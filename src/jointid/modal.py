@@ -33,7 +33,7 @@ class _PardisoFactor:
     """
 
     def __init__(self, A: sp.csr_matrix, upper: bool = False, ordering: np.ndarray | None = None,
-                 analyse_only: bool = False):
+                 analyse_only: bool = False, indefinite: bool = False):
         import pypardiso
 
         self.A = A if upper else sp.triu(A, format="csr")
@@ -41,10 +41,14 @@ class _PardisoFactor:
         n = self.A.shape[0]
         if not np.diff(self.A.indptr).all():
             raise ModelError("the matrix has an empty row (a DOF without stiffness or mass)")
-        self.solver = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
+        # real symmetric positive definite (Cholesky), or indefinite (LDL^T with Bunch-Kaufman pivots)
+        self.solver = pypardiso.PyPardisoSolver(mtype=-2 if indefinite else 2)
         self.solver.set_iparm(1, 1)  # iparm given (all others 0: MKL defaults)
         self.solver.set_iparm(2, 2)  # nested-dissection (METIS) ordering: 1.7x faster factorisation
         # and 30 % less memory than the minimum-degree ordering iparm(2) = 0 selects at 10^5 DOFs
+        if indefinite:
+            self.solver.set_iparm(10, 8)  # perturb pivots below 1e-8 |A| (and count them)
+            self.solver.set_iparm(21, 1)  # Bunch-Kaufman 1x1 and 2x2 pivots
         if ordering is not None and len(ordering) == n:
             self.solver.perm = np.ascontiguousarray(ordering, dtype=np.int32)
             self.solver.set_iparm(5, 1)  # use the given ordering: symbolic analysis only
@@ -57,6 +61,10 @@ class _PardisoFactor:
         # analysis (+ numerical factorisation)
         self._call(11 if analyse_only else 12, np.zeros((n, 1)))
         self.ordering = self.solver.perm.copy()
+        # LDL^T only: numbers of positive and negative pivots (the inertia) and of pivots PARDISO
+        # had to perturb (near-zero: the count is then not reliable)
+        self.inertia = (int(self.solver.iparm[21]), int(self.solver.iparm[22]))
+        self.n_perturbed = int(self.solver.iparm[13])
         self.solver.set_iparm(5, 0)
         if analyse_only:
             self.free()
@@ -180,6 +188,55 @@ def factorize_pencil(pencil, kc: dict, mc: dict, sigma: float, backend: str = "a
         raise _factor_error(exc) from None
 
 
+def count_modes_below(Kf: sp.spmatrix, Mf: sp.spmatrix, freq_Hz: float, backend: str = "auto",
+                      ordering: np.ndarray | None = None) -> int | None:
+    """Sturm count: the number of eigenvalues of ``K phi = w^2 M phi`` (free DOFs) below ``freq_Hz``.
+
+    By Sylvester's law of inertia it is the number of negative pivots of an ``L D L^T`` factorisation
+    of ``K - sigma M``, ``sigma = (2 pi freq_Hz)^2``: one factorisation, no eigen-solve, and unlike
+    an eigen-solver it cannot miss a mode.  Returns ``None`` when the count is not reliable
+    (:func:`count_negative_pivots`).
+    """
+    A = (Kf - (TWO_PI * float(freq_Hz)) ** 2 * Mf).tocsr()
+    if available_backend(backend) == "pardiso":
+        A = sp.triu(A, format="csr")  # the whole matrix is dropped before PARDISO runs
+        return count_negative_pivots(A, backend, ordering, upper=True)
+    return count_negative_pivots(A, backend)
+
+
+def count_pencil_modes_below(pencil, kc: dict, mc: dict, freq_Hz: float, backend: str = "auto") -> int | None:
+    """:func:`count_modes_below` for a :class:`jointid.pencil.FreePencil` (upper triangle assembled
+    directly, cached ordering), as :func:`factorize_pencil` factorises it."""
+    sigma = (TWO_PI * float(freq_Hz)) ** 2
+    if available_backend(backend) == "pardiso":
+        return count_negative_pivots(pencil.shifted_upper(kc, mc, sigma), backend, pencil.ordering, upper=True)
+    return count_negative_pivots(pencil.shifted(kc, mc, sigma), backend)
+
+
+def count_negative_pivots(A: sp.csr_matrix, backend: str = "auto", ordering: np.ndarray | None = None,
+                          upper: bool = False) -> int | None:
+    """Number of negative eigenvalues of the symmetric matrix ``A`` (its upper triangle with
+    ``upper``, PARDISO only) from the signs of ``D`` in ``A = L D L^T``.
+
+    PARDISO (symmetric indefinite, Bunch-Kaufman pivots) reports the inertia directly; SuperLU keeps
+    diagonal pivots under a symmetric permutation, so the signs of ``U``'s diagonal are those of
+    ``D``.  ``None`` when the count is not reliable: SuperLU had to leave the diagonal, or PARDISO
+    perturbed a pivot (``A`` singular to round-off).
+    """
+    if available_backend(backend) == "pardiso":
+        fac = _PardisoFactor(A, upper=upper, ordering=ordering, indefinite=True)
+        fac.free()
+        return None if fac.n_perturbed else fac.inertia[1]
+    try:
+        lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:  # exactly singular
+        return None
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return None
+    return int(np.count_nonzero(lu.U.diagonal() < 0))
+
+
 # ------------------------------------------------------------------ eigen-solve
 @dataclass
 class Modes:
@@ -187,10 +244,45 @@ class Modes:
 
     freqs_Hz: np.ndarray
     phi: np.ndarray
+    sturm: "SturmCheck | None" = None  # completeness check of the solve (solve_model(certify=True))
 
     @property
     def omega2(self) -> np.ndarray:
         return (TWO_PI * self.freqs_Hz) ** 2
+
+
+@dataclass(frozen=True)
+class SturmCheck:
+    """Completeness of a modal solve: the model has ``count`` eigenvalues below ``freq_Hz`` (Sturm
+    count, :func:`count_modes_below`; ``None``: not available) and the solve found ``found``."""
+
+    freq_Hz: float
+    count: int | None
+    found: int
+
+    @property
+    def complete(self) -> bool | None:
+        return None if self.count is None else self.count == self.found
+
+    def describe(self) -> str:
+        if self.count is None:
+            return f"Sturm check at {self.freq_Hz:.1f} Hz not available (no reliable inertia)"
+        state = "all found" if self.complete else f"the solve found {self.found}"
+        return f"Sturm check: {self.count} modes below {self.freq_Hz:.1f} Hz, {state}"
+
+
+def check_frequency(freqs_Hz) -> float | None:
+    """Where to count the modes of a solve: midway between its two highest distinct frequencies
+    (the modes below are then all expected among them; ``None`` with fewer than two)."""
+    f = np.unique(np.round(np.asarray(freqs_Hz, float), 9))
+    return None if len(f) < 2 else 0.5 * float(f[-2] + f[-1])
+
+
+def sturm_check(Kf, Mf, freqs_Hz, freq_Hz: float, backend: str = "auto",
+                ordering: np.ndarray | None = None) -> SturmCheck:
+    """Compare the Sturm count below ``freq_Hz`` with the solved frequencies below it."""
+    count = count_modes_below(Kf, Mf, freq_Hz, backend, ordering)
+    return SturmCheck(float(freq_Hz), count, int(np.count_nonzero(np.asarray(freqs_Hz) < freq_Hz)))
 
 
 def shift_sigma(shift_Hz: float) -> float:
@@ -200,29 +292,49 @@ def shift_sigma(shift_Hz: float) -> float:
 
 def solve_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, *, shift_Hz: float = -10.0,
                 fixed: np.ndarray | None = None, backend: str = "auto", tol: float = 0.0,
-                factor=None, ordering: np.ndarray | None = None) -> Modes:
+                factor=None, ordering: np.ndarray | None = None, v0_seed: int | None = None) -> Modes:
     """Lowest ``n_modes`` eigenpairs of ``K phi = w^2 M phi`` by shift-invert Lanczos.
 
     ``shift_Hz`` < 0 places the shift below zero, so ``K - sigma M`` is positive definite even with
     rigid-body modes, and a shift can never hit an eigenvalue.  ``fixed`` DOFs are removed (clamped).
     ``factor``: a factorisation of ``K - sigma M`` on the free DOFs (:func:`factorize`) to reuse; it is
-    then left to the caller to free.  ``ordering``: see :func:`factorize`.
+    then left to the caller to free.  ``ordering``: see :func:`factorize`.  ``v0_seed``: see
+    :func:`shift_invert_lanczos`.
     """
     free = free_dofs(K.shape[0], fixed)
     return _solve_free(restrict(K, free), restrict(M, free), free, K.shape[0], n_modes, shift_Hz,
-                       backend, tol, factor, ordering)
+                       backend, tol, factor, ordering, v0_seed)
 
 
 def solve_model(model, kc: dict, mc: dict, n_modes: int, *, shift_Hz: float = -10.0,
-                backend: str = "auto") -> Modes:
+                backend: str = "auto", certify: bool = False) -> Modes:
     """:func:`solve_modes` of an affine model (:class:`jointid.fem.Model`, or the diagnosis'
     :class:`jointid.effects.System`) at coefficients ``kc``, ``mc``, with the model's cached ordering.
     The full-size matrices are restricted to the free DOFs and dropped before the factorisation
-    (about 0.3 GB less peak memory at 10^5 DOFs than holding both)."""
+    (about 0.3 GB less peak memory at 10^5 DOFs than holding both).
+
+    ``certify``: count the model's modes below a frequency between the two highest solved ones
+    (:func:`count_modes_below`, one more factorisation) and compare with the solve
+    (``Modes.sturm``).  Modes the Lanczos run missed are recovered by one more solve for that many
+    more modes from a random start; if the counts still differ, a :class:`NumericalWarning`.
+    """
     free = free_dofs(model.n_dofs, model.fixed)
     Kf, Mf = restrict(model.K(kc), free), restrict(model.M(mc), free)
-    return _solve_free(Kf, Mf, free, model.n_dofs, n_modes, shift_Hz, backend, 0.0, None,
-                       getattr(model, "ordering", None))
+    ordering = getattr(model, "ordering", None)
+    modes = _solve_free(Kf, Mf, free, model.n_dofs, n_modes, shift_Hz, backend, 0.0, None, ordering)
+    fc = check_frequency(modes.freqs_Hz) if certify else None
+    if fc is None:
+        return modes
+    check = sturm_check(Kf, Mf, modes.freqs_Hz, fc, backend, ordering)
+    if check.count is not None and check.count > check.found:
+        more = _solve_free(Kf, Mf, free, model.n_dofs, n_modes + check.count - check.found, shift_Hz,
+                           backend, 0.0, None, ordering, v0_seed=0)
+        modes = Modes(more.freqs_Hz[:n_modes], more.phi[:, :n_modes])
+        check = SturmCheck(fc, check.count, int(np.count_nonzero(more.freqs_Hz < fc)))
+    if check.complete is False:
+        warnings.warn(check.describe() + ": the modal solve is not complete", NumericalWarning)
+    modes.sturm = check
+    return modes
 
 
 def free_dofs(n: int, fixed) -> np.ndarray:
@@ -235,12 +347,12 @@ def restrict(A: sp.spmatrix, free: np.ndarray) -> sp.csr_matrix:
     return A[free][:, free].tocsr() if len(free) < A.shape[0] else A.tocsr()
 
 
-def _solve_free(Kf, Mf, free, n, n_modes, shift_Hz, backend, tol, factor, ordering) -> Modes:
+def _solve_free(Kf, Mf, free, n, n_modes, shift_Hz, backend, tol, factor, ordering, v0_seed=None) -> Modes:
     _check_count(n_modes, len(free))
     sigma = shift_sigma(shift_Hz)
     fac = factor if factor is not None else factorize_shifted(Kf, Mf, sigma, backend, ordering)
     try:
-        vec, freqs = shift_invert_lanczos(Kf, Mf, fac, n_modes, sigma, tol)
+        vec, freqs = shift_invert_lanczos(Kf, Mf, fac, n_modes, sigma, tol, v0_seed)
     finally:
         if factor is None:
             fac.free()
@@ -255,11 +367,16 @@ def _check_count(n_modes: int, n_free: int) -> None:
                          f"{n_free} free DOFs — lower solver.n_modes or refine the mesh")
 
 
-def shift_invert_lanczos(Kf, Mf, fac, n_modes: int, sigma: float, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def shift_invert_lanczos(Kf, Mf, fac, n_modes: int, sigma: float, tol: float = 0.0,
+                         v0_seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Shift-invert Lanczos (ARPACK) on the free DOFs: mass-normalised vectors with a fixed sign
-    (largest component positive, for determinism) and frequencies in Hz, ascending."""
+    (largest component positive, for determinism) and frequencies in Hz, ascending.  The start
+    vector is uniform, or seeded random with ``v0_seed``."""
     op = spla.LinearOperator(Kf.shape, matvec=fac.solve, dtype=np.float64)
-    v0 = np.ones(Kf.shape[0]) / np.sqrt(Kf.shape[0])
+    if v0_seed is None:
+        v0 = np.ones(Kf.shape[0]) / np.sqrt(Kf.shape[0])
+    else:
+        v0 = np.random.default_rng(v0_seed).standard_normal(Kf.shape[0])
     lam, vec = spla.eigsh(Kf, k=n_modes, M=Mf, sigma=sigma, which="LM", OPinv=op, v0=v0, tol=tol)
     order = np.argsort(lam)
     lam, vec = lam[order], vec[:, order]

@@ -160,8 +160,10 @@ def sheet_theta(sheet_csv: str, point: str, names: list[str]) -> dict[str, float
 
 
 # ------------------------------------------------------------------ modal
-def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True):
-    """Modal solve of the cached model at joint parameters ``theta`` (N/m^3).
+def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True,
+                certify: bool = False):
+    """Modal solve of the cached model at joint parameters ``theta`` (N/m^3); ``certify``: with a
+    Sturm check of its completeness (``modes.sturm``, :func:`jointid.modal.solve_model`).
 
     Returns ``(freqs_Hz, shapes at measuring points (n_labels, n_modes), description table, modes)``.
     """
@@ -170,7 +172,8 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
 
     s = cfg["solver"]
     kc, mc = base_coefficients(cfg, model, theta)
-    modes = solve_model(model, kc, mc, n_modes or s["n_modes"], shift_Hz=s["shift_Hz"], backend=s["backend"])
+    modes = solve_model(model, kc, mc, n_modes or s["n_modes"], shift_Hz=s["shift_Hz"], backend=s["backend"],
+                        certify=certify)
     shapes = model.probe @ modes.phi
     desc = None
     if describe:
@@ -581,7 +584,8 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     doc = io.read_json(surface_json)
     theta = {n: v["value"] for n, v in par["parameters"].items()}
     model = load_model(matrices)
-    freqs, shapes, desc, _ = solve_point(cfg, model, theta)
+    freqs, shapes, desc, modes = solve_point(cfg, model, theta, certify=True)
+    _log(f"verify[{state}]: {modes.sturm.describe() if modes.sturm else 'no Sturm check (one mode)'}")
     index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
     f_meas = np.asarray(par["f_meas_Hz"])
     fe = np.where(index >= 0, freqs[np.clip(index, 0, None)], np.nan)
