@@ -64,39 +64,57 @@ def _children_map() -> dict[int, list[int]]:
     return kids
 
 
-def _rss_kB(pid: int) -> int:
+def _proc_kB(path: str, key: str) -> int:
     try:
-        with open(f"/proc/{pid}/status") as fh:
+        with open(path) as fh:
             for line in fh:
-                if line.startswith("VmRSS:"):
+                if line.startswith(key):
                     return int(line.split()[1])
     except OSError:
         pass
     return 0
 
 
-class TreeMemorySampler:
-    """Samples the summed RSS of a process and all its descendants (``/proc``, no psutil).
+def _rss_kB(pid: int) -> int:
+    return _proc_kB(f"/proc/{pid}/status", "VmRSS:")
 
-    ``peak_MB`` is the largest sum seen; with parallel jobs it is the memory the machine needed,
-    unlike ``ru_maxrss`` (the largest single process).
+
+def _pss_kB(pid: int) -> int:
+    """Proportional set size: private pages plus each shared page divided by the number of processes
+    mapping it (shared libraries, a memory-mapped model).  Summed over processes it is the memory they
+    occupy together; the RSS sum counts every shared page once per process."""
+    return _proc_kB(f"/proc/{pid}/smaps_rollup", "Pss:")
+
+
+class TreeMemorySampler:
+    """Samples the summed PSS and RSS of a process and all its descendants (``/proc``, no psutil).
+
+    ``peak_MB`` is the largest PSS sum seen: with parallel jobs it is the memory the machine needed,
+    unlike ``ru_maxrss`` (the largest single process).  ``peak_rss_MB`` is the largest RSS sum, which
+    counts the pages the processes share (libraries, the memory-mapped model) once per process;
+    it equals ``peak_MB`` where nothing is shared, and on kernels without ``smaps_rollup`` it is
+    used for ``peak_MB`` too.
     """
 
     def __init__(self, pid: int, interval_s: float = 0.25):
         self.pid, self.interval = pid, interval_s
         self.peak_kB = 0
+        self.peak_rss_kB = 0
+        self.has_pss = os.path.exists(f"/proc/{os.getpid()}/smaps_rollup")
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
     def _run(self):
         while not self._stop.is_set():
             kids = _children_map()
-            todo, total = [self.pid], 0
+            todo, pss, rss = [self.pid], 0, 0
             while todo:
                 p = todo.pop()
-                total += _rss_kB(p)
+                rss += _rss_kB(p)
+                pss += _pss_kB(p) if self.has_pss else 0
                 todo.extend(kids.get(p, []))
-            self.peak_kB = max(self.peak_kB, total)
+            self.peak_kB = max(self.peak_kB, pss if self.has_pss else rss)
+            self.peak_rss_kB = max(self.peak_rss_kB, rss)
             self._stop.wait(self.interval)
 
     def __enter__(self):
@@ -110,6 +128,10 @@ class TreeMemorySampler:
     @property
     def peak_MB(self) -> float:
         return self.peak_kB / 1024.0
+
+    @property
+    def peak_rss_MB(self) -> float:
+        return self.peak_rss_kB / 1024.0
 
 
 # ------------------------------------------------------------------ results table

@@ -174,3 +174,83 @@ def write_npz(path, **arrays) -> None:
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
+
+
+# ------------------------------------------------------------------ memory-mappable .npz
+NPZ_ALIGN = 64  # bytes: the array data of every member starts at a multiple of this in the file
+_PAD_ID = 0x6A6A  # id of the zip extra field that pads a local header (ignored by zip readers)
+
+
+def write_npz_mappable(path, arrays: dict) -> None:
+    """Write ``arrays`` as an uncompressed ``.npz`` whose array data are aligned in the file.
+
+    Any ``np.load`` reads it; :func:`map_npz` maps it without a copy.  Each member's local zip header
+    carries an extra field sized so that the ``.npy`` data start at a multiple of
+    :data:`NPZ_ALIGN` bytes from the start of the file, which a memory map needs to give aligned
+    arrays.  Written atomically (:func:`atomic_path`).
+    """
+    import io as _io
+    import zipfile
+
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for name, value in arrays.items():
+            arr = np.asarray(value)
+            if not arr.flags.c_contiguous:
+                arr = np.ascontiguousarray(arr)
+            if arr.dtype.hasobject:
+                raise ValueError(f"write_npz_mappable: '{name}' holds Python objects; only plain arrays map")
+            head = _io.BytesIO()
+            np.lib.format.write_array_header_1_0(head, np.lib.format.header_data_from_array_1_0(arr))
+            if len(head.getvalue()) > 65535 - 10:  # the 1.0 header is limited; 2.0 has room
+                head = _io.BytesIO()
+                np.lib.format.write_array_header_2_0(head, np.lib.format.header_data_from_array_1_0(arr))
+            header = head.getvalue()
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_STORED
+            info.file_size = len(header) + arr.nbytes
+            zip64 = info.file_size * 1.05 > zipfile.ZIP64_LIMIT  # as zipfile decides it
+            fixed = 30 + len(info.filename.encode()) + (20 if zip64 else 0) + 4 + len(header)
+            pad = -(zf.fp.tell() + fixed) % NPZ_ALIGN
+            info.extra = np.array([_PAD_ID, pad], "<u2").tobytes() + b"\0" * pad
+            with zf.open(info, "w", force_zip64=zip64) as out:
+                out.write(header)
+                if arr.nbytes:
+                    out.write(memoryview(arr.reshape(-1)).cast("B"))
+
+
+def map_npz(path) -> dict[str, np.ndarray]:
+    """The arrays of an ``.npz`` file, as read-only views of one memory map of it where possible.
+
+    A member stored uncompressed whose data are aligned (as :func:`write_npz_mappable` writes them)
+    is not read: its pages are loaded on first touch and shared by every process that maps the same
+    file.  Other members (compressed, unaligned, object arrays) are read as ``np.load`` would.
+    """
+    import io as _io
+    import mmap
+    import zipfile
+
+    out: dict[str, np.ndarray] = {}
+    with open(path, "rb") as fh, zipfile.ZipFile(fh) as zf:
+        size = os.fstat(fh.fileno()).st_size
+        mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else None
+        for info in zf.infolist():
+            name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            arr = None
+            if mm is not None and info.compress_type == zipfile.ZIP_STORED:
+                off = info.header_offset
+                n_name, n_extra = np.frombuffer(mm, "<u2", 2, off + 26)
+                start = off + 30 + int(n_name) + int(n_extra)
+                head = _io.BytesIO(mm[start: start + min(info.file_size, 65536 + 16)])
+                version = np.lib.format.read_magic(head)
+                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0)
+                shape, fortran, dtype = read(head)
+                data = start + head.tell()
+                if not dtype.hasobject and data % max(dtype.alignment, 1) == 0:
+                    count = int(np.prod(shape, dtype=np.int64))
+                    arr = np.frombuffer(mm, dtype, count, data).reshape(shape, order="F" if fortran else "C")
+            if arr is None:
+                with zf.open(info) as member:
+                    arr = np.lib.format.read_array(member, allow_pickle=False)
+            out[name] = arr
+    return out

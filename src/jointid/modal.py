@@ -50,7 +50,7 @@ class _PardisoFactor:
             self.solver.set_iparm(10, 8)  # perturb pivots below 1e-8 |A| (and count them)
             self.solver.set_iparm(21, 1)  # Bunch-Kaufman 1x1 and 2x2 pivots
         if ordering is not None and len(ordering) == n:
-            self.solver.perm = np.ascontiguousarray(ordering, dtype=np.int32)
+            self.solver.perm = np.array(ordering, dtype=np.int32)  # a copy: PARDISO owns it
             self.solver.set_iparm(5, 1)  # use the given ordering: symbolic analysis only
         else:
             self.solver.perm = np.zeros(n, dtype=np.int32)

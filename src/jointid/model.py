@@ -29,7 +29,7 @@ import scipy.sparse as sp
 from skfem import Basis
 
 from . import fem, localrefine
-from .io import atomic_path
+from .io import map_npz, write_npz_mappable
 from .mesh import mesh_from_config
 from .points import measuring_points
 from .rig import PART_IDS, build_rig
@@ -223,22 +223,26 @@ def save_model(model: fem.Model, path: str | Path) -> None:
         arrays[f"mesh/{k}"] = v
     meta = {k: v for k, v in model.meta.items() if k != "mesh"}
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
+    write_npz_mappable(path, arrays)
 
 
 def load_model(path: str | Path) -> fem.Model:
-    """Read a model written by :func:`save_model`."""
-    z = np.load(path, allow_pickle=False)
+    """Read a model written by :func:`save_model`.
+
+    The arrays are memory-mapped (:func:`jointid.io.map_npz`), not read: a job pages in only what it
+    touches, and the jobs running at once on one machine share one copy of the model in the page
+    cache.  They are read-only; every model operation makes new matrices.
+    """
+    z = map_npz(path)
     groups: dict[str, dict[str, sp.csr_matrix]] = {"stiffness": {}, "mass": {}}
-    names = {(k.split("/")[0], k.split("/")[1]) for k in z.files if k.startswith(("stiffness/", "mass/"))}
+    names = {(k.split("/")[0], k.split("/")[1]) for k in z if k.startswith(("stiffness/", "mass/"))}
     for group, name in sorted(names):
         pre = f"{group}/{name}/"
         groups[group][name] = sp.csr_matrix((z[pre + "data"], z[pre + "indices"], z[pre + "indptr"]),
                                             shape=tuple(z[pre + "shape"]))
     probe = sp.csr_matrix((z["probe/data"], z["probe/indices"], z["probe/indptr"]), shape=tuple(z["probe/shape"]))
     meta = json.loads(bytes(z["meta"]).decode())
-    meta["mesh"] = {k.split("/")[1]: z[k] for k in z.files if k.startswith("mesh/")}
+    meta["mesh"] = {k.split("/")[1]: z[k] for k in z if k.startswith("mesh/")}
     return fem.Model(stiffness=groups["stiffness"], mass=groups["mass"], fixed=z["fixed"], probe=probe,
                      doflocs=z["doflocs"], dof_part=z["dof_part"], meta=meta,
-                     ordering=z["ordering"] if "ordering" in z.files else None)
+                     ordering=z["ordering"] if "ordering" in z else None)

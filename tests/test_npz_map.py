@@ -1,0 +1,84 @@
+"""Memory-mappable .npz: aligned writing, mapping without a copy, fallback for other .npz files."""
+
+import mmap
+import zipfile
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from jointid import io
+
+DTYPES = [np.float64, np.float32, np.int32, np.int64, np.uint8, np.bool_, np.complex128]
+
+
+def _mapped(a: np.ndarray) -> bool:
+    """Whether ``a`` is a view of a memory map (no copy of its own)."""
+    while a is not None and not isinstance(a, mmap.mmap):
+        if isinstance(a, np.ndarray) and a.flags.owndata:
+            return False
+        a = a.obj if isinstance(a, memoryview) else a.base
+    return isinstance(a, mmap.mmap)
+
+
+@settings(max_examples=25, deadline=None)
+@given(arrays=st.lists(hnp.arrays(st.sampled_from(DTYPES), hnp.array_shapes(min_dims=0, max_dims=3, max_side=7)),
+                       min_size=1, max_size=5))
+def test_round_trip_is_exact_aligned_and_mapped(tmp_path_factory, arrays):
+    path = tmp_path_factory.mktemp("npz") / "a.npz"
+    named = {f"group/{i}": a for i, a in enumerate(arrays)}
+    io.write_npz_mappable(path, named)
+    plain = np.load(path)  # an ordinary .npz for numpy
+    mapped = io.map_npz(path)
+    assert set(mapped) == set(named) == set(plain.files)
+    for k, a in named.items():
+        for got in (plain[k], mapped[k]):
+            assert got.dtype == a.dtype and got.shape == a.shape
+            assert np.array_equal(got, a, equal_nan=a.dtype.kind in "fc")
+        assert _mapped(mapped[k]) and not mapped[k].flags.writeable
+        assert mapped[k].ctypes.data % io.NPZ_ALIGN == 0 or mapped[k].nbytes == 0
+
+
+def test_fortran_ordered_and_string_arrays(tmp_path):
+    f = np.asfortranarray(np.arange(12.0).reshape(3, 4))
+    s = np.array(["x", "yy", "zzz"])
+    io.write_npz_mappable(tmp_path / "a.npz", {"f": f, "s": s})
+    m = io.map_npz(tmp_path / "a.npz")
+    assert np.array_equal(m["f"], f) and np.array_equal(m["s"], s)
+
+
+def test_other_npz_files_are_read_as_numpy_reads_them(tmp_path):
+    a, b = np.arange(10.0), np.arange(5, dtype=np.int32)
+    np.savez(tmp_path / "plain.npz", a=a, b=b)
+    np.savez_compressed(tmp_path / "packed.npz", a=a, b=b)
+    for name in ("plain.npz", "packed.npz"):
+        m = io.map_npz(tmp_path / name)
+        assert np.array_equal(m["a"], a) and np.array_equal(m["b"], b)
+    with zipfile.ZipFile(tmp_path / "packed.npz") as zf:
+        assert all(i.compress_type == zipfile.ZIP_DEFLATED for i in zf.infolist())
+
+
+def test_object_arrays_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="Python objects"):
+        io.write_npz_mappable(tmp_path / "a.npz", {"o": np.array([{}, []], dtype=object)})
+    assert not (tmp_path / "a.npz").exists()
+
+
+def test_saved_model_loads_mapped_and_solves_the_same(tmp_path):
+    from conftest import coarse_config_dict
+    from jointid.config import load_config
+    from jointid.modal import solve_model
+    from jointid.model import base_coefficients, build_model, load_model, save_model
+
+    cfg = load_config(coarse_config_dict())
+    model = build_model(cfg)
+    save_model(model, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz")
+    assert _mapped(loaded.stiffness["K0"].data) and _mapped(loaded.mass["M0"].indices)
+    for name, A in model.stiffness.items():
+        assert (A != loaded.stiffness[name]).nnz == 0
+    kc, mc = base_coefficients(cfg, model)
+    a, b = solve_model(model, kc, mc, 6), solve_model(loaded, kc, mc, 6)
+    assert np.allclose(a.freqs_Hz, b.freqs_Hz, rtol=1e-10)
