@@ -113,4 +113,6 @@ def test_band_modes_missed_by_the_first_solve_are_recovered(backend):
 
 def test_check_frequency_lies_between_the_two_highest_distinct_frequencies():
     assert check_frequency([1.0, 2.0, 4.0, 4.0]) == pytest.approx(3.0)
+    assert check_frequency([1.0, 2.0, 4.0, 4.0 * (1 + 1e-9)]) == pytest.approx(3.0)  # a pair, not a gap
     assert check_frequency([5.0]) is None
+    assert check_frequency([5.0, 5.0]) is None

@@ -224,7 +224,12 @@ def count_negative_pivots(A: sp.csr_matrix, backend: str = "auto", ordering: np.
     perturbed a pivot (``A`` singular to round-off).
     """
     if available_backend(backend) == "pardiso":
-        fac = _PardisoFactor(A, upper=upper, ordering=ordering, indefinite=True)
+        from pypardiso.pardiso_wrapper import PyPardisoError
+
+        try:
+            fac = _PardisoFactor(A, upper=upper, ordering=ordering, indefinite=True)
+        except (PyPardisoError, ModelError):  # the factorisation failed: no count
+            return None
         fac.free()
         return None if fac.n_perturbed else fac.inertia[1]
     try:
@@ -271,11 +276,16 @@ class SturmCheck:
         return f"Sturm check: {self.count} modes below {self.freq_Hz:.1f} Hz, {state}"
 
 
-def check_frequency(freqs_Hz) -> float | None:
-    """Where to count the modes of a solve: midway between its two highest distinct frequencies
-    (the modes below are then all expected among them; ``None`` with fewer than two)."""
-    f = np.unique(np.round(np.asarray(freqs_Hz, float), 9))
-    return None if len(f) < 2 else 0.5 * float(f[-2] + f[-1])
+def check_frequency(freqs_Hz, min_gap: float = 1e-6) -> float | None:
+    """Where to count the modes of a solve: midway between the highest two neighbouring frequencies
+    that differ by more than ``min_gap`` (relative), so that the count is taken well away from any
+    eigenvalue (the modes below it are then all expected among the solved ones; ``None`` if there is
+    no such pair)."""
+    f = np.sort(np.asarray(freqs_Hz, float))
+    for i in range(len(f) - 1, 0, -1):
+        if f[i] - f[i - 1] > min_gap * max(abs(f[i]), 1e-30):
+            return 0.5 * float(f[i - 1] + f[i])
+    return None
 
 
 def sturm_check(Kf, Mf, freqs_Hz, freq_Hz: float, backend: str = "auto",
