@@ -258,3 +258,60 @@ def test_workflow_diagnoses_registered_datasets_only(tmp_path):
     out = _snakemake_dry_run(tmp_path / "c", {"datasets": {}})
     assert out.returncode == 0, out.stderr[-2000:]
     assert "results/diagnosis/paper/ranking.csv" in out.stdout
+
+
+# ---------------------------------------------------------------- bad input: stop early, say why
+@pytest.mark.parametrize("extra, expected", [
+    (["--config", "missing.yaml"], "--config missing.yaml: no such file"),
+    (["--matrices", "missing.npz"], "--matrices missing.npz: no such file"),
+    (["--effects", "{em_preload: {beta: 0.2}"], "--effects: not valid YAML"),
+    (["--history", "."], "--history .: is a folder"),
+])
+def test_command_line_mistakes_are_reported_before_any_work(tmp_path, capsys, extra, expected):
+    from jointid.diagnose import main
+
+    rc = main(["--dataset", str(ROOT / "data" / "paper"), "--out", str(tmp_path / "out"),
+               "--config", str(ROOT / "config.yaml"), *extra])
+    err = capsys.readouterr().err
+    assert rc == 1 and expected in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
+    from jointid.diagnose import main
+    from jointid.errors import ModelError
+    from jointid.model import load_model
+
+    (tmp_path / "f.txt").write_text("x")
+    assert main(["--dataset", str(ROOT / "data" / "paper"), "--out", str(tmp_path / "f.txt")]) == 1
+    assert "is a file, not a folder" in capsys.readouterr().err
+    np.savez(tmp_path / "other.npz", freqs_Hz=np.arange(3.0))
+    with pytest.raises(ModelError, match="not a jointid model file"):
+        load_model(tmp_path / "other.npz")
+    (tmp_path / "junk.npz").write_text("not a zip")
+    with pytest.raises(ModelError, match="not a readable .npz"):
+        load_model(tmp_path / "junk.npz")
+
+
+def test_measured_modes_below_the_tracked_band_are_refused(coarse):
+    from jointid.diagnose import dataset_states
+    from jointid.errors import DataError
+    from jointid.measured import read_dataset
+
+    cfg, system = coarse
+    ds = read_dataset(ROOT / "data" / "paper")
+    cfg_low = {**cfg, "solver": {**cfg["solver"], "min_freq_Hz": 400.0}}
+    with pytest.raises(DataError, match=r"power_off mode 1 at 344.3 Hz lies below solver.min_freq_Hz = 400"):
+        dataset_states(ds, system, cfg_low)
+    assert len(dataset_states(ds, system, cfg)) == 2
+
+
+def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
+    from jointid.diagnose import StateData, diagnose
+    from jointid.errors import DataError
+
+    cfg, system = coarse
+    data = [StateData(s, E.StateInfo(s, f), np.array([344.3]), None, 0.01)
+            for s, f in (("power_off", 0.0), ("power_on", 1000.0))]
+    with pytest.raises(DataError, match="2 measured frequencies for 3 fitted parameters"):
+        diagnose(system, cfg, data)

@@ -54,6 +54,16 @@ class Pairing:
         return np.flatnonzero(self.model_index >= 0)
 
 
+def below_band(dataset: str, freqs_by_state: dict, min_freq_Hz: float) -> list[str]:
+    """Problem lines for measured modes below ``solver.min_freq_Hz``: model modes there count as
+    rigid-body or mount modes and are never paired, so such a measured mode would be paired with an
+    unrelated model mode."""
+    return [f"{dataset}: measured {state} mode {i + 1} at {f:g} Hz lies below solver.min_freq_Hz = "
+            f"{min_freq_Hz:g} Hz, under which model modes count as rigid-body or mount modes and are never "
+            "paired — lower solver.min_freq_Hz below the lowest measured mode"
+            for state, freqs in freqs_by_state.items() for i, f in enumerate(freqs) if f < min_freq_Hz]
+
+
 def mac_matrix(meas_shapes: np.ndarray, model_shapes: np.ndarray) -> np.ndarray:
     """MAC between measured ``(n_labels, m)`` and model ``(n_labels, n)`` shapes: ``(m, n)``.
 

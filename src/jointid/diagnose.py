@@ -30,6 +30,7 @@ Numerics (see ``docs/effects.md`` and ``shared/design/PHYSICS.md``)
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 import warnings
@@ -120,6 +121,10 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
                          f"{', '.join(ds.states)}" for s in missing])
     sigma = float(ds.conditions.get("frequency_uncertainty_pct",
                                     cfg.get("identify", {}).get("frequency_uncertainty_pct", 1.0))) / 100
+    low = correlate.below_band(ds.name, {s: ds.freqs(s) for s in names},
+                               float(cfg.get("solver", {}).get("min_freq_Hz", 0.0)))
+    if low:
+        raise DataError(low)
     out = []
     for s in names:
         cond = ds.state_conditions(s)
@@ -723,9 +728,18 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
     diag = Diagnoser(system, cfg, data, solver=solver, log=log)
     notes = []
+    base = Variant(system, cfg, [])
+    n_obs = sum(len(d.f_meas) for d in data)
+    if n_obs <= base.n_params:
+        raise DataError(f"diagnosis: {n_obs} measured frequencies for {base.n_params} fitted parameters "
+                        f"({', '.join(base.labels)}): a fit leaves no residual to test an effect with — "
+                        "measure more modes or states, or fix parameters (joints.fixed)")
     # ---------------------------------------------------------------- 1. compare (reference state)
     ref = reference_state or min(data, key=lambda d: d.info.em_force_N).name
-    base = Variant(system, cfg, [])
+    if compare and sum(len(d.f_meas) for d in data if d.name == ref) <= base.n_params:
+        compare = False  # the reference state alone cannot determine the parameters
+        notes.append(f"the comparison uses the baseline calibrated on all states: {ref} alone has no more "
+                     f"measured modes than the {base.n_params} fitted parameters")
     x0 = base.x_start()
     diag._ensure_solver(base, x0)
     if compare:
@@ -1183,6 +1197,7 @@ def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
     from . import io
 
     out = Path(out_dir)
+    page = html_page(res, dataset, run)  # figures first: a failure there leaves no partial set behind
     io.write_csv(res.ranking, out / "ranking.csv")
     io.write_csv(res.ladder, out / "ladder.csv")
     io.write_csv(res.compare, out / "compare.csv")
@@ -1197,7 +1212,7 @@ def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
         io.write_csv(df, out / f"mac_{state}.csv")
     io.write_json(out / "verdict.json", {"dataset": dataset, "verdict": res.verdict, "explained_by": res.explained_by,
                                          "notes": res.notes, "run": run, "timing_s": res.timing_s})
-    io.write_text(out / "index.html", html_page(res, dataset, run))
+    io.write_text(out / "index.html", page)
 
 
 # ====================================================================== stage and command line
@@ -1230,12 +1245,31 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
     return res
 
 
+def _check_outputs(out_dir: str, history: str | None) -> None:
+    """Fail before any computation when the outputs cannot be written."""
+    from .errors import ConfigError
+
+    problems = []
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        problems.append(f"--out {out_dir}: is a file, not a folder — name a folder for the outputs")
+    if history is not None and os.path.isdir(history):
+        problems.append(f"--history {history}: is a folder — name a CSV file to append the run's row to")
+    for path in filter(None, (out_dir, history)):
+        probe = os.path.abspath(path)
+        while not os.path.exists(probe):  # the nearest existing folder is where it gets created
+            probe = os.path.dirname(probe)
+        if not os.access(probe, os.W_OK):
+            problems.append(f"{path}: {probe} is not writable")
+    if problems:
+        raise ConfigError(problems)
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m jointid.diagnose --dataset DIR --out DIR [--config config.yaml ...] [--set k=v]``."""
     import argparse
 
     from .config import load_config
-    from .errors import JointidError
+    from .errors import ConfigError, JointidError
 
     ap = argparse.ArgumentParser(prog="python -m jointid.diagnose",
                                  description="Diagnose which listed physical effect the model lacks.")
@@ -1253,9 +1287,20 @@ def main(argv: list[str] | None = None) -> int:
 
         from .synth import _base_config
 
+        _check_outputs(args.out, args.history)
+        for path in args.config:
+            if not os.path.isfile(path):
+                raise ConfigError(f"--config {path}: no such file")
+        if args.matrices is not None and not os.path.isfile(args.matrices):
+            raise ConfigError(f"--matrices {args.matrices}: no such file — the mesh rule writes "
+                              "results/model/matrices.npz; or leave --matrices out to build the model")
         raw = _base_config(args.config)
         if args.effects is not None:
-            raw["effects"] = yaml.safe_load(args.effects) or {}
+            try:
+                raw["effects"] = yaml.safe_load(args.effects) or {}
+            except yaml.YAMLError as exc:
+                raise ConfigError(f"--effects: not valid YAML ({str(exc).splitlines()[0]}) — write a mapping "
+                                  "such as '{em_preload: {beta: 0.2}}'") from None
         cfg = load_config(raw)
         cfg["dataset"] = {"path": args.dataset, "states": args.states}
         model = None

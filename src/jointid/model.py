@@ -233,7 +233,21 @@ def load_model(path: str | Path) -> fem.Model:
     touches, and the jobs running at once on one machine share one copy of the model in the page
     cache.  They are read-only; every model operation makes new matrices.
     """
-    z = map_npz(path)
+    import zipfile
+
+    from .errors import ModelError
+
+    hint = "point to results/model/matrices.npz, written by the mesh rule"
+    try:
+        z = map_npz(path)
+    except FileNotFoundError:
+        raise ModelError(f"{path}: no such model file — {hint}") from None
+    except (zipfile.BadZipFile, ValueError, OSError) as exc:
+        raise ModelError(f"{path}: not a readable .npz file ({exc}) — {hint}") from None
+    missing = [k for k in ("stiffness/K0/data", "mass/M0/data", "probe/data", "fixed", "doflocs", "meta")
+               if k not in z]
+    if missing:
+        raise ModelError(f"{path}: not a jointid model file (no {', '.join(missing)}) — {hint}")
     groups: dict[str, dict[str, sp.csr_matrix]] = {"stiffness": {}, "mass": {}}
     names = {(k.split("/")[0], k.split("/")[1]) for k in z if k.startswith(("stiffness/", "mass/"))}
     for group, name in sorted(names):

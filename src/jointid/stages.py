@@ -355,7 +355,13 @@ def _measured(cfg: dict, state: str, pts):
     from .measured import read_dataset
     from .points import dof_labels
 
+    from .correlate import below_band
+    from .errors import DataError
+
     ds = read_dataset(_dataset_for(cfg, state), measuring_points=pts)
+    low = below_band(ds.name, {state: ds.freqs(state)}, float(cfg["solver"]["min_freq_Hz"]))
+    if low:
+        raise DataError(low)
     shapes = None
     if ds.shapes is not None and state in set(ds.shapes["state"]):
         shapes = ds.shape_matrix(state, dof_labels(pts))
@@ -441,6 +447,11 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
                                         pairing=fixed)
     msgs += pair_msgs
+    if len(f_meas) <= len(doc["names"]):
+        msgs.insert(0, f"{len(f_meas)} measured frequencies for {len(doc['names'])} identified parameters: "
+                    + ("underdetermined, the values are one of many that fit equally well"
+                       if len(f_meas) < len(doc["names"]) else "no residual degree of freedom is left")
+                    + " and the intervals mean little — measure more modes, or fix parameters (joints.fixed)")
     if zoom:  # an edge of the zoomed box is no bound of the parameters: the FE polish may pass it
         msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in doc["names"])]
     surface_theta = np.asarray(res.theta, float)
