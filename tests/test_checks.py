@@ -71,3 +71,54 @@ def test_cli_gates_table1_separately_from_the_error_bounds(tmp_path):
     assert bad.returncode == 1 and "-1.0 %" in bad.stderr
     _tables23(tmp_path, 8.0, 8.2)
     assert _cli("--tables2-3", tmp_path).returncode == 0
+
+
+# ------------------------------------------------------------------ unreadable tables, bad cells
+
+@pytest.mark.parametrize("content", ["", "\n\n", "\xff\xfe\x00garbage"])
+def test_unreadable_frequency_table_names_the_file_and_the_rerun(tmp_path, content):
+    _tables23(tmp_path, 1.0, 1.0)
+    path = tmp_path / "table2_power_off.csv"
+    path.write_bytes(content.encode("latin-1"))
+    (problem,) = checks.check_frequency_tables(tmp_path)
+    assert problem.startswith(f"{path}: not a readable CSV") and "rerun `snakemake -j2" in problem
+    res = _cli("--tables2-3", tmp_path)
+    assert res.returncode == 1 and "Traceback" not in res.stderr and str(path) in res.stderr
+
+
+def test_unreadable_table1_fails_without_traceback(tmp_path):
+    (tmp_path / checks.TABLE1).write_bytes(b"")
+    res = _cli("--table1", tmp_path)
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert f"{tmp_path / checks.TABLE1}: not a readable CSV" in res.stderr and "rule table1" in res.stderr
+
+
+def test_frequency_table_missing_column_or_rows_is_named(tmp_path):
+    _tables23(tmp_path, 1.0, 1.0)
+    path = tmp_path / "table3_power_on.csv"
+    pd.read_csv(path).drop(columns="relative_error_pct").to_csv(path, index=False)
+    (problem,) = checks.check_frequency_tables(tmp_path)
+    assert problem.startswith(f"{path}: columns relative_error_pct missing — rerun `snakemake -j2")
+    path.write_text(",".join(checks.COLUMNS) + "\n")
+    assert checks.check_frequency_tables(tmp_path) == [
+        f"{path}: no data rows — rerun `snakemake -j2 {path.as_posix()}` (rule tables)"]
+
+
+@pytest.mark.parametrize("bad, shown", [("n/a", "n/a"), ("", "(empty)"), ("nan", "nan"), ("inf", "inf")])
+def test_non_numeric_relative_error_fails_naming_row_and_column(tmp_path, bad, shown):
+    _tables23(tmp_path, 1.0, 1.0)
+    path = tmp_path / "table2_power_off.csv"
+    df = pd.read_csv(path).astype({"relative_error_pct": object})
+    df.loc[1, "relative_error_pct"] = bad
+    df.to_csv(path, index=False)
+    (problem,) = checks.check_frequency_tables(tmp_path)
+    assert problem.startswith(f"{path}: order 2: relative_error_pct = {shown} is not a finite number")
+    res = _cli("--tables2-3", tmp_path)
+    assert res.returncode == 1 and "order 2: relative_error_pct" in res.stderr
+
+
+@pytest.mark.parametrize("bad, shown", [("n/a", "n/a"), ("", "(empty)")])
+def test_non_numeric_table1_stiffness_fails_naming_state_and_column(tmp_path, bad, shown):
+    (problem,) = checks.check_table1(_table1(tmp_path, bad, 142100.0))
+    assert problem.startswith(f"{tmp_path / checks.TABLE1}: power_off dynamic_stiffness_N_per_mm = {shown} "
+                              "is not a positive number")

@@ -1,0 +1,69 @@
+"""The ``jointid`` command: one entry point for the package's command lines.
+
+``jointid <command> [arguments ...]`` runs ``python -m jointid.<command> [arguments ...]``::
+
+    jointid config check config.yaml
+    jointid diagnose --dataset data/rig --out results/diagnosis
+    jointid checks --table1 results/tables
+
+Only the chosen command's module is imported.  Exit status: the command's own (0 = fine), 1 for a
+:class:`~jointid.errors.JointidError` the command did not report itself, 2 for no or an unknown
+command.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+from .errors import JointidError
+
+COMMANDS = {
+    "diagnose": "diagnose which listed physical effect the model lacks (--dataset DIR --out DIR)",
+    "config": "check a config file, print the key reference or a config hash (check|reference|hash)",
+    "checks": "acceptance checks on the reproduced tables (CI gate; --table1, --tables2-3)",
+    "synth": "write a synthetic dataset from a truth YAML file (--truth FILE --out DIR)",
+    "uff": "import a Universal File (.unv/.uff) into a dataset folder",
+}
+
+
+def usage() -> str:
+    """The usage text: one line per command."""
+    width = max(map(len, COMMANDS)) + 2
+    lines = ["usage: jointid <command> [arguments ...]", "", "commands:"]
+    lines += [f"  {name:<{width}}{text}" for name, text in COMMANDS.items()]
+    lines += ["", "Run `jointid <command> --help` for a command's arguments."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch ``argv`` (default ``sys.argv[1:]``) to ``jointid.<command>.main``; returns the exit status.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The command name followed by its arguments, which are passed on unchanged.
+
+    Returns
+    -------
+    int
+        The command's exit status; 0 for ``--help``, 2 for no or an unknown command.
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    if args and args[0] in ("-h", "--help"):
+        print(usage())
+        return 0
+    if not args or args[0] not in COMMANDS:
+        what = f"unknown command {args[0]!r}" if args else "no command given"
+        print(f"jointid: {what}; choose one of: {', '.join(COMMANDS)}\n\n{usage()}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(f"{__package__}.{args[0]}")
+    try:
+        return module.main(args[1:])
+    except JointidError as exc:  # a command that lets one escape still ends with a message, not a traceback
+        print(str(exc), file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
