@@ -246,7 +246,8 @@ BAD = [
      "harmonic.damping.alpha_per_s: missing for model 'rayleigh' — add alpha_per_s: the mass-proportional "
      "Rayleigh coefficient in 1/s, >= 0"),
     ("field of another damping model", lambda c: c["harmonic"]["damping"].update(joint_loss_factor_s=1e-5),
-     "harmonic.damping.joint_loss_factor_s: is set but model is 'modal' — remove it, or set model: joint"),
+     "harmonic.damping.joint_loss_factor_s: is set but model is 'modal' — remove it, or set model: joint; "
+     "to switch the model in a config file merged after the one that sets it, write joint_loss_factor_s: null there"),
     ("carriage below rail top", lambda c: c["rig"]["carriages"].update(height_m=0.02),
      "rig.carriages.height_m: 0.02 does not reach above the rail top (0.022 above the base) — carriage height "
      "is measured from the base top; make it larger than rails.height_m"),
@@ -469,6 +470,7 @@ def test_cli_check_ok_and_bad(tmp_path):
 
     bad = tmp_path / "config.yaml"
     bad.write_text(CONFIG.read_text().replace("length_m: 1.10", "length_m: -1.1"))
+    (tmp_path / "data").symlink_to(REPO / "data")  # the check also looks for the dataset folder
     res = run_cli("check", "config.yaml", cwd=tmp_path)
     assert res.returncode == 1
     assert res.stderr.strip().splitlines() == [
@@ -495,3 +497,154 @@ def test_reference_lists_every_leaf_key():
     for key in ("rig.base.length_m", "joints.parameters.<name>.lower", "harmonic.damping.joint_loss_factor_s",
                 "states.<name>.dataset", "datasets.<name>.states", "mesh.refine", "report"):
         assert f"| `{key}` |" in text
+
+
+# ------------------------------------------------------------------- numbers given as text
+def test_number_from_text_is_the_shared_rule():
+    from jointid.config import number_from_text
+
+    for text, value in (("1e3", 1000.0), ("2.0e8", 2.0e8), ("-1E-6", -1e-6), (" .5 ", 0.5), ("7", 7.0), ("3.", 3.0)):
+        assert number_from_text(text) == value
+    for other in ("one", "1e3 N", "1,5", "inf", "nan", "", "0x10", 1000.0, None, True):
+        assert number_from_text(other) is None
+
+
+# --------------------------------------------------------------- null removes a key (overlays)
+RAYLEIGH = {"model": "rayleigh", "alpha_per_s": 10, "beta_s": "1e-6"}  # beta as Snakemake's YAML 1.1 reads it
+
+
+def test_overlay_switches_damping_model_with_null():
+    cfg = load_config(CONFIG, overrides={"harmonic": {"damping": {**RAYLEIGH, "damping_ratio": None}}})
+    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6}
+    # the same from --set strings: an empty value is null
+    cfg = load_config(CONFIG, overrides=["harmonic.damping.model=rayleigh", "harmonic.damping.alpha_per_s=10",
+                                         "harmonic.damping.beta_s=1e-6", "harmonic.damping.damping_ratio="])
+    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6}
+
+
+def test_overlay_without_null_says_how_to_switch():
+    with pytest.raises(ConfigError) as info:
+        load_config(CONFIG, overrides={"harmonic": {"damping": RAYLEIGH}})
+    assert info.value.problems == [
+        f"{CONFIG}: harmonic.damping.damping_ratio: is set but model is 'rayleigh' — remove it, or set model: "
+        "modal; to switch the model in a config file merged after the one that sets it, write damping_ratio: null there"]
+
+
+def test_snakemake_merge_of_configfiles_gives_the_same(tmp_path, monkeypatch):
+    """`snakemake --configfile config.yaml mine.yaml`: Snakemake merges the files (deeply, null kept)
+    before jointid.workflowconfig.validated sees them."""
+    from snakemake.common.configfile import load_configfile
+    from snakemake.utils import update_config
+
+    from jointid.workflowconfig import validated
+
+    monkeypatch.chdir(REPO)  # validated() checks the dataset folders relative to the working directory
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("harmonic: {damping: {model: rayleigh, alpha_per_s: 10, beta_s: 1e-6, damping_ratio: null}}\n")
+    config = load_configfile(str(CONFIG))
+    update_config(config, load_configfile(str(mine)))
+    assert config["harmonic"]["damping"]["damping_ratio"] is None
+    cfg = validated(config)
+    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6}
+    assert cfg == load_config(CONFIG, overrides={"harmonic": {"damping": {**RAYLEIGH, "damping_ratio": None}}})
+
+
+def test_null_means_default_but_unknown_and_required_keys_are_still_reported(default):
+    cfg = load_config({"mesh": {"refine": None}, "harmonic": {"damping": {"model": None}}, "datasets": None})
+    assert cfg["mesh"]["refine"] == 1 and cfg["datasets"] == {}
+    assert cfg["harmonic"]["damping"] == {"model": "modal", "damping_ratio": 0.03}
+    # a state removed by an overlay
+    cfg = load_config(CONFIG, overrides={"states": {"power_on": None}})
+    assert list(cfg["states"]) == ["power_off"]
+    assert problems_of({"mesh": {"refin": None}})[0].startswith("config.yaml: mesh.refin: unknown key")
+    assert problems_of({"states": {"s1": {"em_force_N": None}}}) == [
+        "config.yaml: states.s1.em_force_N: missing — add it: the electromagnetic attraction force in newtons, >= 0"]
+
+
+# --------------------------------------------------------------------------- dataset folders
+MODES = "state,mode,freq_Hz\npower_off,1,344.3\npower_on,1,350.0\n"
+
+
+@pytest.fixture
+def workdir(tmp_path, monkeypatch):
+    """A working directory with data/paper (the default dataset) and data/rig2 (power_on only)."""
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / "paper").symlink_to(REPO / "data" / "paper")
+    (tmp_path / "data" / "rig2").mkdir()
+    (tmp_path / "data" / "rig2" / "modes.csv").write_text("state,mode,freq_Hz\npower_on,1,350.0\n")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def dataset_problems(cfg: dict) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        load_config(cfg, check_datasets=True)
+    return info.value.problems
+
+
+def test_datasets_that_resolve_pass(default, workdir):
+    load_config(default, check_datasets=True)
+    by_name = modified(default, lambda c: (c.update(datasets={"rig2": {"path": "data/rig2", "states": ["power_on"]}}),
+                                           c["states"]["power_on"].update(dataset="rig2")))
+    assert load_config(by_name, check_datasets=True)["states"]["power_on"]["dataset"] == "rig2"
+    load_config(modified(default, lambda c: c["states"]["power_on"].update(dataset="data/rig2")), check_datasets=True)
+    # every state has its own dataset: measurements.dataset is not read, so it need not exist
+    own = modified(default, lambda c: (c["states"]["power_on"].update(dataset="data/paper"),
+                                       c["states"]["power_off"].update(dataset="data/paper"),
+                                       c["measurements"].update(dataset="data/none")))
+    load_config(own, check_datasets=True)
+
+
+def test_unknown_state_dataset_is_reported_with_key_value_and_fix(default, workdir):
+    cfg = modified(default, lambda c: c["states"]["power_on"].update(dataset="rig2x"))
+    assert load_config(cfg)["states"]["power_on"]["dataset"] == "rig2x"  # off by default: cwd-independent
+    assert dataset_problems(cfg) == [
+        "config.yaml: states.power_on.dataset: 'rig2x' is neither a name in datasets nor an existing folder — "
+        "register it under datasets (rig2x: {path: <folder>, states: [power_on]}) or give the path of a dataset "
+        f"folder (relative to the working directory {workdir})"]
+    named = modified(cfg, lambda c: c.update(datasets={"rig2": {"path": "data/rig2", "states": ["power_on"]}}))
+    assert dataset_problems(named) == [
+        "config.yaml: states.power_on.dataset: 'rig2x' is neither a name in datasets nor an existing folder — "
+        "did you mean 'rig2'?"]
+
+
+def test_registered_and_default_dataset_folders_must_exist(default, workdir):
+    cfg = modified(default, lambda c: (c.update(datasets={"rig3": {"path": "data/rig3", "states": ["power_on"]}}),
+                                       c["measurements"].update(dataset="data/papr")))
+    assert dataset_problems(cfg) == [
+        f"config.yaml: datasets.rig3.path: 'data/rig3' is not an existing folder (relative to the working directory "
+        f"{workdir}) — give the folder that holds the dataset's modes.csv and conditions.yaml",
+        f"config.yaml: measurements.dataset: 'data/papr' is not an existing folder (relative to the working directory "
+        f"{workdir}; used by power_off, power_on) — give the folder that holds the measured modes.csv and "
+        "conditions.yaml, or run from the folder it is relative to"]
+
+
+def test_state_without_modes_in_its_dataset_is_reported(default, workdir):
+    cfg = modified(default, lambda c: (c["states"]["power_off"].update(dataset="data/rig2"),
+                                       c["states"].update(power_mid={"em_force_N": 500.0}),
+                                       c.update(datasets={"rig2": {"path": "data/rig2",
+                                                                   "states": ["power_on", "power_off"]}})))
+    assert dataset_problems(cfg) == [
+        "config.yaml: states.power_off: dataset data/rig2 has no modes of state 'power_off' in modes.csv (its states: "
+        "power_on) — measure it there, or set states.power_off.dataset to a dataset that holds it",
+        "config.yaml: states.power_mid: dataset data/paper has no modes of state 'power_mid' in modes.csv (its "
+        "states: power_off, power_on) — measure it there, or set states.power_mid.dataset to a dataset that holds it",
+        "config.yaml: datasets.rig2.states[1]: 'power_off' has no modes in data/rig2/modes.csv (its states: "
+        "power_on) — remove it from the list, or add its modes"]
+
+
+def test_cli_and_snakefile_check_the_datasets(workdir, capsys):
+    from jointid.workflowconfig import validated
+
+    res = run_cli("check", str(CONFIG), "--set", "states.power_on.dataset=rig2x", cwd=workdir)
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert res.stderr.splitlines() == [
+        f"{CONFIG}: states.power_on.dataset: 'rig2x' is neither a name in datasets nor an existing folder — "
+        "register it under datasets (rig2x: {path: <folder>, states: [power_on]}) or give the path of a dataset "
+        f"folder (relative to the working directory {workdir})"]
+    raw = load_config(CONFIG)
+    raw["states"]["power_on"]["dataset"] = "rig2x"
+    with pytest.raises(SystemExit) as info:
+        validated(raw)
+    assert info.value.code == 1
+    assert "config.yaml: states.power_on.dataset: 'rig2x' is neither" in capsys.readouterr().err

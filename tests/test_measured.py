@@ -191,3 +191,65 @@ def test_uppercase_direction_is_normalised(tmp_path):
     ds = write_dataset(tmp_path / "ds", modes, shapes.assign(direction=["Y", "Y", "X", "Z"]),
                        conditions=conditions)
     assert list(ds.shapes["direction"]) == ["y", "y", "x", "z"]
+
+
+# ------------------------------------------------------------------------------ conditions.yaml numbers
+def _write_conditions(folder, text):
+    folder.mkdir()
+    (folder / "modes.csv").write_text("state,mode,freq_Hz\npower_off,1,344.3\npower_on,1,350.0\n")
+    (folder / "conditions.yaml").write_text(text)
+    return folder
+
+
+def test_conditions_accept_exponent_numbers_that_yaml_1_1_reads_as_text(tmp_path):
+    # PyYAML (YAML 1.1) reads 1e3, 5e-1 and 2.5E-1 as strings; config.yaml accepts them, so must this
+    folder = _write_conditions(tmp_path / "ds", (
+        "source: test\nfrequency_uncertainty_pct: 5e-1\nstates:\n"
+        "  power_off: {em_force_N: 0e0}\n"
+        "  power_on:\n    em_force_N: 1e3\n    motor_position_m: 2.5E-1\n"
+        "    currents: {exciting_current_A: 4e0, eddy_current_A: '1.5'}\n"))
+    assert validate_dataset(folder) == []
+    ds = read_dataset(folder)
+    on = ds.state_conditions("power_on")
+    assert on["em_force_N"] == 1000.0 and isinstance(on["em_force_N"], float)
+    assert on["motor_position_m"] == 0.25
+    assert on["currents"] == {"exciting_current_A": 4.0, "eddy_current_A": 1.5}
+    assert ds.state_conditions("power_off")["em_force_N"] == 0.0
+    assert ds.conditions["frequency_uncertainty_pct"] == 0.5
+
+
+@pytest.mark.parametrize("text, line", [
+    ("em_force_N: 1e3 N", "states.power_on.em_force_N: em_force_N = '1e3 N' is not a number — write the force in N"),
+    ("em_force_N: one", "states.power_on.em_force_N: em_force_N = 'one' is not a number — write the force in N"),
+    ("em_force_N: .inf", "states.power_on.em_force_N: em_force_N = inf is not a number — write the force in N"),
+    ("em_force_N: -1e3", "states.power_on.em_force_N: em_force_N = -1000.0 is negative — give the attraction"),
+    ("motor_position_m: 1,5e-1", "states.power_on.motor_position_m: motor_position_m = '1,5e-1' is not a number"),
+])
+def test_conditions_still_reject_non_numbers(tmp_path, text, line):
+    body = "em_force_N: 5.0\n    " + text if not text.startswith("em_force_N") else text
+    folder = _write_conditions(tmp_path / "ds", (
+        "source: test\nstates:\n  power_off: {em_force_N: 0.0}\n  power_on:\n    " + body + "\n"))
+    problems = validate_dataset(folder)
+    assert len(problems) == 1 and problems[0].startswith(f"{folder / 'conditions.yaml'}:{line}"), problems
+
+
+def test_uncertainty_as_text_number_is_accepted_and_text_rejected(tmp_path):
+    ok = _write_conditions(tmp_path / "ok", "source: t\nfrequency_uncertainty_pct: 2e0\nstates:\n"
+                           "  power_off: {em_force_N: 0}\n  power_on: {em_force_N: 1e3}\n")
+    assert read_dataset(ok).conditions["frequency_uncertainty_pct"] == 2.0
+    bad = _write_conditions(tmp_path / "bad", "source: t\nfrequency_uncertainty_pct: 2 %\nstates:\n"
+                            "  power_off: {em_force_N: 0}\n  power_on: {em_force_N: 1e3}\n")
+    assert validate_dataset(bad) == [
+        f"{bad / 'conditions.yaml'}:frequency_uncertainty_pct: frequency_uncertainty_pct = '2 %' is not a "
+        "number in (0, 100) — give the 1-sigma frequency uncertainty in percent, e.g. 1.0"]
+
+
+def test_modes_states_is_a_cheap_look_at_the_state_column(tmp_path):
+    assert measured.modes_states(PAPER) == ["power_off", "power_on"]
+    folder = tmp_path / "ds"
+    folder.mkdir()
+    assert measured.modes_states(folder) is None  # no modes.csv
+    (folder / "modes.csv").write_text("state,mode,freq_Hz\na,1,-5\nb,1,1,2\na,2,100\n")  # bad rows count too
+    assert measured.modes_states(folder) == ["a", "b"]
+    (folder / "modes.csv").write_text("mode,freq_Hz\n1,100\n")
+    assert measured.modes_states(folder) is None  # no state column

@@ -58,6 +58,7 @@ __all__ = [
     "load_config",
     "load_schema",
     "main",
+    "number_from_text",
     "section",
 ]
 
@@ -124,6 +125,20 @@ _Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123
 
 # strings that a YAML 1.1 reader (Snakemake's) leaves as text although they are numbers
 _NUMERIC_STR = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*$")
+
+
+def number_from_text(value: Any) -> float | None:
+    """The number spelt by ``value`` if it is text that a YAML 1.1 reader left as a string, else None.
+
+    PyYAML (and so Snakemake and ``yaml.safe_load``) reads ``1e3``, ``2.0e8`` and ``1e+3`` as
+    strings; this is the one rule by which jointid accepts them (and quoted numbers such as
+    ``'1000'``) where a number is expected: decimal digits, optional point, optional exponent.
+    Non-finite spellings (``inf``, ``nan``) are not numbers here; ``'1e999'`` gives ``inf``, which
+    the caller reports as not finite.
+    """
+    if isinstance(value, str) and _NUMERIC_STR.match(value):
+        return float(value)
+    return None
 
 
 def _read_yaml(path: Path, label: str) -> Any:
@@ -438,6 +453,8 @@ def _normalise(value: Any, schema: Mapping | None, path: list, problems: list[tu
     types = _types(schema)
     if isinstance(value, Mapping):
         out = {str(k) if not isinstance(k, str) else k: v for k, v in value.items()}
+        # an empty value (null) counts as not given: a later config file removes a key an earlier one set
+        out = {k: v for k, v in out.items() if not _unset(v, _subschema(schema, k))}
         if "object" in types:
             _fill_defaults(out, schema)
         return {k: _normalise(v, _subschema(schema, k), path + [k], problems) for k, v in out.items()}
@@ -449,8 +466,8 @@ def _normalise(value: Any, schema: Mapping | None, path: list, problems: list[tu
             value = value.item()
         except (TypeError, ValueError):
             pass
-    if isinstance(value, str) and types & {"number", "integer"} and _NUMERIC_STR.match(value):
-        value = float(value)
+    if types & {"number", "integer"} and (number := number_from_text(value)) is not None:
+        value = number
     if isinstance(value, float) and not math.isfinite(value):
         problems.append((path, f"{_fmt_num(value)} is not a finite number — give a finite value"))
         return value
@@ -461,6 +478,14 @@ def _normalise(value: Any, schema: Mapping | None, path: list, problems: list[tu
     if "number" in types and "integer" not in types and isinstance(value, int):
         return float(value)
     return value
+
+
+def _unset(value: Any, schema: Mapping | None) -> bool:
+    """Whether a key holding ``value`` counts as not given: null for a known key that is not nullable.
+
+    Unknown keys (no schema) keep their null, so a misspelt key is still reported.
+    """
+    return value is None and schema is not None and "null" not in _types(schema)
 
 
 def _fill_defaults(out: dict, schema: Mapping) -> None:
@@ -958,7 +983,9 @@ def _check_harmonic(c: _Checks) -> None:
     for key in damping:
         owner = next((m for m, keys in _DAMPING_PARAMS.items() if key in keys), None)
         if owner is not None and owner != model:
-            c.add(f"harmonic.damping.{key}", f"is set but model is {model!r} — remove it, or set model: {owner}")
+            c.add(f"harmonic.damping.{key}",
+                  f"is set but model is {model!r} — remove it, or set model: {owner}; to switch the model in a "
+                  f"config file merged after the one that sets it, write {key}: null there")
 
 
 def _check_solver(c: _Checks) -> None:
@@ -981,9 +1008,119 @@ _SEMANTIC_CHECKS = (_check_materials, _check_geometry, _check_mesh, _check_joint
                     _check_doe, _check_harmonic, _check_solver)
 
 
+def _check_datasets(c: _Checks) -> None:
+    """The measured datasets the run reads exist, and hold the states that use them.
+
+    A state reads ``states.<s>.dataset`` (a name in ``datasets``, else a folder), else
+    ``measurements.dataset``; every ``datasets.<n>.path`` is read by the diagnosis.  Folders are
+    relative to the working directory (as in the workflow).  Only the state names of each
+    ``modes.csv`` are read here; the full validation of a dataset stays with the stage reading it.
+    """
+    from jointid.measured import modes_states
+
+    try:
+        states = c.get("states")
+        named = c.get("datasets")
+    except _Skip:
+        return
+    if not isinstance(states, Mapping) or not isinstance(named, Mapping):
+        return
+    here = f"relative to the working directory {Path.cwd()}"
+
+    def folder_problem(path: str) -> str | None:
+        if Path(path).is_dir():
+            return None
+        return "is a file, not a folder" if Path(path).exists() else "is not an existing folder"
+
+    for dname, ds in named.items():
+        path = ds.get("path") if isinstance(ds, Mapping) else None
+        if not isinstance(path, str) or ("datasets", str(dname), "path") in c.bad:
+            continue
+        problem = folder_problem(path)
+        if problem:
+            c.add(["datasets", dname, "path"], f"{path!r} {problem} ({here}) — give the folder that holds "
+                  "the dataset's modes.csv and conditions.yaml")
+
+    default_users = []
+    by_state: dict[str, str] = {}
+    for sname, state in states.items():
+        if not isinstance(state, Mapping) or ("states", str(sname), "dataset") in c.bad:
+            continue
+        value = state.get("dataset")
+        if value is None:
+            default_users.append(sname)
+            continue
+        if not isinstance(value, str):
+            continue
+        if value in named:
+            path = named[value].get("path") if isinstance(named[value], Mapping) else None
+            if isinstance(path, str):
+                by_state[sname] = path
+            continue
+        problem = folder_problem(value)
+        if problem is None:
+            by_state[sname] = value
+            continue
+        guess = _suggest(value, named)
+        if guess:
+            advice = f"did you mean {guess!r}?"
+        elif named:
+            advice = f"use one of the datasets {', '.join(named)} or the path of a dataset folder ({here})"
+        else:
+            advice = (f"register it under datasets ({value}: {{path: <folder>, states: [{sname}]}}) or give "
+                      f"the path of a dataset folder ({here})")
+        c.add(["states", sname, "dataset"], f"{value!r} is neither a name in datasets nor an existing folder — {advice}")
+
+    if default_users:
+        try:
+            path = c.get("measurements.dataset")
+        except _Skip:
+            path = None
+        if isinstance(path, str):
+            problem = folder_problem(path)
+            if problem:
+                c.add("measurements.dataset", f"{path!r} {problem} ({here}; used by "
+                      f"{', '.join(map(str, default_users))}) — give the folder that holds the measured "
+                      "modes.csv and conditions.yaml, or run from the folder it is relative to")
+            else:
+                for sname in default_users:
+                    by_state[sname] = path
+
+    # states without modes in their dataset (a cheap look at modes.csv's state column)
+    measured: dict[str, list[str] | None] = {}
+
+    def states_in(path: str) -> list[str] | None:
+        if path not in measured:
+            measured[path] = modes_states(path) if Path(path).is_dir() else None
+        return measured[path]
+
+    for sname, path in by_state.items():
+        found = states_in(path)
+        if found is not None and sname not in found:
+            guess = _suggest(sname, [f for f in found if f not in states])
+            hint = f" (did you mean {guess!r}? rename the state)" if guess else ""
+            c.add(["states", sname], f"dataset {path} has no modes of state {sname!r} in modes.csv (its states: "
+                  f"{', '.join(found) or 'none'}){hint} — measure it there, or set states.{sname}.dataset to a "
+                  "dataset that holds it")
+    for dname, ds in named.items():
+        if not isinstance(ds, Mapping) or not isinstance(ds.get("path"), str) or not isinstance(ds.get("states"), list):
+            continue
+        found = states_in(ds["path"])
+        if found is None:
+            continue
+        for i, sname in enumerate(ds["states"]):
+            if isinstance(sname, str) and sname in states and sname not in found:
+                c.add(["datasets", dname, "states", i], f"{sname!r} has no modes in {ds['path']}/modes.csv (its "
+                      f"states: {', '.join(found) or 'none'}) — remove it from the list, or add its modes")
+
+
 # --------------------------------------------------------------------------------- public API
-def check_config(cfg: Mapping, source: str = _DEFAULT_SOURCE, schema: Mapping | None = None) -> tuple[dict, list[str]]:
+def check_config(cfg: Mapping, source: str = _DEFAULT_SOURCE, schema: Mapping | None = None,
+                 *, check_datasets: bool = False) -> tuple[dict, list[str]]:
     """Fill defaults and validate ``cfg``; return ``(normalised config, problem lines)``.
+
+    A key whose value is null counts as not given (its default applies): in a config file merged
+    after another one, ``key: null`` removes the value the earlier file set.
 
     Parameters
     ----------
@@ -993,6 +1130,12 @@ def check_config(cfg: Mapping, source: str = _DEFAULT_SOURCE, schema: Mapping | 
         Label that starts every problem line (the file name).
     schema : mapping, optional
         JSON-Schema; default :func:`load_schema`.
+    check_datasets : bool
+        Also check that the measured datasets the run reads (``states.<s>.dataset``,
+        ``measurements.dataset``, ``datasets.<n>.path``) are existing folders, relative to the
+        working directory, whose ``modes.csv`` holds the states that use them.  Off by default
+        (the result then does not depend on the working directory); ``python -m jointid.config
+        check`` and the Snakefile turn it on.
 
     Returns
     -------
@@ -1017,7 +1160,7 @@ def check_config(cfg: Mapping, source: str = _DEFAULT_SOURCE, schema: Mapping | 
                 raw_problems.append((path, message))
     bad = {tuple(str(p) for p in path) for path, _ in raw_problems}
     checks = _Checks(normal, bad, schema)
-    for check in _SEMANTIC_CHECKS:
+    for check in _SEMANTIC_CHECKS + ((_check_datasets,) if check_datasets else ()):
         check(checks)
     raw_problems.extend(checks.problems)
 
@@ -1031,8 +1174,12 @@ def check_config(cfg: Mapping, source: str = _DEFAULT_SOURCE, schema: Mapping | 
 
 def load_config(path_or_dict: str | os.PathLike | Mapping,
                 overrides: Mapping | Iterable[str] | None = None,
-                *, source: str | None = None, schema: Mapping | None = None) -> dict:
+                *, source: str | None = None, schema: Mapping | None = None,
+                check_datasets: bool = False) -> dict:
     """Load, default and validate a configuration.
+
+    Overrides merge deeply into the file; a null value removes the key the file set (see
+    :func:`check_config`).
 
     Parameters
     ----------
@@ -1046,6 +1193,8 @@ def load_config(path_or_dict: str | os.PathLike | Mapping,
         Label of the problem lines; default the path as given, or ``"config.yaml"`` for a mapping.
     schema : mapping, optional
         JSON-Schema; default :func:`load_schema`.
+    check_datasets : bool
+        Also check the measured dataset folders (see :func:`check_config`).
 
     Returns
     -------
@@ -1069,7 +1218,7 @@ def load_config(path_or_dict: str | os.PathLike | Mapping,
         if not isinstance(raw, Mapping):
             raise ConfigError(f"{label}: holds {_kind(raw)}, not a mapping of sections — write key: value sections")
         raw = _merge(dict(raw), _overrides_to_nested(overrides))
-    cfg, problems = check_config(raw, source=label, schema=schema)
+    cfg, problems = check_config(raw, source=label, schema=schema, check_datasets=check_datasets)
     if problems:
         raise ConfigError(problems)
     return cfg
@@ -1271,7 +1420,12 @@ def config_reference_markdown(schema: Mapping) -> str:
         "",
         "Every key may be omitted and then takes the default shown; *required* marks fields of map "
         "entries that must be given. `<name>` stands for a user-chosen entry name. Unknown keys are "
-        "errors. Check a file with `python -m jointid.config check config.yaml`.",
+        "errors. An empty value (`null`, `~` or nothing after the colon) counts as omitted: in a config "
+        "file merged after another (`snakemake --configfile config.yaml mine.yaml`, or `--set key=`) it "
+        "removes the value the earlier file set, e.g. `harmonic: {damping: {model: rayleigh, "
+        "alpha_per_s: 10, beta_s: 1e-6, damping_ratio: null}}` switches the shipped modal damping to "
+        "Rayleigh. Check a file with `python -m jointid.config check config.yaml` (it also checks that "
+        "the dataset folders exist, relative to the working directory).",
         "",
     ]
     for name, sub in schema.get("properties", {}).items():
@@ -1306,7 +1460,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
-            load_config(args.config, overrides=args.overrides or None)
+            load_config(args.config, overrides=args.overrides or None, check_datasets=True)
             print(f"{args.config}: OK")
         elif args.command == "reference":
             text = config_reference_markdown(load_schema())

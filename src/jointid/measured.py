@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from jointid.config import number_from_text
 from jointid.errors import DataError
 
 DIRECTIONS = ("x", "y", "z")
@@ -494,6 +495,16 @@ def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
+def _as_number(mapping, key) -> None:
+    """Numeric text at ``mapping[key]`` as float, in place: PyYAML (YAML 1.1) reads ``1e3`` or
+    ``2.0e8`` as strings.  The rule is config.yaml's (:func:`jointid.config.number_from_text`);
+    text that is no finite number stays text and is reported by the caller."""
+    if isinstance(mapping, dict) and key in mapping:
+        value = number_from_text(mapping[key])
+        if value is not None and math.isfinite(value):
+            mapping[key] = value
+
+
 def _unknown_keys(problems, prefix, mapping, allowed):
     """Report keys of ``mapping`` not in ``allowed``; the location is ``prefix + key``."""
     for key in mapping:
@@ -530,6 +541,7 @@ def _check_conditions(path, label, problems, points, has_frf_states):
                      "write 'source: ...' and 'states:' with em_force_N per state")
         return None
     _unknown_keys(problems, f"{label}:", data, TOP_KEYS)
+    _as_number(data, "frequency_uncertainty_pct")
     source = data.get("source")
     if not isinstance(source, str) or not source.strip():
         problems.add(f"{label}:source", "source is missing or empty",
@@ -551,6 +563,11 @@ def _check_conditions(path, label, problems, points, has_frf_states):
             problems.add(where, "entry is not a mapping", "write 'em_force_N: <N>' under the state")
             continue
         _unknown_keys(problems, f"{where}.", cond, STATE_KEYS)
+        for key in ("em_force_N", "motor_position_m"):
+            _as_number(cond, key)
+        if isinstance(cond.get("currents"), dict):
+            for key in CURRENT_KEYS:
+                _as_number(cond["currents"], key)
         if "em_force_N" not in cond:
             problems.add(where, "em_force_N is missing",
                          "add em_force_N: <vertical motor attraction in N, 0 when powered off>")
@@ -597,6 +614,29 @@ def _check_conditions(path, label, problems, points, has_frf_states):
 
 
 # ---------------------------------------------------------------------------------------- dataset
+def modes_states(folder) -> list[str] | None:
+    """State names in ``folder/modes.csv`` (each once), without checking the rows.
+
+    A cheap look for the configuration check (does the dataset hold the states that use it?);
+    :func:`read_dataset` does the full validation.  None if there is no readable modes.csv with a
+    ``state`` column.
+    """
+    path = Path(folder) / "modes.csv"
+    try:
+        table = _read_table(path, str(path), _Problems()) if path.is_file() else None
+    except OSError:
+        return None
+    if table is None:
+        return None
+    _, rows, _, rejected = table
+    names: list[str] = []
+    for row in [r for _, r in rows] + rejected:
+        state = (row.get("state") or "").strip()
+        if state and state not in names:
+            names.append(state)
+    return names
+
+
 def _point_names(measuring_points, problems):
     if measuring_points is None:
         return None

@@ -10,11 +10,17 @@ from .errors import ConfigError
 
 
 def validated(config: dict) -> dict:
-    """Validate (and fill defaults of) the Snakemake config; on error print the lines and exit 1."""
+    """Validate (and fill defaults of) the Snakemake config; on error print the lines and exit 1.
+
+    Snakemake has already merged the ``--configfile`` files (deeply, later files win; a ``null``
+    there survives and removes the key, as in :func:`jointid.config.check_config`).  The measured
+    dataset folders are checked too (relative to the working directory, as the rules read them),
+    so a misnamed dataset stops the run here instead of as a missing input or a stale result.
+    """
     from .config import load_config
 
     try:
-        return load_config(dict(config))
+        return load_config(dict(config), check_datasets=True)
     except ConfigError as exc:
         print(str(exc), file=sys.stderr)
         sys.exit(1)
