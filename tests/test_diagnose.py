@@ -153,13 +153,18 @@ def coarse():
     return cfg, E.build_system(model, cfg)
 
 
+def _solver_at_reference(cfg, system) -> ReducedSolver:
+    """A reduced solver of the coarse rig seeded at k_normal = k_lateral = 1e12, k_feed = 1e10 N/m^3."""
+    theta = {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
+    kc, mc = E.baseline_coefficients(system, cfg, theta)
+    return ReducedSolver(system, kc, mc, 10, [({f"K_top_y@{c}": 1.0 for c in range(4)}, {})], n_seed=6)
+
+
 def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
     from jointid.modal import solve_modes
 
     cfg, system = coarse
-    theta = {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
-    kc, mc = E.baseline_coefficients(system, cfg, theta)
-    solver = ReducedSolver(system, kc, mc, 10, [({f"K_top_y@{c}": 1.0 for c in range(4)}, {})], n_seed=6)
+    solver = _solver_at_reference(cfg, system)
     far = {"k_normal_N_per_m3": 3e11, "k_lateral_N_per_m3": 3e12, "k_feed_N_per_m3": 2e10}
     kc2, mc2 = E.baseline_coefficients(system, cfg, far)
     kc2["K_railfix"] = 2e12
@@ -176,16 +181,12 @@ def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
     assert np.allclose(solver.sensitivity(sol, dk, {}), fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
 
 
-
-
 def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos(coarse, monkeypatch):
     from jointid import reduced
     from jointid.modal import solve_modes
 
     cfg, system = coarse
-    theta = {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
-    kc, mc = E.baseline_coefficients(system, cfg, theta)
-    solver = ReducedSolver(system, kc, mc, 10, [({f"K_top_y@{c}": 1.0 for c in range(4)}, {})], n_seed=6)
+    solver = _solver_at_reference(cfg, system)
     near = {"k_normal_N_per_m3": 1.2e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
     kc2, mc2 = E.baseline_coefficients(system, cfg, near)
     full = solve_modes(system.K(kc2), system.M(mc2), 10, fixed=system.fixed)

@@ -904,14 +904,22 @@ def _check_joints(c: _Checks) -> None:
                 c.add(f"joints.fixed.{name}", "is also in joints.parameters — a stiffness is either identified or fixed; remove it from one of them")
 
 
-def _check_states(c: _Checks) -> None:
+def _states_and_datasets(c: _Checks) -> tuple[Mapping, Mapping] | None:
+    """The ``states`` and ``datasets`` sections, or None when either is missing or malformed."""
     try:
-        states = c.get("states")
-        datasets = c.get("datasets")
+        states, datasets = c.get("states"), c.get("datasets")
     except _Skip:
-        return
+        return None
     if not isinstance(states, Mapping) or not isinstance(datasets, Mapping):
+        return None
+    return states, datasets
+
+
+def _check_states(c: _Checks) -> None:
+    sections = _states_and_datasets(c)
+    if sections is None:
         return
+    states, datasets = sections
     for dname, ds in datasets.items():
         if not isinstance(ds, Mapping) or not isinstance(ds.get("states"), list):
             continue
@@ -1018,13 +1026,10 @@ def _check_datasets(c: _Checks) -> None:
     """
     from jointid.measured import modes_states
 
-    try:
-        states = c.get("states")
-        named = c.get("datasets")
-    except _Skip:
+    sections = _states_and_datasets(c)
+    if sections is None:
         return
-    if not isinstance(states, Mapping) or not isinstance(named, Mapping):
-        return
+    states, named = sections
     here = f"relative to the working directory {Path.cwd()}"
 
     def folder_problem(path: str) -> str | None:
