@@ -36,13 +36,17 @@ CFG_DOE = sections(config, "joints", *DOE_KEYS)  # not doe.zoom: that is the sec
 CFG_MODAL = sections(config, "rig", "joints", "solver")
 CFG_FIT_SURFACE = sections(config, "joints", "surface", "solver.min_freq_Hz", "harmonic.band_Hz")
 SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min_freq_Hz")  # a full FE solve
-CFG_VERIFY = sections(config, "rig", "joints", *SOLVE_KEYS)
+CFG_VERIFY = sections(config, "rig", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
+# mesh.extrapolate_edges: identify and verify also solve on the meshes with one and two more edge levels
+EDGE_MODELS = ([f"{R}/model/edge_plus{k}/matrices.npz" for k in (1, 2)]
+               if config["mesh"]["extrapolate_edges"] else [])
 
 
 def cfg_identify(state):
     """rule identify: the shared sections, this state's settings and the other states' datasets (the
     measured modes of frequency-only states are paired alike in all states)."""
-    return sections(config, "rig", "joints", "identify", *SOLVE_KEYS, "measurements", f"states.{state}",
+    return sections(config, "rig", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
+                    f"states.{state}",
                     *(f"states.{s}.dataset" for s in STATES))
 
 
@@ -91,6 +95,26 @@ rule mesh:
         runtime=10,
     script:
         "workflow/scripts/mesh.py"
+
+
+# mesh.extrapolate_edges: the same mesh with one and two more edge-refinement levels
+rule mesh_edges:
+    output:
+        matrices=f"{R}/model/edge_plus{{extra}}/matrices.npz",
+    wildcard_constraints:
+        extra="[12]",
+    params:
+        cfg=CFG_MESH,
+    log:
+        "logs/mesh_edges/plus{extra}.log",
+    benchmark:
+        "benchmarks/out/mesh_edges/plus{extra}.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=10,
+    script:
+        "workflow/scripts/mesh_edges.py"
 
 
 rule doe:
@@ -319,6 +343,7 @@ rule identify:
         surface=SURFACE,
         points=rules.mesh.output.points,
         matrices=rules.mesh.output.matrices,
+        edges=EDGE_MODELS,
         datasets=state_datasets,
     output:
         params=f"{R}/identify/{{state}}/params.json",
@@ -342,6 +367,7 @@ rule verify:
         params=rules.identify.output.params,
         surface=SURFACE,
         matrices=rules.mesh.output.matrices,
+        edges=EDGE_MODELS,
     output:
         table=f"{R}/identify/{{state}}/verify.csv",
     params:

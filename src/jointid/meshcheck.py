@@ -12,6 +12,10 @@ with ``J = d ln f / d log10 theta`` of the paired modes (exact modal sensitiviti
 mesh) and ``W`` the identification weights.  Because the meshes are nested, the fine frequencies can
 only be lower (min-max principle); the check reports both meshes' frequencies, the predicted
 parameter change and the 95 % interval the measurement uncertainty alone gives, for comparison.
+
+With ``mesh.extrapolate_edges`` the identification fits mesh-extrapolated frequencies
+(:mod:`jointid.extrapolate`), so the check compares like with like: the extrapolated frequencies of
+the refined mesh (itself solved with one and two more edge levels) against those of the default mesh.
 """
 
 from __future__ import annotations
@@ -48,14 +52,22 @@ def pair_meshes(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = 0
     return index, macs
 
 
+def _limit(solves):
+    from .extrapolate import edge_limit
+
+    return edge_limit(solves).limit_Hz
+
+
 def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
-                   out_json: str, out_csv: str, log=print) -> dict:
-    """Workflow stage: the mesh check of one state's identified parameters (see the module doc)."""
+                   out_json: str, out_csv: str, log=print, edge_matrices: list[str] | None = None) -> dict:
+    """Workflow stage: the mesh check of one state's identified parameters (see the module doc);
+    ``edge_matrices``: the default mesh with one and two more edge levels (``mesh.extrapolate_edges``)."""
     import pandas as pd
 
     from . import io
+    from .extrapolate import level_config
     from .model import build_model, joint_terms, load_model
-    from .stages import solve_point
+    from .stages import edge_limit_at, solve_point
 
     mc_cfg = cfg["mesh_check"]
     halve = tuple(mc_cfg["halve"])
@@ -75,14 +87,25 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
     n_dofs_c = coarse.n_dofs
+    f_c = modes_c.freqs_Hz
+    say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
+    if edge_matrices:
+        say("default mesh: extrapolated over its edge levels")
+        f_c = edge_limit_at(cfg, [coarse, *map(load_model, edge_matrices)], theta_d, log=say).limit_Hz
     del coarse
-    log(f"mesh_check[{state}]: building the mesh with {', '.join(halve)} cells halved")
-    fine = build_model(cfg, halve=halve, progress=lambda m: log(f"mesh_check[{state}]: {m}"))
-    n_dofs_f = fine.n_dofs
-    modes_f, shapes_f = solve(fine)
-    del fine
+    fines = [(level_config(cfg, k) if edge_matrices else cfg) for k in range(3 if edge_matrices else 1)]
+    solves = []
+    for k, fcfg in enumerate(fines):
+        say(f"building the mesh with {', '.join(halve)} cells halved" + (f", {k} more edge level(s)" if k else ""))
+        fine = build_model(fcfg, halve=halve, progress=say)
+        f, s, _, _ = solve_point(cfg, fine, theta_d, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
+                                 describe=False)
+        solves.append((f, s, fine.n_dofs))
+        del fine
+    n_dofs_f = solves[0][2]
+    shapes_f = solves[0][1]
+    f_f = solves[0][0] if len(solves) == 1 else _limit(solves)
     index, macs = pair_meshes(shapes_c, shapes_f)
-    f_c, f_f = modes_c.freqs_Hz, modes_f.freqs_Hz
     fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
     use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
     if not use.any():
@@ -121,7 +144,8 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
         "measured_mode": [int(np.flatnonzero(fe_mode == j)[0]) + 1 if (fe_mode == j).any() else 0
                           for j in range(len(f_c))]})
     io.write_csv(table, out_csv)
-    doc = {"state": state, "halved": list(halve), "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
+    doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": bool(edge_matrices),
+           "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
            "parameters": params, "max_parameter_change_pct": limit, "warnings": warnings,
            "max_paired_frequency_change_pct": float(100 * np.max(np.abs(np.expm1(dlnf))))}
     io.write_json(out_json, doc)

@@ -25,16 +25,22 @@ def _log(msg: str) -> None:
 
 
 # ------------------------------------------------------------------ mesh
-def run_mesh(cfg: dict, matrices: str, points_csv: str, vtu: str | None = None) -> None:
-    """Build and cache the model matrices, the measuring-point table and a VTK file of the mesh."""
+def run_mesh(cfg: dict, matrices: str, points_csv: str | None = None, vtu: str | None = None,
+             extra_edge_levels: int = 0) -> None:
+    """Build and cache the model matrices, the measuring-point table and a VTK file of the mesh;
+    ``extra_edge_levels``: the matrices alone of the mesh with that many more edge levels."""
     import pandas as pd
 
+    from .extrapolate import level_config
     from .modal import model_ordering
     from .model import build_model, save_model
 
-    model = build_model(cfg, progress=_log)
+    model = build_model(level_config(cfg, extra_edge_levels), progress=_log)
     model.ordering = model_ordering(model)  # the pattern, so its ordering, is the same at any shift
     save_model(model, matrices)
+    if points_csv is None:
+        _log(f"mesh: wrote {matrices} ({model.n_dofs} DOFs)")
+        return
     pts = pd.DataFrame(model.meta["points"])
     io.write_csv(pts, points_csv)
     io.write_json(str(points_csv).replace("measuring_points.csv", "summary.json"), model_summary(model))
@@ -411,7 +417,8 @@ def _pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict,
 
 
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
-                 matrices: str | None = None, rom: str | None = None, states: list[str] | None = None) -> None:
+                 matrices: str | None = None, rom: str | None = None, states: list[str] | None = None,
+                 edge_matrices: list[str] | None = None) -> None:
     """Identify one state's joint parameters: multistart on the surfaces, then the polish.
 
     The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
@@ -421,7 +428,9 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     modes with the same tracked modes in every state (:func:`jointid.updating.identify_states_jointly`)
     and the polish follows those modes by shape; ``independent`` (default) pairs each state by its
     own frequencies and re-pairs at every polish iterate.  Either way the notes name competing
-    pairings and the other rule's choice.
+    pairings and the other rule's choice.  With ``edge_matrices`` (``mesh.extrapolate_edges``: the
+    models with one and two more edge levels) the polish is repeated on mesh-extrapolated frequencies
+    (:mod:`jointid.extrapolate`, factors taken at the first polish's optimum).
     """
     import pandas as pd
 
@@ -457,11 +466,18 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
         msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in doc["names"])]
     surface_theta = np.asarray(res.theta, float)
     theta, ci_lo, ci_hi = surface_theta, res.ci_lower, res.ci_upper
-    f_final, polish = res.f_model, None
+    f_final, polish, edge = res.f_model, None, None
+    if edge_matrices and not (matrices and ic.get("fe_polish", True)):
+        msgs.append("mesh.extrapolate_edges needs identify.fe_polish: the frequencies fitted are those of the "
+                    "base mesh")
     if matrices and cfg["identify"].get("fe_polish", True):
         b_lo, b_hi = parameter_bounds(cfg)
         polish = _polish(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, b_lo, b_hi,
                          repair=shapes is None and fixed is None, rom=rom)
+        if edge_matrices:
+            edge, polish = _extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas,
+                                                weights, sigma_pct / 100, b_lo, b_hi,
+                                                repair=shapes is None and fixed is None, rom=rom)
         theta, f_final = polish["theta"], polish["f_fe"]
         sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
         ci_lo, ci_hi = theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
@@ -501,6 +517,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                "unpaired_in_band_Hz": polish["unpaired_in_band_Hz"],
                "iterations": polish["iterations"], "cost_history": polish["cost_history"],
                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
+           "edge_extrapolation": edge,
            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
                doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
            "paired_by": "mac" if shapes is not None else ("frequency, shared by all states" if fixed is not None
@@ -520,7 +537,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
 
 
 def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False,
-            rom=None):
+            rom=None, correction=None):
     """Gauss-Newton refinement of the surface optimum on the full FE model (or the ROM file ``rom``)."""
     from .model import load_model
 
@@ -532,11 +549,37 @@ def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, low
     else:
         model = load_model(matrices)
     return polish_on_model(cfg, model, doc["names"], theta0, f_meas, ref, lower, upper,
-                           weights=weights, sigma_rel=sigma_rel, repair=repair)
+                           weights=weights, sigma_rel=sigma_rel, repair=repair, correction=correction)
+
+
+def _extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas, weights, sigma_rel,
+                         lower, upper, *, repair, rom):
+    """Mesh extrapolation at the base-mesh optimum, then the polish again on the corrected frequencies.
+
+    Returns ``(record for params.json, the new polish)``.
+    """
+    from .extrapolate import FrequencyCorrection
+    from .model import load_model
+
+    say = lambda m: _log(f"identify[{state}]: {m}")  # noqa: E731
+    theta_mesh = dict(zip(doc["names"], map(float, polish["theta"])))
+    say("mesh extrapolation over the edge levels at the base-mesh optimum")
+    lim = edge_limit_at(cfg, [load_model(p) for p in (matrices, *edge_matrices)], theta_mesh, log=say)
+    shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= cfg["solver"]["min_freq_Hz"]]
+    say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
+    odd = [f"{lim.levels_Hz[0, i]:.0f} Hz ({lim.status[i]})" for i in shown
+           if lim.status[i] in ("not asymptotic", "lost")]
+    say("polish on the extrapolated frequencies")
+    polish2 = _polish(cfg, doc, matrices, polish["theta"], pairing, f_meas, weights, sigma_rel, lower, upper,
+                      repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim))
+    record = {"theta_base_mesh": theta_mesh, "f_base_mesh_Hz": polish["f_fe"], "n_dofs": lim.n_dofs,
+              "modes": lim.table().to_dict(orient="list"), "not_extrapolated": odd}
+    return record, polish2
 
 
 def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shapes, lower, upper, *,
-                    weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None):
+                    weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None,
+                    correction=None):
     """FE polish (:func:`jointid.updating.fe_polish`) of joint parameters ``names`` on ``model``.
 
     ``model`` is the full FE model (:class:`jointid.fem.Model`) or a reduced-order model
@@ -547,7 +590,8 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
     eigenvalue is off by more than 1e-6): full-FE answers for one factorisation instead of one per
     iterate.  ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by
     MAC; with ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate
-    instead.
+    instead.  ``correction`` (:class:`jointid.extrapolate.FrequencyCorrection`) scales each mode's
+    frequency by the mesh-extrapolation factor of the mode it continues.
     """
     from .model import base_coefficients, joint_terms
     from .updating import fe_polish
@@ -574,9 +618,43 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
             sol = rs.solve(*base_coefficients(cfg, model, dict(zip(names, theta))), n_modes)
             return sol.freqs_Hz, sol.shapes, rs.full_phi(sol), model.stiffness
 
+    if correction is not None:
+        solve = _corrected(solve, correction)
     return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
                      sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
                      repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None)
+
+
+def _corrected(solve, correction):
+    """``solve`` with each mode's frequency scaled by its mesh-extrapolation factor (in ascending order).
+
+    A constant factor leaves ``d ln f / d log10 theta`` unchanged; :func:`jointid.updating.log_jacobian`
+    computes it as ``phi^T K' phi / (2 lambda)`` from the frequency it is given, so ``phi`` is scaled by
+    the same factor to keep the sensitivities exact.
+    """
+    def solve_corrected(theta):
+        freqs, shapes, phi, stiff = solve(theta)
+        c = correction.factors(shapes)
+        order = np.argsort(freqs * c, kind="stable")
+        return (freqs * c)[order], shapes[:, order], (phi * c)[:, order], stiff
+
+    return solve_corrected
+
+
+def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None):
+    """:class:`jointid.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta``; ``models``:
+    the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
+    those, so that the highest base modes find their partner)."""
+    from .extrapolate import edge_limit
+
+    solves = []
+    for k, model in enumerate(models):
+        f, s, _, _ = solve_point(cfg, model, theta, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
+                                 describe=False)
+        solves.append((f, s, model.n_dofs))
+        if log:
+            log(f"edge level +{k}: {model.n_dofs} DOFs solved")
+    return edge_limit(solves)
 
 
 def _face_of(cfg: dict, name: str) -> str:
@@ -586,7 +664,14 @@ def _face_of(cfg: dict, name: str) -> str:
     return "+".join(sorted({t.split("_")[1] for t in terms}))
 
 
-def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str) -> None:
+def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
+               edge_matrices: list[str] | None = None) -> None:
+    """Full FE re-solve at the identified parameters: the tables' simulated frequencies.
+
+    With ``edge_matrices`` (``mesh.extrapolate_edges``) the simulated frequencies are the
+    mesh-extrapolated ones at these parameters (:mod:`jointid.extrapolate`, solved afresh here), and
+    ``simulation_mesh_Hz`` keeps the base mesh's; the surfaces are compared with the base mesh.
+    """
     import pandas as pd
 
     from .model import load_model
@@ -600,17 +685,31 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     _log(f"verify[{state}]: {modes.sturm.describe() if modes.sturm else 'no Sturm check (one mode)'}")
     index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
     f_meas = np.asarray(par["f_meas_Hz"])
-    fe = np.where(index >= 0, freqs[np.clip(index, 0, None)], np.nan)
+    paired = np.clip(index, 0, None)
+    fe = np.where(index >= 0, freqs[paired], np.nan)
+    sim, extra = fe, {}
+    if edge_matrices:
+        lim = edge_limit_at(cfg, [model, *map(load_model, edge_matrices)], theta,
+                            log=lambda m: _log(f"verify[{state}]: {m}"))
+        sim = np.where(index >= 0, lim.limit_Hz[paired], np.nan)
+        extra = {"simulation_mesh_Hz": fe, "edge_factor": np.where(index >= 0, lim.factor[paired], np.nan),
+                 "edge_ratio": np.where(index >= 0, lim.ratio[paired], np.nan),
+                 "edge_status": [lim.status[i] if i >= 0 else "" for i in index]}
     rows = pd.DataFrame({
-        "order": np.arange(1, len(f_meas) + 1), "experimental_Hz": f_meas, "simulation_Hz": fe,
-        "relative_error_pct": 100 * (fe - f_meas) / f_meas,
+        "order": np.arange(1, len(f_meas) + 1), "experimental_Hz": f_meas, "simulation_Hz": sim,
+        "relative_error_pct": 100 * (sim - f_meas) / f_meas, **extra,
         "surface_Hz": par["f_surface_Hz"], "surface_vs_fe_pct": 100 * (np.asarray(par["f_surface_Hz"]) - fe) / fe,
         "fe_mode": index + 1, "mac_to_tracked": macs,
         "description": [desc["description"][i] if i >= 0 else "unpaired" for i in index],
         "strain_joints": [float(desc["strain_joints"][i]) if i >= 0 else np.nan for i in index]})
     io.write_csv(rows, out_csv)
     _log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
-         f"surface vs FE max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
+         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
+    if edge_matrices and par.get("fe_polish"):
+        # the identification scaled by factors taken at the base-mesh optimum; here they are fresh
+        drift = 100 * (sim / np.asarray(par["fe_polish"]["f_fe_Hz"]) - 1)
+        _log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
+             f"{np.nanmax(np.abs(drift)):.3f} % (factors taken at the base-mesh optimum)")
 
 
 # ------------------------------------------------------------------ tables

@@ -13,6 +13,7 @@ if config["mesh_check"]["enabled"]:
             params=rules.identify.output.params,
             verify=rules.verify.output.table,
             matrices=rules.mesh.output.matrices,
+            edges=EDGE_MODELS,
         output:
             json=f"{R}/mesh_check/{{state}}.json",
             csv=f"{R}/mesh_check/{{state}}.csv",

@@ -5,4 +5,5 @@ from jointid import stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_identify(
     cfg, snakemake.wildcards.state, inp.surface, inp.points, out.params, inp.get("matrices"),
-    rom=inp.get("rom"), states=list(snakemake.params.states)), provenance=True)
+    rom=inp.get("rom"), states=list(snakemake.params.states),
+    edge_matrices=list(inp.get("edges") or [])), provenance=True)

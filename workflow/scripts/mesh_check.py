@@ -3,4 +3,5 @@ from jointid.workflow import run_script
 from jointid.meshcheck import run_mesh_check
 
 run_script(snakemake, lambda cfg, inp, out: run_mesh_check(
-    cfg, snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv), provenance=True)
+    cfg, snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv,
+    edge_matrices=list(inp.get("edges") or [])), provenance=True)

@@ -3,4 +3,5 @@ from jointid.workflow import run_script
 from jointid import stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_verify(
-    cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table), provenance=True)
+    cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table,
+    edge_matrices=list(inp.get("edges") or [])), provenance=True)

@@ -1,0 +1,119 @@
+"""Mesh extrapolation over edge-refinement levels: Aitken's limit, following modes, the corrected solve."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from jointid.extrapolate import FrequencyCorrection, aitken, edge_limit, level_config
+from jointid.stages import _corrected
+from jointid.updating import log_jacobian
+from test_localrefine import _cantilever_freqs
+
+
+@settings(max_examples=200, deadline=None)
+@given(limit=st.floats(50.0, 5000.0), drop=st.floats(1e-4, 0.05), r=st.floats(0.05, 0.79))
+def test_aitken_recovers_the_limit_of_a_geometric_sequence(limit, drop, r):
+    f = [limit * (1 + drop * r**k) for k in range(3)]
+    lim, ratio, status = aitken(*f)
+    assert status == "extrapolated"
+    assert ratio == pytest.approx(r, rel=1e-6)
+    assert lim == pytest.approx(limit, rel=1e-9)
+
+
+def test_aitken_refuses_sequences_outside_the_asymptotic_range():
+    f0 = np.array([100.0, 100.0, 100.0, 100.0, 100.0])
+    f1 = np.array([99.0, 99.0, 99.0, 100.0 - 1e-9, 99.0])
+    f2 = np.array([99.5, 98.1, 98.5, 100.0 - 2e-9, 99.0])  # rising again; ratio 0.9; 0.5; converged; flat
+    lim, ratio, status = aitken(f0, f1, f2)
+    assert list(status) == ["not asymptotic", "not asymptotic", "extrapolated", "converged", "converged"]
+    assert lim[0] == f2[0] and lim[1] == f2[1] and lim[3] == f2[3]  # the finest value where no limit is taken
+    assert lim[2] == pytest.approx(98.0)
+
+
+def _shapes(rng, n_labels, n_modes):
+    q, _ = np.linalg.qr(rng.standard_normal((n_labels, n_modes)))
+    return q
+
+
+def test_edge_limit_follows_modes_that_swap_order_between_meshes():
+    rng = np.random.default_rng(3)
+    s = _shapes(rng, 30, 5)
+    limit = np.array([300.0, 1000.0, 1020.0, 2000.0, 3000.0])
+    drop = np.array([0.001, 0.03, 0.001, 0.01, 0.02])
+    r = 0.5
+    freqs = [limit * (1 + drop * r**k) for k in range(3)]  # modes 2 and 3 swap order after the base mesh
+    perm = [np.argsort(f) for f in freqs]
+    assert not np.array_equal(perm[0], perm[2])
+    solves = [(f[p], (s + (0.01 * k) * rng.standard_normal(s.shape))[:, p], 100 * (k + 1))
+              for k, (f, p) in enumerate(zip(freqs, perm))]
+    # a sixth mode on the finer meshes only (they are solved for more modes)
+    extra = _shapes(rng, 30, 1)
+    solves = [solves[0]] + [(np.append(f, 4000.0), np.hstack([sh, extra]), n) for f, sh, n in solves[1:]]
+    lim = edge_limit(solves)
+    assert lim.status == ["extrapolated"] * 5
+    np.testing.assert_allclose(lim.limit_Hz, limit[perm[0]], rtol=1e-9)
+    np.testing.assert_allclose(lim.levels_Hz, np.array(freqs)[:, perm[0]], rtol=1e-12)
+    np.testing.assert_allclose(lim.factor, limit[perm[0]] / freqs[0][perm[0]])
+    assert lim.n_dofs == [100, 200, 300]
+
+
+def test_edge_limit_keeps_the_base_frequency_of_a_mode_it_cannot_follow():
+    rng = np.random.default_rng(4)
+    s = _shapes(rng, 20, 3)
+    other = _shapes(rng, 20, 3)
+    s2 = s.copy()
+    s2[:, 1] = other[:, 2] - (s[:, [0, 2]] @ (s[:, [0, 2]].T @ other[:, 2]))  # mode 2 has no partner
+    solves = [(np.array([100.0, 200, 300]), s, 1), (np.array([99.0, 199, 299]), s2, 2), (np.array([98.5, 198, 298.5]), s2, 3)]
+    lim = edge_limit(solves)
+    assert lim.status[1] == "lost" and lim.limit_Hz[1] == 200.0
+    assert lim.status[0] == "extrapolated" and lim.limit_Hz[0] == pytest.approx(98.0)
+
+
+def test_correction_stays_with_its_mode_and_keeps_the_sensitivities():
+    rng = np.random.default_rng(5)
+    n_dofs, n = 12, 4
+    shapes = _shapes(rng, 15, n)
+    factor = np.array([0.999, 0.98, 1.0, 0.995])
+    corr = FrequencyCorrection(shapes, factor)
+    perm = np.array([2, 0, 3, 1])
+    np.testing.assert_allclose(corr.factors(shapes[:, perm]), factor[perm])
+    unknown = _shapes(rng, 15, 1)
+    np.testing.assert_allclose(corr.factors(np.hstack([shapes, unknown]))[-1], 1.0)
+
+    # two close modes whose order the factors swap: the corrected solve returns them sorted
+    freqs = np.array([300.0, 1000.0, 1010.0, 2000.0])
+    factor = np.array([1.0, 1.0, 0.98, 1.0])
+    phi = rng.standard_normal((n_dofs, n))
+    Kt = rng.standard_normal((n_dofs, n_dofs))
+    stiff = {"K_t": Kt @ Kt.T}
+    solve = _corrected(lambda theta: (freqs, shapes, phi, stiff), FrequencyCorrection(shapes, factor))
+    f_c, s_c, phi_c, _ = solve(np.array([1.0]))
+    np.testing.assert_allclose(f_c, [300.0, 989.8, 1000.0, 2000.0])
+    np.testing.assert_allclose(s_c, shapes[:, [0, 2, 1, 3]])
+    # d ln f / d log10 theta is the same for the corrected frequencies as for the mesh's
+    J_mesh = log_jacobian(stiff, phi, (2 * np.pi * freqs) ** 2, [{"K_t": 1.0}], np.array([2.0]))
+    J_corr = log_jacobian(stiff, phi_c, (2 * np.pi * f_c) ** 2, [{"K_t": 1.0}], np.array([2.0]))
+    np.testing.assert_allclose(J_corr[:, 0], J_mesh[[0, 2, 1, 3], 0], rtol=1e-12)
+
+
+def test_level_config_adds_levels_to_the_configured_ones():
+    cfg = {"mesh": {"edge_refine_levels": 1, "element": "hex2"}}
+    assert level_config(cfg, 2)["mesh"]["edge_refine_levels"] == 3
+    assert cfg["mesh"]["edge_refine_levels"] == 1
+    assert level_config({"mesh": {}}, 1)["mesh"]["edge_refine_levels"] == 1
+
+
+def test_extrapolated_cantilever_is_closer_to_the_converged_frequency_than_the_finest_mesh():
+    """A cantilever bonded to a clamped wall block: its root edges are singular, and each root-edge
+    level moves the frequencies by about half the previous level's change.  The Aitken limit of
+    levels 0-2 lies far closer to that of levels 2-4 (a better estimate of the converged value) than
+    level 2 itself does."""
+    f = np.array([_cantilever_freqs(k) for k in range(5)])
+    lim_012, ratio, status = aitken(*f[:3])
+    lim_234, _, _ = aitken(*f[2:])
+    assert set(status) == {"extrapolated"} and np.all((ratio > 0.3) & (ratio < 0.6))
+    err_lim = np.abs(lim_012 / lim_234 - 1)
+    err_raw = np.abs(f[2] / lim_234 - 1)
+    assert np.all(err_lim < 0.5 * err_raw)
+    assert np.median(err_raw / err_lim) > 4
