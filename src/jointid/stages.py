@@ -526,7 +526,8 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
            "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model,
            "residual_pct": 100 * (np.asarray(f_final) - f_meas) / f_meas,
            "cost": res.cost, "condition_number": res.condition_number,
-           "weak_combination": res.weak_combination, "on_bound": res.on_bound,
+           "weak_combination": res.weak_combination,
+           "on_bound": res.on_bound if polish is None else polish["on_bound"],
            "n_starts_agreeing": res.n_starts_agreeing, "warnings": msgs,
            "frequency_uncertainty_pct": sigma_pct}
     io.write_json(out_json, out)
@@ -683,14 +684,26 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     model = load_model(matrices)
     freqs, shapes, desc, modes = solve_point(cfg, model, theta, certify=True)
     _log(f"verify[{state}]: {modes.sturm.describe() if modes.sturm else 'no Sturm check (one mode)'}")
-    index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
     f_meas = np.asarray(par["f_meas_Hz"])
-    paired = np.clip(index, 0, None)
-    fe = np.where(index >= 0, freqs[paired], np.nan)
-    sim, extra = fe, {}
+    f_all, lim = freqs, None
     if edge_matrices:
         lim = edge_limit_at(cfg, [model, *map(load_model, edge_matrices)], theta,
                             log=lambda m: _log(f"verify[{state}]: {m}"))
+        f_all = lim.limit_Hz
+    if par.get("paired_by") == "frequency":  # the polish's rule: re-paired by frequency at its optimum
+        from .tracking import pair_by_frequency
+        from .updating import mac_one
+
+        cand = np.flatnonzero(f_all >= cfg["solver"]["min_freq_Hz"])
+        index = cand[pair_by_frequency(f_meas, f_all[cand])]
+        ref = np.asarray(doc["ref_shapes"])[:, np.asarray(par["pairing_columns"])]
+        macs = np.array([mac_one(ref[:, i], shapes[:, j]) for i, j in enumerate(index)])
+    else:
+        index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
+    paired = np.clip(index, 0, None)
+    fe = np.where(index >= 0, freqs[paired], np.nan)
+    sim, extra = fe, {}
+    if lim is not None:
         sim = np.where(index >= 0, lim.limit_Hz[paired], np.nan)
         extra = {"simulation_mesh_Hz": fe, "edge_factor": np.where(index >= 0, lim.factor[paired], np.nan),
                  "edge_ratio": np.where(index >= 0, lim.ratio[paired], np.nan),
