@@ -356,7 +356,7 @@ rule identify:
         "benchmarks/out/identify/{state}.tsv"
     threads: 1
     resources:
-        mem_mb=4000,
+        mem_mb=6000,  # 5.4 GB measured with mesh.extrapolate_edges (the largest edge level's factorisation)
         runtime=20,
     script:
         "workflow/scripts/identify.py"

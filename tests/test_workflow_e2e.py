@@ -89,6 +89,29 @@ def test_full_coarse_run_params_within_bounds_and_clean(coarse_run):
         assert "Traceback" not in log.read_text(), f"{log.name} holds a traceback"
 
 
+def test_identification_fits_mesh_extrapolated_frequencies(coarse_run):
+    """mesh.extrapolate_edges (on by default): identify polishes again on the Aitken limits of the
+    frequencies over 0, +1, +2 edge levels, and verify fills the tables with those limits."""
+    wd = coarse_run
+    assert coarse_config()["mesh"]["extrapolate_edges"]
+    for state, table in zip(STATES, TABLES):
+        par = json.loads((wd / "results" / "identify" / state / "params.json").read_text())
+        edge = par["edge_extrapolation"]
+        assert edge["n_dofs"][0] < edge["n_dofs"][1] < edge["n_dofs"][2]
+        modes = pd.DataFrame(edge["modes"])
+        ext = modes[modes.status == "extrapolated"]
+        assert len(ext) >= len(modes) // 2
+        # nested meshes: each level lowers a mode; the limit continues the geometric sequence
+        assert (ext.level1_Hz <= ext.level0_Hz * (1 + 1e-8)).all() and (ext.level2_Hz <= ext.level1_Hz * (1 + 1e-8)).all()
+        assert ((ext.ratio > 0) & (ext.ratio <= 0.8)).all()
+        np.testing.assert_allclose(ext.limit_Hz, ext.level2_Hz + (ext.level2_Hz - ext.level1_Hz) * ext.ratio / (1 - ext.ratio),
+                                   rtol=1e-9)
+        ver = pd.read_csv(wd / "results" / "identify" / state / "verify.csv")
+        assert (ver.simulation_Hz <= ver.simulation_mesh_Hz * (1 + 1e-8)).all()
+        np.testing.assert_allclose(ver.simulation_Hz / ver.simulation_mesh_Hz, ver.edge_factor, rtol=1e-8)
+        np.testing.assert_allclose(pd.read_csv(wd / table).simulation_Hz, ver.simulation_Hz, rtol=1e-8)
+
+
 def test_zoomed_surfaces_are_more_accurate_and_carry_the_identification(coarse_run):
     """The second DOE sits in the box around the first-stage optima of both states; its surfaces
     agree with the FE model at its own fresh verification points better than the first ones do at
@@ -115,6 +138,7 @@ def test_zoomed_surfaces_are_more_accurate_and_carry_the_identification(coarse_r
 
 def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
     wd = coarse_run
+    cfg = coarse_config()
     for state in STATES:
         doc = json.loads((wd / f"results/mesh_check/{state}.json").read_text())
         par = json.loads((wd / f"results/identify/{state}/params.json").read_text())
@@ -128,8 +152,11 @@ def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
             assert big == any(w.startswith(f"{name} would change") for w in doc["warnings"])
         tab = pd.read_csv(wd / f"results/mesh_check/{state}.csv")
         ok = tab.dropna()
-        # nested meshes: no frequency can rise (min-max principle), and each paired mode follows by MAC
-        assert (ok.refined_Hz <= ok.default_Hz * (1 + 1e-8)).all()
+        # nested meshes: no frequency can rise (min-max principle), and each paired mode follows by MAC;
+        # with mesh.extrapolate_edges (the default) the meshes' own frequencies stand beside the limits
+        assert doc["extrapolated_over_edge_levels"] is cfg["mesh"]["extrapolate_edges"]
+        own = ("default_mesh_Hz", "refined_mesh_Hz") if doc["extrapolated_over_edge_levels"] else ("default_Hz", "refined_Hz")
+        assert (ok[own[1]] <= ok[own[0]] * (1 + 1e-8)).all()
         assert (ok.mac >= 0.8).all()
         assert sorted(tab.measured_mode[tab.measured_mode > 0]) == list(range(1, len(par["f_meas_Hz"]) + 1))
 

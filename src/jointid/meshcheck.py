@@ -91,7 +91,8 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
     if edge_matrices:
         say("default mesh: extrapolated over its edge levels")
-        f_c = edge_limit_at(cfg, [coarse, *map(load_model, edge_matrices)], theta_d, log=say).limit_Hz
+        f_c = edge_limit_at(cfg, [coarse, *map(load_model, edge_matrices)], theta_d, log=say,
+                            base=(modes_c.freqs_Hz, shapes_c)).limit_Hz
     del coarse
     fines = [(level_config(cfg, k) if edge_matrices else cfg) for k in range(3 if edge_matrices else 1)]
     solves = []
@@ -136,10 +137,12 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
             warnings.append(f"{n} would change by {change:+.1f} % on the refined mesh (more than "
                             f"mesh_check.max_parameter_change_pct = {limit:g} %; its 95 % interval from the "
                             f"measurement uncertainty is +-{ci_half:.1f} %): the mesh is not converged for it")
+    partner = lambda f: np.where(index >= 0, f[np.clip(index, 0, None)], np.nan)  # noqa: E731
+    raw = {} if not edge_matrices else {  # the meshes' own frequencies beside the extrapolated ones
+        "default_mesh_Hz": modes_c.freqs_Hz, "refined_mesh_Hz": partner(solves[0][0])}
     table = pd.DataFrame({
-        "mode": np.arange(1, len(f_c) + 1), "default_Hz": f_c,
-        "refined_Hz": np.where(index >= 0, f_f[np.clip(index, 0, None)], np.nan),
-        "change_pct": np.where(index >= 0, 100 * (f_f[np.clip(index, 0, None)] / f_c - 1), np.nan),
+        "mode": np.arange(1, len(f_c) + 1), "default_Hz": f_c, "refined_Hz": partner(f_f),
+        "change_pct": 100 * (partner(f_f) / f_c - 1), **raw,
         "mac": macs,
         "measured_mode": [int(np.flatnonzero(fe_mode == j)[0]) + 1 if (fe_mode == j).any() else 0
                           for j in range(len(f_c))]})

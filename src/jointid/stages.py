@@ -430,7 +430,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     own frequencies and re-pairs at every polish iterate.  Either way the notes name competing
     pairings and the other rule's choice.  With ``edge_matrices`` (``mesh.extrapolate_edges``: the
     models with one and two more edge levels) the polish is repeated on mesh-extrapolated frequencies
-    (:mod:`jointid.extrapolate`, factors taken at the first polish's optimum).
+    (:mod:`jointid.extrapolate`) until their factors settle (:func:`_extrapolated_polish`).
     """
     import pandas as pd
 
@@ -553,29 +553,50 @@ def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, low
                            weights=weights, sigma_rel=sigma_rel, repair=repair, correction=correction)
 
 
+EXTRAPOLATION_PASSES = 3  # polishes on extrapolated frequencies, each with factors taken at the last optimum
+EXTRAPOLATION_SETTLED = 0.02  # the factors have settled once a polish moves no parameter more than this
+
+
 def _extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas, weights, sigma_rel,
                          lower, upper, *, repair, rom):
-    """Mesh extrapolation at the base-mesh optimum, then the polish again on the corrected frequencies.
+    """The polish again on mesh-extrapolated frequencies, until their factors are those of its optimum.
 
-    Returns ``(record for params.json, the new polish)``.
+    The factors are taken at the current optimum (first the base mesh's) and the polish is repeated
+    with them; they depend a little on the parameters, so this is repeated (at most
+    ``EXTRAPOLATION_PASSES`` times) until the polish moves no parameter by more than
+    ``EXTRAPOLATION_SETTLED`` relative, where the factors' own change is negligible.  Returns
+    ``(record for params.json, the last polish)``.
     """
     from .extrapolate import FrequencyCorrection
     from .model import load_model
 
     say = lambda m: _log(f"identify[{state}]: {m}")  # noqa: E731
+    models = [load_model(p) for p in (matrices, *edge_matrices)]
     theta_mesh = dict(zip(doc["names"], map(float, polish["theta"])))
-    say("mesh extrapolation over the edge levels at the base-mesh optimum")
-    lim = edge_limit_at(cfg, [load_model(p) for p in (matrices, *edge_matrices)], theta_mesh, log=say)
-    shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= cfg["solver"]["min_freq_Hz"]]
-    say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
+    passes = []
+    for k in range(EXTRAPOLATION_PASSES):
+        at = np.asarray(polish["theta"], float)
+        say(f"mesh extrapolation over the edge levels at {'the base-mesh optimum' if k == 0 else 'the new optimum'}")
+        lim = edge_limit_at(cfg, models, dict(zip(doc["names"], map(float, at))), log=say)
+        shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= cfg["solver"]["min_freq_Hz"]]
+        say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
+        say("polish on the extrapolated frequencies")
+        polish = _polish(cfg, doc, matrices, at, pairing, f_meas, weights, sigma_rel, lower, upper,
+                         repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim))
+        moved = float(np.max(np.abs(polish["theta"] / at - 1)))
+        passes.append({"factors_at": dict(zip(doc["names"], map(float, at))), "max_parameter_change": moved})
+        say(f"pass {k + 1}: the polish moved the parameters by at most {100 * moved:.2f} %")
+        if moved < EXTRAPOLATION_SETTLED:
+            break
+    else:
+        say(f"warning: the factors did not settle in {EXTRAPOLATION_PASSES} passes (last change {100 * moved:.2f} %)")
     odd = [f"{lim.levels_Hz[0, i]:.0f} Hz ({lim.status[i]})" for i in shown
            if lim.status[i] in ("not asymptotic", "lost")]
-    say("polish on the extrapolated frequencies")
-    polish2 = _polish(cfg, doc, matrices, polish["theta"], pairing, f_meas, weights, sigma_rel, lower, upper,
-                      repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim))
-    record = {"theta_base_mesh": theta_mesh, "f_base_mesh_Hz": polish["f_fe"], "n_dofs": lim.n_dofs,
+    if odd:
+        say("kept the finest mesh's frequency (no geometric sequence): " + ", ".join(odd))
+    record = {"theta_base_mesh": theta_mesh, "n_dofs": lim.n_dofs, "passes": passes,
               "modes": lim.table().to_dict(orient="list"), "not_extrapolated": odd}
-    return record, polish2
+    return record, polish
 
 
 def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shapes, lower, upper, *,
@@ -642,14 +663,18 @@ def _corrected(solve, correction):
     return solve_corrected
 
 
-def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None):
+def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, base=None):
     """:class:`jointid.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta``; ``models``:
     the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
-    those, so that the highest base modes find their partner)."""
+    those, so that the highest base modes find their partner); ``base``: the base mesh's
+    ``(freqs_Hz, shapes)`` at ``theta`` when already solved."""
     from .extrapolate import edge_limit
 
     solves = []
     for k, model in enumerate(models):
+        if k == 0 and base is not None:
+            solves.append((*base, model.n_dofs))
+            continue
         f, s, _, _ = solve_point(cfg, model, theta, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
                                  describe=False)
         solves.append((f, s, model.n_dofs))
@@ -688,7 +713,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     f_all, lim = freqs, None
     if edge_matrices:
         lim = edge_limit_at(cfg, [model, *map(load_model, edge_matrices)], theta,
-                            log=lambda m: _log(f"verify[{state}]: {m}"))
+                            log=lambda m: _log(f"verify[{state}]: {m}"), base=(freqs, shapes))
         f_all = lim.limit_Hz
     if par.get("paired_by") == "frequency":  # the polish's rule: re-paired by frequency at its optimum
         from .tracking import pair_by_frequency
@@ -719,10 +744,10 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     _log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
          f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
     if edge_matrices and par.get("fe_polish"):
-        # the identification scaled by factors taken at the base-mesh optimum; here they are fresh
+        # the identification's last polish scaled by factors taken at its previous optimum; here they are fresh
         drift = 100 * (sim / np.asarray(par["fe_polish"]["f_fe_Hz"]) - 1)
         _log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
-             f"{np.nanmax(np.abs(drift)):.3f} % (factors taken at the base-mesh optimum)")
+             f"{np.nanmax(np.abs(drift)):.3f} % (its factors were taken at its previous optimum)")
 
 
 # ------------------------------------------------------------------ tables
