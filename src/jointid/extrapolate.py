@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .modal import mac, pair_by_mac
+from .meshcheck import pair_meshes
 
 N_LEVELS = 2  # meshes beyond the base: Aitken needs three members of the sequence
 CONVERGED_REL = 1e-6  # a mode moving less than this (relative) between the finest two meshes is converged
@@ -61,16 +61,9 @@ def level_config(cfg: dict, extra: int) -> dict:
     return out
 
 
-def enabled(cfg: dict) -> bool:
-    return bool(cfg.get("mesh", {}).get("extrapolate_edges", False))
-
-
 def follow(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = MAC_FOLLOW) -> np.ndarray:
     """Mode of set b continuing each mode of set a (MAC at the measuring points, one-to-one; -1: none)."""
-    index = -np.ones(shapes_a.shape[1], dtype=int)
-    for i, j, _ in pair_by_mac(mac(shapes_a, shapes_b), threshold):
-        index[i] = j
-    return index
+    return pair_meshes(shapes_a, shapes_b, threshold)[0]
 
 
 @dataclass

@@ -52,12 +52,6 @@ def pair_meshes(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = 0
     return index, macs
 
 
-def _limit(solves):
-    from .extrapolate import edge_limit
-
-    return edge_limit(solves).limit_Hz
-
-
 def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
                    out_json: str, out_csv: str, log=print, edge_matrices: list[str] | None = None) -> dict:
     """Workflow stage: the mesh check of one state's identified parameters (see the module doc);
@@ -65,7 +59,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     import pandas as pd
 
     from . import io
-    from .extrapolate import level_config
+    from .extrapolate import edge_limit, level_config
     from .model import build_model, joint_terms, load_model
     from .stages import edge_limit_at, solve_point
 
@@ -105,7 +99,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
         del fine
     n_dofs_f = solves[0][2]
     shapes_f = solves[0][1]
-    f_f = solves[0][0] if len(solves) == 1 else _limit(solves)
+    f_f = solves[0][0] if len(solves) == 1 else edge_limit(solves).limit_Hz
     index, macs = pair_meshes(shapes_c, shapes_f)
     fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
     use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
