@@ -30,7 +30,8 @@ STATES = list(config["states"])
 R = "results"
 
 # the config parts each rule uses (see the stage functions in src/jointid/stages.py)
-CFG_MESH = sections(config, "materials", "rig", "mesh")
+# the mesh, not whether identify and verify extrapolate over its edge levels (mesh.extrapolate_edges)
+CFG_MESH = sections(config, "materials", "rig", *(f"mesh.{k}" for k in config["mesh"] if k != "extrapolate_edges"))
 DOE_KEYS = ("doe.design", "doe.n_center", "doe.n_samples", "doe.seed", "doe.n_verification")
 CFG_DOE = sections(config, "joints", *DOE_KEYS)  # not doe.zoom: that is the second DOE's only
 CFG_MODAL = sections(config, "rig", "joints", "solver")

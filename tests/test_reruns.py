@@ -51,7 +51,9 @@ def zoom_chain(finished) -> dict:
      {"fit_surface": 1, "identify": 2, "verify": 2, "tables": 1}, True),
     ("doe:\n  zoom:\n    half_width_decades: 0.2\n",
      {"identify": 2, "verify": 2, "tables": 1}, "box"),
-], ids=["frequency_uncertainty", "fe_polish", "harmonic_band", "zoom_width"])
+    ("mesh:\n  extrapolate_edges: false\n",
+     {"identify": 2, "verify": 2, "tables": 1}, False),
+], ids=["frequency_uncertainty", "fe_polish", "harmonic_band", "zoom_width", "extrapolate_edges"])
 def test_one_changed_value_reruns_only_its_stages(finished, change, expected, zoom):
     """The first-stage optima (scout) feed the zoomed DOE: what changes them reruns its fan-out;
     what only the final identification reads (the FE polish switch) does not."""

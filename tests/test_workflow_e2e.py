@@ -39,7 +39,7 @@ def test_dry_run_lists_every_stage_once_per_point_and_state(tmp_path):
     jobs = scheduled_jobs(proc.stdout + proc.stderr)
     n_points = len(doe_sheet(coarse_config()))
     assert n_points == 15 + 2  # face-centred CCF in 3 factors + 1 centre, 2 verification points
-    expected = {"mesh": 1, "doe": 1, "modal": n_points, "gather_modal": 1, "fit_surface": 1,
+    expected = {"mesh": 1, "mesh_edges": 2, "doe": 1, "modal": n_points, "gather_modal": 1, "fit_surface": 1,
                 "scout": len(STATES), "doe_zoom": 1, "modal_zoom": n_points, "gather_zoom": 1, "fit_zoom": 1,
                 "identify": len(STATES), "verify": len(STATES), "tables": 1}
     assert {r: n for r, n in jobs.items() if r in CORE_RULES} == expected
@@ -142,7 +142,7 @@ def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
     for state in STATES:
         doc = json.loads((wd / f"results/mesh_check/{state}.json").read_text())
         par = json.loads((wd / f"results/identify/{state}/params.json").read_text())
-        assert doc["n_dofs_refined"] > 2 * doc["n_dofs_default"]
+        assert doc["n_dofs_refined"] > 1.5 * doc["n_dofs_default"]  # cells halved through the thickness
         assert set(doc["parameters"]) == set(par["parameters"])
         for name, p in doc["parameters"].items():
             # JSON files keep 12 significant digits (jointid.io.write_json)
