@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jointid.extrapolate import FrequencyCorrection, aitken, edge_limit, level_config
+from jointid.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit, level_config
 from jointid.stages import _corrected
 from jointid.updating import log_jacobian
 from test_localrefine import _cantilever_freqs
@@ -77,9 +77,9 @@ def test_correction_stays_with_its_mode_and_keeps_the_sensitivities():
     factor = np.array([0.999, 0.98, 1.0, 0.995])
     corr = FrequencyCorrection(shapes, factor)
     perm = np.array([2, 0, 3, 1])
-    np.testing.assert_allclose(corr.factors(shapes[:, perm]), factor[perm])
+    np.testing.assert_allclose(corr.factors(shapes[:, perm])[0], factor[perm])
     unknown = _shapes(rng, 15, 1)
-    np.testing.assert_allclose(corr.factors(np.hstack([shapes, unknown]))[-1], 1.0)
+    np.testing.assert_allclose(corr.factors(np.hstack([shapes, unknown]))[0][-1], 1.0)
 
     # two close modes whose order the factors swap: the corrected solve returns them sorted
     freqs = np.array([300.0, 1000.0, 1010.0, 2000.0])
@@ -117,3 +117,33 @@ def test_extrapolated_cantilever_is_closer_to_the_converged_frequency_than_the_f
     err_raw = np.abs(f[2] / lim_234 - 1)
     assert np.all(err_lim < 0.5 * err_raw)
     assert np.median(err_raw / err_lim) > 4
+
+
+def test_factor_slope_matches_the_limit_of_parameter_dependent_sequences():
+    """Sequences f_k(y) = L e^{b y} (1 + d e^{e y} r^k) for two parameters y: the limit's factor
+    1 / (1 + d e^{e y}) and its exact derivative; edge_limit gets it from the meshes' sensitivities."""
+    rng = np.random.default_rng(6)
+    s = _shapes(rng, 20, 3)
+    L, r = np.array([300.0, 1400.0, 2600.0]), np.array([0.45, 0.47, 0.5])
+    b = np.array([[0.05, 0.0], [0.2, 0.4], [0.3, 0.1]])
+    d, e = np.array([0.002, 0.02, 0.01]), np.array([[0.1, 0.0], [-0.5, 0.8], [0.2, -0.3]])
+    y = np.array([0.1, -0.2])
+
+    def level(k):
+        g = d * np.exp(e @ y) * r**k
+        f = L * np.exp(b @ y) * (1 + g)
+        J = b + (g / (1 + g))[:, None] * e  # d ln f_k / dy
+        return f, s, 10 * (k + 1), J
+
+    lim = edge_limit([level(k) for k in range(3)])
+    g0 = d * np.exp(e @ y)
+    np.testing.assert_allclose(lim.factor, 1 / (1 + g0), rtol=1e-9)
+    np.testing.assert_allclose(lim.slope, -(g0 / (1 + g0))[:, None] * e, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(aitken_weights(lim.ratio, lim.status).sum(axis=1), 1.0)
+
+    corr = FrequencyCorrection.from_limit(lim, theta_ref=10**y)
+    y2 = y + np.array([0.03, -0.02])
+    c, grad = corr.factors(s[:, ::-1], 10**y2)
+    np.testing.assert_allclose(grad, lim.slope[::-1])
+    g2 = d * np.exp(e @ y2)
+    np.testing.assert_allclose(c, (1 / (1 + g2))[::-1], rtol=1e-5)  # first order in a 0.03-decade step

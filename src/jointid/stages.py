@@ -554,18 +554,18 @@ def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, low
 
 
 EXTRAPOLATION_PASSES = 3  # polishes on extrapolated frequencies, each with factors taken at the last optimum
-EXTRAPOLATION_SETTLED = 0.02  # the factors have settled once a polish moves no parameter more than this
+EXTRAPOLATION_SETTLED = 2e-3  # the factors have settled once their first-order change over a polish is below this
 
 
 def _extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas, weights, sigma_rel,
                          lower, upper, *, repair, rom):
     """The polish again on mesh-extrapolated frequencies, until their factors are those of its optimum.
 
-    The factors are taken at the current optimum (first the base mesh's) and the polish is repeated
-    with them; they depend a little on the parameters, so this is repeated (at most
-    ``EXTRAPOLATION_PASSES`` times) until the polish moves no parameter by more than
-    ``EXTRAPOLATION_SETTLED`` relative, where the factors' own change is negligible.  Returns
-    ``(record for params.json, the last polish)``.
+    The factors are taken at the current optimum (first the base mesh's), with their first-order
+    dependence on the parameters, and the polish is repeated with them.  Should they change by more
+    than ``EXTRAPOLATION_SETTLED`` (relative, to first order) over the polish's step, where their
+    second-order change might matter, they are taken again at the new optimum (at most
+    ``EXTRAPOLATION_PASSES`` passes).  Returns ``(record for params.json, the last polish)``.
     """
     from .extrapolate import FrequencyCorrection
     from .model import load_model
@@ -577,19 +577,22 @@ def _extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairi
     for k in range(EXTRAPOLATION_PASSES):
         at = np.asarray(polish["theta"], float)
         say(f"mesh extrapolation over the edge levels at {'the base-mesh optimum' if k == 0 else 'the new optimum'}")
-        lim = edge_limit_at(cfg, models, dict(zip(doc["names"], map(float, at))), log=say)
+        lim = edge_limit_at(cfg, models, dict(zip(doc["names"], map(float, at))), log=say, sensitivities=True)
         shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= cfg["solver"]["min_freq_Hz"]]
         say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
         say("polish on the extrapolated frequencies")
         polish = _polish(cfg, doc, matrices, at, pairing, f_meas, weights, sigma_rel, lower, upper,
-                         repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim))
+                         repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim, at))
         moved = float(np.max(np.abs(polish["theta"] / at - 1)))
-        passes.append({"factors_at": dict(zip(doc["names"], map(float, at))), "max_parameter_change": moved})
-        say(f"pass {k + 1}: the polish moved the parameters by at most {100 * moved:.2f} %")
-        if moved < EXTRAPOLATION_SETTLED:
+        drift = float(np.max(np.abs(lim.slope[shown] @ np.log10(polish["theta"] / at))))
+        passes.append({"factors_at": dict(zip(doc["names"], map(float, at))), "max_parameter_change": moved,
+                       "max_factor_change_first_order": drift})
+        say(f"pass {k + 1}: the polish moved the parameters by at most {100 * moved:.2f} %, the factors by "
+            f"{100 * drift:.3f} % (first order)")
+        if drift < EXTRAPOLATION_SETTLED:
             break
     else:
-        say(f"warning: the factors did not settle in {EXTRAPOLATION_PASSES} passes (last change {100 * moved:.2f} %)")
+        say(f"warning: the factors did not settle in {EXTRAPOLATION_PASSES} passes (last change {100 * drift:.3f} %)")
     odd = [f"{lim.levels_Hz[0, i]:.0f} Hz ({lim.status[i]})" for i in shown
            if lim.status[i] in ("not asymptotic", "lost")]
     if odd:
@@ -650,34 +653,45 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
 def _corrected(solve, correction):
     """``solve`` with each mode's frequency scaled by its mesh-extrapolation factor (in ascending order).
 
-    A constant factor leaves ``d ln f / d log10 theta`` unchanged; :func:`jointid.updating.log_jacobian`
-    computes it as ``phi^T K' phi / (2 lambda)`` from the frequency it is given, so ``phi`` is scaled by
-    the same factor to keep the sensitivities exact.
+    A factor adds its own ``d ln c / d log10 theta`` to the mode's ``d ln f / d log10 theta``, which
+    the polish gets as a fifth return value; :func:`jointid.updating.log_jacobian` computes the
+    mesh's part as ``phi^T K' phi / (2 lambda)`` from the frequency it is given, so ``phi`` is scaled
+    by the same factor to keep that part exact.
     """
     def solve_corrected(theta):
         freqs, shapes, phi, stiff = solve(theta)
-        c = correction.factors(shapes)
+        c, grad = correction.factors(shapes, theta)
         order = np.argsort(freqs * c, kind="stable")
-        return (freqs * c)[order], shapes[:, order], (phi * c)[:, order], stiff
+        out = (freqs * c)[order], shapes[:, order], (phi * c)[:, order], stiff
+        return out if grad is None else (*out, grad[order])  # + the factors' own d ln / d log10 theta
 
     return solve_corrected
 
 
-def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, base=None):
+def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, base=None,
+                  sensitivities: bool = False):
     """:class:`jointid.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta``; ``models``:
     the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
     those, so that the highest base modes find their partner); ``base``: the base mesh's
-    ``(freqs_Hz, shapes)`` at ``theta`` when already solved."""
+    ``(freqs_Hz, shapes)`` at ``theta`` when already solved; ``sensitivities``: with the factors'
+    first-order dependence on ``theta`` (exact modal sensitivities on each mesh)."""
     from .extrapolate import edge_limit
+    from .model import joint_terms
+    from .updating import log_jacobian
 
+    names = list(theta)
+    jt = joint_terms(cfg["joints"])
+    terms = [{t: 1.0 for t in jt[n]} for n in names]
     solves = []
     for k, model in enumerate(models):
         if k == 0 and base is not None:
             solves.append((*base, model.n_dofs))
             continue
-        f, s, _, _ = solve_point(cfg, model, theta, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
-                                 describe=False)
-        solves.append((f, s, model.n_dofs))
+        f, s, _, modes = solve_point(cfg, model, theta, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
+                                     describe=False)
+        J = (log_jacobian(model.stiffness, modes.phi, modes.omega2, terms, np.array([theta[n] for n in names]))
+             if sensitivities else None)
+        solves.append((f, s, model.n_dofs, J))
         if log:
             log(f"edge level +{k}: {model.n_dofs} DOFs solved")
     return edge_limit(solves)

@@ -235,7 +235,8 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
               repair_min_Hz: float | None = None):
     """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
 
-    ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms)`` gives the FE modes;
+    ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms[, extra])`` gives the FE
+    modes (``extra`` ``(n, n_params)``: a part of ``d ln f / d log10 theta`` beyond ``phi``'s);
     each measured mode follows the FE mode with the highest MAC to its current shape (starting from
     ``target_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
     exact modal sensitivities ``d lambda / d theta_i = phi^T K_i phi`` (mass-normalised phi).
@@ -253,7 +254,7 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
     history = []
     best = None
     for it in range(max_iter + 1):
-        freqs, shapes, phi, stiff = solve(10 ** y)
+        freqs, shapes, phi, stiff, *extra = solve(10 ** y)
         if repair_min_Hz is not None:
             cand = np.flatnonzero(freqs >= repair_min_Hz)
             index = cand[pair_by_frequency(f_meas, freqs[cand])]
@@ -266,8 +267,10 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
         f = freqs[index]
         r = np.sqrt(w) * (f - f_meas) / f_meas
         # d(f / f_meas) / d log10 theta = (f / f_meas) d ln f / d log10 theta
-        J = (np.sqrt(w) * f / f_meas)[:, None] * log_jacobian(stiff, phi[:, index], (2 * np.pi * f) ** 2,
-                                                               terms, 10 ** y)
+        dlnf = log_jacobian(stiff, phi[:, index], (2 * np.pi * f) ** 2, terms, 10 ** y)
+        if extra:  # a part of d ln f / d log10 theta that the solve knows beyond phi (e.g. a correction factor's)
+            dlnf = dlnf + np.asarray(extra[0])[index]
+        J = (np.sqrt(w) * f / f_meas)[:, None] * dlnf
         history.append(float(r @ r))
         if best is None or history[-1] < best[0]:
             best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs))
