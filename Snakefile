@@ -357,7 +357,7 @@ rule identify:
         "benchmarks/out/identify/{state}.tsv"
     threads: 1
     resources:
-        mem_mb=6000,  # 5.4 GB measured with mesh.extrapolate_edges (the largest edge level's factorisation)
+        mem_mb=5000,  # 3.4-4.1 GB measured with mesh.extrapolate_edges (the largest edge level's factorisation)
         runtime=20,
     script:
         "workflow/scripts/identify.py"
@@ -379,7 +379,7 @@ rule verify:
         "benchmarks/out/verify/{state}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=4000,  # 3.8 GB measured with mesh.extrapolate_edges
         runtime=10,
     script:
         "workflow/scripts/verify.py"
