@@ -1,5 +1,7 @@
 """Mesh extrapolation over edge-refinement levels: Aitken's limit, following modes, the corrected solve."""
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -29,6 +31,11 @@ def test_aitken_refuses_sequences_outside_the_asymptotic_range():
     assert list(status) == ["not asymptotic", "not asymptotic", "extrapolated", "converged", "converged"]
     assert lim[0] == f2[0] and lim[1] == f2[1] and lim[3] == f2[3]  # the finest value where no limit is taken
     assert lim[2] == pytest.approx(98.0)
+    # the weights of the limit: finest value where no limit is taken, even at r = 1, silently
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        w = aitken_weights(np.array([1.0, 0.5, np.nan]), np.array(["not asymptotic", "extrapolated", "converged"]))
+    np.testing.assert_allclose(w, [[0, 0, 1], [1, -4, 4], [0, 0, 1]])
 
 
 def _shapes(rng, n_labels, n_modes):

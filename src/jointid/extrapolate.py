@@ -63,7 +63,8 @@ def aitken_weights(ratio, status) -> np.ndarray:
     """
     r = np.nan_to_num(np.asarray(ratio, float))
     status = np.asarray(status)
-    w = np.stack([r**2, -2 * r, np.ones_like(r)], axis=1) / ((1 - r) ** 2)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):  # r = 1 is never extrapolated; its row is replaced
+        w = np.stack([r**2, -2 * r, np.ones_like(r)], axis=1) / ((1 - r) ** 2)[:, None]
     w[status != "extrapolated"] = (0.0, 0.0, 1.0)
     w[status == "lost"] = (1.0, 0.0, 0.0)
     return w
