@@ -59,7 +59,9 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     import pandas as pd
 
     from . import io
-    from .extrapolate import edge_limit, level_config
+    from functools import partial
+
+    from .extrapolate import level_config
     from .model import build_model, joint_terms, load_model
     from .stages import edge_limit_at, solve_point
 
@@ -88,18 +90,17 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
         f_c = edge_limit_at(cfg, [coarse, *map(load_model, edge_matrices)], theta_d, log=say,
                             base=(modes_c.freqs_Hz, shapes_c)).limit_Hz
     del coarse
-    fines = [(level_config(cfg, k) if edge_matrices else cfg) for k in range(3 if edge_matrices else 1)]
-    solves = []
-    for k, fcfg in enumerate(fines):
-        say(f"building the mesh with {', '.join(halve)} cells halved" + (f", {k} more edge level(s)" if k else ""))
-        fine = build_model(fcfg, halve=halve, progress=say)
-        f, s, _, _ = solve_point(cfg, fine, theta_d, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
-                                 describe=False)
-        solves.append((f, s, fine.n_dofs))
+    say(f"the mesh with {', '.join(halve)} cells halved")
+    if edge_matrices:  # and with one and two more edge levels, each built in turn
+        lim_f = edge_limit_at(cfg, [partial(build_model, level_config(cfg, k), halve=halve, progress=say)
+                                    for k in range(3)], theta_d, log=say)
+        f_f, f_f_mesh, shapes_f, n_dofs_f = lim_f.limit_Hz, lim_f.levels_Hz[0], lim_f.shapes, lim_f.n_dofs[0]
+    else:
+        fine = build_model(cfg, halve=halve, progress=say)
+        modes_f, shapes_f = solve(fine)
+        f_f = f_f_mesh = modes_f.freqs_Hz
+        n_dofs_f = fine.n_dofs
         del fine
-    n_dofs_f = solves[0][2]
-    shapes_f = solves[0][1]
-    f_f = solves[0][0] if len(solves) == 1 else edge_limit(solves).limit_Hz
     index, macs = pair_meshes(shapes_c, shapes_f)
     fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
     use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
@@ -133,7 +134,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
                             f"measurement uncertainty is +-{ci_half:.1f} %): the mesh is not converged for it")
     partner = lambda f: np.where(index >= 0, f[np.clip(index, 0, None)], np.nan)  # noqa: E731
     raw = {} if not edge_matrices else {  # the meshes' own frequencies beside the extrapolated ones
-        "default_mesh_Hz": modes_c.freqs_Hz, "refined_mesh_Hz": partner(solves[0][0])}
+        "default_mesh_Hz": modes_c.freqs_Hz, "refined_mesh_Hz": partner(f_f_mesh)}
     table = pd.DataFrame({
         "mode": np.arange(1, len(f_c) + 1), "default_Hz": f_c, "refined_Hz": partner(f_f),
         "change_pct": 100 * (partner(f_f) / f_c - 1), **raw,

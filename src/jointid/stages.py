@@ -672,7 +672,8 @@ def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, ba
                   sensitivities: bool = False):
     """:class:`jointid.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta``; ``models``:
     the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
-    those, so that the highest base modes find their partner); ``base``: the base mesh's
+    those, so that the highest base modes find their partner), each a model or a function that
+    builds one (built when its turn comes and dropped after its solve); ``base``: the base mesh's
     ``(freqs_Hz, shapes)`` at ``theta`` when already solved; ``sensitivities``: with the factors'
     first-order dependence on ``theta`` (exact modal sensitivities on each mesh)."""
     from .extrapolate import edge_limit
@@ -684,6 +685,7 @@ def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, ba
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     solves = []
     for k, model in enumerate(models):
+        model = model() if callable(model) else model
         if k == 0 and base is not None:
             solves.append((*base, model.n_dofs))
             continue
@@ -694,6 +696,7 @@ def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, ba
         solves.append((f, s, model.n_dofs, J))
         if log:
             log(f"edge level +{k}: {model.n_dofs} DOFs solved")
+        del model
     return edge_limit(solves)
 
 
@@ -761,7 +764,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
         # the identification's last polish scaled by factors taken at its previous optimum; here they are fresh
         drift = 100 * (sim / np.asarray(par["fe_polish"]["f_fe_Hz"]) - 1)
         _log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
-             f"{np.nanmax(np.abs(drift)):.3f} % (its factors were taken at its previous optimum)")
+             f"{np.nanmax(np.abs(drift)):.3f} % (its factors come from its previous optimum, to first order)")
 
 
 # ------------------------------------------------------------------ tables
