@@ -10,6 +10,12 @@ Fixtures
 coarse_run (session)
     A folder holding one complete, uninterrupted coarse run (``snakemake -j2``).  Tests must not
     modify it: clone it with :func:`clone_run` first.
+resumed_run (session)
+    A second run of the same workflow from a clean folder, killed (the whole process group, SIGKILL)
+    as soon as the first DOE point is written, then unlocked and resumed with
+    ``--rerun-incomplete``.  The interruption tests check what the kill left; the determinism
+    tests compare its results with ``coarse_run``'s.  One run serves both: a full coarse run costs
+    about three minutes of CI.
 
 BLAS/OpenMP libraries run single-threaded in the tests (set here before numpy is imported, inherited
 by the Snakemake runs): the machine's cores are shared by parallel jobs.
@@ -28,7 +34,10 @@ import json  # noqa: E402
 import re  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
+import signal  # noqa: E402
 import sys  # noqa: E402
+import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -222,13 +231,16 @@ def npz_arrays(path: Path) -> dict[str, np.ndarray]:
         return {k: z[k] for k in z.files}
 
 
-def assert_npz_equal(a: Path, b: Path) -> None:
+def assert_arrays_equal(za: dict, zb: dict, name: str) -> None:
     """Same array names, dtypes, shapes and values (bit for bit)."""
-    za, zb = npz_arrays(a), npz_arrays(b)
-    assert sorted(za) == sorted(zb), f"{a.name}: arrays {sorted(za)} != {sorted(zb)}"
+    assert sorted(za) == sorted(zb), f"{name}: arrays {sorted(za)} != {sorted(zb)}"
     for k in za:
-        assert za[k].dtype == zb[k].dtype and za[k].shape == zb[k].shape, f"{a.name}:{k} differs in shape/dtype"
-        assert np.array_equal(za[k], zb[k]), f"{a.name}:{k} values differ"
+        assert za[k].dtype == zb[k].dtype and za[k].shape == zb[k].shape, f"{name}:{k} differs in shape/dtype"
+        assert np.array_equal(za[k], zb[k]), f"{name}:{k} values differ"
+
+
+def assert_npz_equal(a: Path, b: Path) -> None:
+    assert_arrays_equal(npz_arrays(a), npz_arrays(b), a.name)
 
 
 # ------------------------------------------------------------------ the reference run
@@ -238,3 +250,64 @@ def coarse_run(tmp_path_factory) -> Path:
     wd = copy_workflow(tmp_path_factory.mktemp("coarse_reference"))
     run_snakemake(wd, "-j2", check=True)
     return wd
+
+
+def group_alive(pgid: int) -> list[int]:
+    """Live (non-zombie) processes of a process group."""
+    pids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:
+            continue
+        fields = text[text.rfind(")") + 2:].split()
+        if fields[0] != "Z" and int(fields[2]) == pgid:
+            pids.append(int(stat.parent.name))
+    return pids
+
+
+@dataclass
+class ResumedRun:
+    """What :func:`resumed_run` saw at the kill, and the folder of the finished, resumed run."""
+    workdir: Path
+    n_points: int                 # DOE points of the design
+    done_at_kill: dict            # point file name -> its arrays, as the kill left them
+    tables_at_kill: list          # result tables that existed right after the kill
+    survivors: list               # processes of the killed group still alive after the kill
+
+
+@pytest.fixture(scope="session")
+def resumed_run(coarse_run, tmp_path_factory) -> ResumedRun:
+    """A second run, killed during the DOE fan-out and resumed (see the module docstring)."""
+    n_points = len(list((coarse_run / "results" / "modal" / "points").glob("*.npz")))
+    base = tmp_path_factory.mktemp("resumed")
+    wd = copy_workflow(base / "wf")
+    points = wd / "results" / "modal" / "points"
+    log = open(base / "interrupted.log", "w")
+    proc = subprocess.Popen(snakemake_cmd("-j2"), cwd=wd, stdout=log, stderr=subprocess.STDOUT,
+                            env=workflow_env(), start_new_session=True)
+    try:
+        deadline = time.monotonic() + 600
+        while not list(points.glob("*.npz")):
+            assert proc.poll() is None, "snakemake ended before the DOE fan-out started"
+            assert time.monotonic() < deadline, "no modal result within 10 minutes"
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGKILL)  # the whole group: snakemake and its running jobs
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        log.close()
+    for _ in range(100):
+        if not group_alive(proc.pid):
+            break
+        time.sleep(0.1)
+    run = ResumedRun(workdir=wd, n_points=n_points,
+                     done_at_kill={p.name: npz_arrays(p) for p in sorted(points.glob("*.npz"))},
+                     tables_at_kill=[t for t in TABLES if (wd / t).exists()],
+                     survivors=group_alive(proc.pid))
+    run_snakemake(wd, "--unlock", check=True)
+    run_snakemake(wd, "-j2", "--rerun-incomplete", check=True)
+    yield run
+    shutil.rmtree(wd / "results", ignore_errors=True)  # 30+ MB per run: free the shared disk

@@ -1,5 +1,6 @@
 """Interruption: a killed writer or a killed ``snakemake -j2`` never leaves a corrupt result, and a
-rerun with ``--rerun-incomplete`` finishes with results identical to an uninterrupted run."""
+rerun with ``--rerun-incomplete`` finishes (its results equal an uninterrupted run's: see
+``test_determinism``)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import (TABLES, assert_npz_equal, comparable_hashes, copy_workflow, incomplete_markers,
-                      npz_arrays, run_snakemake, snakemake_cmd, temporary_files, workflow_env)
+from conftest import assert_arrays_equal, incomplete_markers, npz_arrays, temporary_files
 from jointid import io
 
 WRITER = textwrap.dedent("""
@@ -146,64 +146,16 @@ def test_sigterm_to_a_stage_removes_its_temporary_files_and_exits_nonzero(tmp_pa
     assert "terminated by signal 15; removed 1 unfinished output(s)" in log.read_text()
 
 
-def _group_alive(pgid: int) -> list[int]:
-    """Live (non-zombie) processes of a process group."""
-    pids = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            text = stat.read_text()
-        except OSError:
-            continue
-        fields = text[text.rfind(")") + 2:].split()
-        if fields[0] != "Z" and int(fields[2]) == pgid:
-            pids.append(int(stat.parent.name))
-    return pids
-
-
 @pytest.mark.slow
-def test_kill_during_doe_fanout_then_rerun_incomplete_matches_uninterrupted_run(coarse_run, tmp_path):
-    ref = coarse_run
-    n_points = len(list((ref / "results" / "modal" / "points").glob("*.npz")))
-    wd = copy_workflow(tmp_path / "wf")
-    points = wd / "results" / "modal" / "points"
-    log = open(tmp_path / "interrupted.log", "w")
-    proc = subprocess.Popen(snakemake_cmd("-j2"), cwd=wd, stdout=log, stderr=subprocess.STDOUT,
-                            env=workflow_env(), start_new_session=True)
-    try:
-        deadline = time.monotonic() + 600
-        while True:
-            done = list(points.glob("*.npz"))
-            if done:
-                break
-            assert proc.poll() is None, "snakemake ended before the DOE fan-out started"
-            assert time.monotonic() < deadline, "no modal result within 10 minutes"
-            time.sleep(0.05)
-        os.killpg(proc.pid, signal.SIGKILL)  # the whole group: snakemake and its running jobs
-        proc.wait(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-        log.close()
-    for _ in range(100):
-        if not _group_alive(proc.pid):
-            break
-        time.sleep(0.1)
-    assert not _group_alive(proc.pid), "a job of the killed run survived"
-
-    done = sorted(points.glob("*.npz"))
-    assert 1 <= len(done) < n_points, f"killed after {len(done)} of {n_points} DOE points"
-    assert not any((wd / t).exists() for t in TABLES)
-    for p in done:  # whatever exists is complete and correct (atomic writes)
-        assert_npz_equal(p, ref / "results" / "modal" / "points" / p.name)
-
-    run_snakemake(wd, "--unlock", check=True)
-    run_snakemake(wd, "-j2", "--rerun-incomplete", check=True)
-
-    assert temporary_files(wd / "results") == [], "temporary files left after the rerun"
-    assert incomplete_markers(wd) == [], "Snakemake still marks outputs as incomplete"
-    # every result file, byte for byte (run time stamps removed from the diagnosis' run records)
-    got, want = comparable_hashes(wd), comparable_hashes(ref)
-    assert set(got) == set(want)
-    differ = sorted(k for k in want if got[k] != want[k])
-    assert not differ, f"files differ from the uninterrupted run: {differ}"
+def test_kill_during_doe_fanout_leaves_complete_points_and_rerun_incomplete_finishes(coarse_run, resumed_run):
+    """The kill and the resume; that the resumed run's results equal the uninterrupted run's, file
+    for file, is checked by ``test_determinism.test_a_second_run_killed_and_resumed_is_byte_identical``."""
+    ref, run = coarse_run, resumed_run
+    assert not run.survivors, f"jobs of the killed run survived: {run.survivors}"
+    assert 1 <= len(run.done_at_kill) < run.n_points, \
+        f"killed after {len(run.done_at_kill)} of {run.n_points} DOE points"
+    assert run.tables_at_kill == [], "tables written before the DOE had finished"
+    for name, arrays in run.done_at_kill.items():  # whatever exists is complete and correct (atomic writes)
+        assert_arrays_equal(arrays, npz_arrays(ref / "results" / "modal" / "points" / name), name)
+    assert temporary_files(run.workdir / "results") == [], "temporary files left after the rerun"
+    assert incomplete_markers(run.workdir) == [], "Snakemake still marks outputs as incomplete"
