@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from jointid import measured
 from jointid.errors import DataError
@@ -253,3 +254,34 @@ def test_modes_states_is_a_cheap_look_at_the_state_column(tmp_path):
     assert measured.modes_states(folder) == ["a", "b"]
     (folder / "modes.csv").write_text("mode,freq_Hz\n1,100\n")
     assert measured.modes_states(folder) is None  # no state column
+
+
+def test_a_problem_repeated_on_many_lines_is_said_once_with_its_lines(tmp_path):
+    modes, shapes, frf, conditions = _tables()
+    many = pd.DataFrame({"state": "a", "point": "T99", "direction": "y", "freq_Hz": np.arange(1.0, 101.0),
+                         "re": 1e-8, "im": -1e-8})
+    many.loc[50, "point"] = "T02"  # one good line splits the run of bad ones
+    with pytest.raises(DataError) as err:
+        write_dataset(tmp_path / "ds", modes, shapes, many, conditions=conditions, measuring_points=POINTS)
+    about_t99 = [p for p in err.value.problems if "'T99'" in p]
+    assert about_t99 == [f"{tmp_path / 'ds' / 'frf.csv'}, 99 lines (2-51, 53-101): point 'T99' is not a measuring "
+                         "point — use a name from the measuring-point table (B01, T01, T02)"]
+    # a problem on a few lines keeps one line each
+    few = many.copy()
+    few["point"] = "T02"
+    few.loc[[3, 7], "point"] = "T98"
+    problems = validate_dataset(_written(tmp_path / "few", modes, shapes, few, conditions), POINTS)
+    assert [p.split(": ")[0] for p in problems if "'T98'" in p] == [
+        f"{tmp_path / 'few' / 'frf.csv'}:5", f"{tmp_path / 'few' / 'frf.csv'}:9"]
+
+
+def _written(folder, modes, shapes, frf, conditions):
+    """A dataset folder written without validation (to validate it afterwards)."""
+    folder.mkdir()
+    modes.to_csv(folder / "modes.csv", index=False)
+    shapes.to_csv(folder / "shapes.csv", index=False)
+    frf.to_csv(folder / "frf.csv", index=False)
+    (folder / "conditions.yaml").write_text(yaml.safe_dump(
+        {"source": conditions["source"], "states": {s: {k: (float(v) if isinstance(v, np.floating) else v)
+                                                       for k, v in c.items()} for s, c in conditions["states"].items()}}))
+    return folder

@@ -62,6 +62,38 @@ class _Problems(list):
     def add(self, where: str, what: str, fix: str) -> None:
         self.append(f"{where}: {what} — {fix}")
 
+    def condensed(self, at_most: int = 3) -> list[str]:
+        """The lines, with one problem repeated on more than ``at_most`` lines of a file said once,
+        naming the lines (``file, 100 lines (2-101): what — fix``), in order of first appearance."""
+        groups: dict[tuple, list[int]] = {}
+        for text in self:
+            where, _, rest = text.partition(": ")
+            file, sep, line = where.rpartition(":")
+            if sep and line.isdigit():
+                groups.setdefault((file, rest), []).append(int(line))
+            else:
+                groups.setdefault((text, None), [])
+        out = []
+        for (file, rest), lines in groups.items():
+            if rest is None:
+                out.append(file)
+            elif len(lines) <= at_most:
+                out.extend(f"{file}:{n}: {rest}" for n in lines)
+            else:
+                out.append(f"{file}, {len(lines)} lines ({_line_ranges(lines)}): {rest}")
+        return out
+
+
+def _line_ranges(lines: list[int], shown: int = 4) -> str:
+    """``2-50, 52, 60-101`` for the sorted line numbers (at most ``shown`` ranges, then ``...``)."""
+    lines = sorted(set(lines))
+    ranges, start = [], lines[0]
+    for a, b in zip(lines, lines[1:] + [None]):
+        if b != a + 1:
+            ranges.append(f"{start}" if start == a else f"{start}-{a}")
+            start = b
+    return ", ".join(ranges[:shown]) + (", ..." if len(ranges) > shown else "")
+
 
 @dataclass(frozen=True)
 class Dataset:
@@ -621,6 +653,13 @@ def modes_states(folder) -> list[str] | None:
     :func:`read_dataset` does the full validation.  None if there is no readable modes.csv with a
     ``state`` column.
     """
+    counts = modes_per_state(folder)
+    return None if counts is None else list(counts)
+
+
+def modes_per_state(folder) -> dict[str, int] | None:
+    """Number of rows of each state in ``folder/modes.csv`` (in order of first appearance), without
+    checking the rows; None if there is no readable modes.csv with a ``state`` column."""
     path = Path(folder) / "modes.csv"
     try:
         table = _read_table(path, str(path), _Problems()) if path.is_file() else None
@@ -629,12 +668,12 @@ def modes_states(folder) -> list[str] | None:
     if table is None:
         return None
     _, rows, _, rejected = table
-    names: list[str] = []
+    counts: dict[str, int] = {}
     for row in [r for _, r in rows] + rejected:
         state = (row.get("state") or "").strip()
-        if state and state not in names:
-            names.append(state)
-    return names
+        if state:
+            counts[state] = counts.get(state, 0) + 1
+    return counts
 
 
 def _point_names(measuring_points, problems):
@@ -725,14 +764,14 @@ def validate_dataset(folder, measuring_points=None, expected_states=None) -> lis
     expected_states : sequence of str, optional
         States that must be present in modes.csv and conditions.yaml.
     """
-    return list(_load(folder, measuring_points, expected_states)[0])
+    return _load(folder, measuring_points, expected_states)[0].condensed()
 
 
 def read_dataset(folder, measuring_points=None, expected_states=None) -> Dataset:
     """Read and validate a dataset folder; raise one :class:`DataError` listing every problem."""
     problems, dataset = _load(folder, measuring_points, expected_states)
     if problems:
-        raise DataError(list(problems))
+        raise DataError(problems.condensed())
     return dataset
 
 
