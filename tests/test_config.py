@@ -633,6 +633,23 @@ def test_state_without_modes_in_its_dataset_is_reported(default, workdir):
         "power_on) — remove it from the list, or add its modes"]
 
 
+def test_weights_and_model_modes_are_checked_against_the_measured_modes_before_any_solve(default, workdir):
+    # the paper's data measure six modes per state
+    cfg = modified(default, lambda c: (c["identify"].update(weights=[1.0] * 5), c["solver"].update(n_modes=4)))
+    assert dataset_problems(cfg) == [
+        "config.yaml: identify.weights: 5 weights, but the datasets measure 6 modes of power_off, 6 modes of "
+        "power_on — give one weight per measured mode, or [] for all 1",
+        "config.yaml: solver.n_modes: 4 model modes cannot pair the 6 measured modes of power_off — use "
+        "n_modes >= 6 (a few more, so that the pairing can skip modes the test did not see)"]
+    load_config(modified(default, lambda c: c["identify"].update(weights=[1.0] * 6)), check_datasets=True)
+    # one state from a dataset with a single mode: its count is checked on its own
+    one = modified(default, lambda c: (c["states"]["power_on"].update(dataset="data/rig2"),
+                                       c["identify"].update(weights=[1.0] * 6)))
+    assert dataset_problems(one) == [
+        "config.yaml: identify.weights: 6 weights, but the datasets measure 1 mode of power_on — give one "
+        "weight per measured mode, or [] for all 1"]
+
+
 def test_cli_and_snakefile_check_the_datasets(workdir, capsys):
     from jointid.workflowconfig import validated
 

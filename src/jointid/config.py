@@ -1024,7 +1024,7 @@ def _check_datasets(c: _Checks) -> None:
     relative to the working directory (as in the workflow).  Only the state names of each
     ``modes.csv`` are read here; the full validation of a dataset stays with the stage reading it.
     """
-    from jointid.measured import modes_states
+    from jointid.measured import modes_per_state
 
     sections = _states_and_datasets(c)
     if sections is None:
@@ -1092,11 +1092,11 @@ def _check_datasets(c: _Checks) -> None:
                     by_state[sname] = path
 
     # states without modes in their dataset (a cheap look at modes.csv's state column)
-    measured: dict[str, list[str] | None] = {}
+    measured: dict[str, dict[str, int] | None] = {}
 
-    def states_in(path: str) -> list[str] | None:
+    def states_in(path: str) -> dict[str, int] | None:
         if path not in measured:
-            measured[path] = modes_states(path) if Path(path).is_dir() else None
+            measured[path] = modes_per_state(path) if Path(path).is_dir() else None
         return measured[path]
 
     for sname, path in by_state.items():
@@ -1107,6 +1107,7 @@ def _check_datasets(c: _Checks) -> None:
             c.add(["states", sname], f"dataset {path} has no modes of state {sname!r} in modes.csv (its states: "
                   f"{', '.join(found) or 'none'}){hint} — measure it there, or set states.{sname}.dataset to a "
                   "dataset that holds it")
+    _check_mode_counts(c, {s: states_in(p).get(s) for s, p in by_state.items() if states_in(p)})
     for dname, ds in named.items():
         if not isinstance(ds, Mapping) or not isinstance(ds.get("path"), str) or not isinstance(ds.get("states"), list):
             continue
@@ -1117,6 +1118,32 @@ def _check_datasets(c: _Checks) -> None:
             if isinstance(sname, str) and sname in states and sname not in found:
                 c.add(["datasets", dname, "states", i], f"{sname!r} has no modes in {ds['path']}/modes.csv (its "
                       f"states: {', '.join(found) or 'none'}) — remove it from the list, or add its modes")
+
+
+def _check_mode_counts(c: _Checks, counts: dict[str, int | None]) -> None:
+    """One weight per measured mode, and enough model modes to pair them, before any solve runs."""
+    counts = {s: n for s, n in counts.items() if n}
+    if not counts:
+        return
+    try:
+        weights = c.get("identify.weights")
+        if isinstance(weights, list) and weights:
+            wrong = {s: n for s, n in counts.items() if n != len(weights)}
+            if wrong:
+                c.add("identify.weights", f"{len(weights)} weights, but the datasets measure "
+                      + ", ".join(f"{n} mode{'s' * (n != 1)} of {s}" for s, n in wrong.items())
+                      + " — give one weight per measured mode, or [] for all 1")
+    except _Skip:
+        pass
+    try:
+        n_modes = c.get("solver.n_modes")
+        most = max(counts.values())
+        if isinstance(n_modes, int) and not isinstance(n_modes, bool) and n_modes < most:
+            state = max(counts, key=counts.get)
+            c.add("solver.n_modes", f"{n_modes} model modes cannot pair the {most} measured modes of {state} — "
+                  f"use n_modes >= {most} (a few more, so that the pairing can skip modes the test did not see)")
+    except _Skip:
+        pass
 
 
 # --------------------------------------------------------------------------------- public API
