@@ -236,7 +236,8 @@ SURFACE_SHEET = f"{R}/doe/zoom/points.csv" if ZOOM else f"{R}/doe/points.csv"  #
 def cfg_scout(state):
     """rule scout: what the surface-only identification reads (not the FE solve, not the motor force)."""
     return sections(config, "joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
-                    "identify.weights", "identify.pairing", "measurements", *(f"states.{s}.dataset" for s in STATES))
+                    "identify.weights", "identify.pairing", "solver.min_freq_Hz", "measurements",
+                    *(f"states.{s}.dataset" for s in STATES))
 
 
 rule scout:
@@ -404,6 +405,7 @@ rule tables:
         "workflow/scripts/tables.py"
 
 
+include: "workflow/rules/rigidity.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/diagnosis.smk"
 include: "workflow/rules/meshcheck.smk"

@@ -89,6 +89,18 @@ def test_full_coarse_run_params_within_bounds_and_clean(coarse_run):
         assert "Traceback" not in log.read_text(), f"{log.name} holds a traceback"
 
 
+def test_carriage_rigidity_of_each_state_is_softer_than_its_springs(coarse_run):
+    for state in STATES:
+        par = json.loads((coarse_run / f"results/identify/{state}/params.json").read_text())
+        doc = json.loads((coarse_run / f"results/identify/{state}/carriage_rigidity.json").read_text())
+        springs = {d: par["per_carriage"][f"k_{d}_per_carriage_N_per_um"]["value"] for d in doc["directions"]}
+        for d, r in doc["directions"].items():
+            assert r["joint_springs_N_per_um"] == pytest.approx(springs[d], rel=1e-9), (state, d)
+            assert r["assembly_N_per_um"] < min(springs[d], r["parts_N_per_um"]), (state, d)
+            assert r["assembly_ci95_low_N_per_um"] < r["assembly_N_per_um"] < r["assembly_ci95_high_N_per_um"]
+    assert "Carriage rigidity" in (coarse_run / "results/report/index.html").read_text()
+
+
 def test_identification_fits_mesh_extrapolated_frequencies(coarse_run):
     """mesh.extrapolate_edges (on by default): identify polishes again on the Aitken limits of the
     frequencies over 0, +1, +2 edge levels, and verify fills the tables with those limits."""

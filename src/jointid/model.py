@@ -75,31 +75,10 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     rig_cfg, mesh_cfg = cfg["rig"], cfg["mesh"]
     rig = rig or build_rig(rig_cfg)
     rmesh = mesh_from_config(rig, mesh_cfg, refine, halve)
-    elem_cls, intorder = fem.ELEMENTS[mesh_cfg["element"]]
-    elem = elem_cls()
-    basis = Basis(rmesh.mesh, elem, intorder=intorder)
-    say(f"mesh: {rmesh.mesh.t.shape[1]} {mesh_cfg['element']} elements, {3 * basis.N} DOFs")
-    mats = cfg["materials"]
-    inv_parts = {v: k for k, v in PART_IDS.items()}
-    lam = np.empty(len(rmesh.part))
-    mu = np.empty(len(rmesh.part))
-    rho = np.empty(len(rmesh.part))
-    for pid in np.unique(rmesh.part):
-        m = mats[rig.materials[inv_parts[pid]]]
-        sel = rmesh.part == pid
-        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
-        rho[sel] = m["density_kg_per_m3"]
-    K0, M0 = fem.assemble_elasticity(basis, lam, mu, rho)
-    stiffness = {"K0": K0}
+    basis, stiffness, M0, dof_body = assemble_solids_and_joints(cfg, rig, rmesh, mesh_cfg["element"])
+    elem, intorder = basis.elem, fem.ELEMENTS[mesh_cfg["element"]][1]
     doflocs = basis.doflocs
-    dof_body = None
-    if rmesh.boxes is not None:
-        dof_body = np.empty(basis.N, np.int64)
-        dof_body[basis.element_dofs] = rmesh.body[None, :]
-    for face in ("top", "flank"):
-        S = fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder)
-        for d, i in fem.DIRS.items():
-            stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, doflocs, i, dof_body)
+    say(f"mesh: {rmesh.mesh.t.shape[1]} {mesh_cfg['element']} elements, {3 * basis.N} DOFs")
     S_fix = fem.facet_mass(rmesh.mesh, elem, rmesh.facets["railfix"], intorder)
     stiffness["K_railfix"] = sum(fem.spring_layer(S_fix, doflocs, i, dof_body) for i in range(3)).tocsr()
     stiffness["K_foundation"] = fem.ground_springs(
@@ -150,6 +129,36 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     return model
 
 
+def assemble_solids_and_joints(cfg: dict, rig, rmesh, element: str):
+    """Elasticity of the solids (materials of ``cfg``) on ``rmesh`` and the unit joint spring layers.
+
+    Returns ``(basis, stiffness, M0, dof_body)``: ``stiffness`` holds ``K0`` and ``K_<face>_<d>`` for
+    the faces ``top`` and ``flank`` (see the module docstring); ``dof_body`` is the body of each scalar
+    DOF when the mesh has hanging nodes (else None).
+    """
+    elem_cls, intorder = fem.ELEMENTS[element]
+    elem = elem_cls()
+    basis = Basis(rmesh.mesh, elem, intorder=intorder)
+    inv_parts = {v: k for k, v in PART_IDS.items()}
+    lam, mu, rho = (np.empty(len(rmesh.part)) for _ in range(3))
+    for pid in np.unique(rmesh.part):
+        m = cfg["materials"][rig.materials[inv_parts[pid]]]
+        sel = rmesh.part == pid
+        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
+        rho[sel] = m["density_kg_per_m3"]
+    K0, M0 = fem.assemble_elasticity(basis, lam, mu, rho)
+    stiffness = {"K0": K0}
+    dof_body = None
+    if rmesh.boxes is not None:
+        dof_body = np.empty(basis.N, np.int64)
+        dof_body[basis.element_dofs] = rmesh.body[None, :]
+    for face in ("top", "flank"):
+        S = fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder)
+        for d, i in fem.DIRS.items():
+            stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, basis.doflocs, i, dof_body)
+    return basis, stiffness, M0, dof_body
+
+
 def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Model:
     """``model`` on the free nodes of a mesh with hanging nodes: every matrix projected with the
     scalar map ``T`` (all nodes from the free ones, ``jointid.localrefine.hanging_constraints``);
@@ -172,6 +181,21 @@ def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Mo
                      dof_part=model.dof_part[free], meta=meta)
 
 
+def joint_coefficients(joints_cfg: dict, theta: dict[str, float] | None = None) -> dict[str, float]:
+    """Coefficient of every joint spring term (``K_top_y`` ...) at joint parameters ``theta`` (N/m^3;
+    defaults: the geometric mean of the bounds for identified parameters, the configured value for
+    fixed ones)."""
+    values = {name: float(np.sqrt(s["lower"] * s["upper"])) for name, s in joints_cfg["parameters"].items()}
+    values.update({k: float(v) for k, v in joints_cfg.get("fixed", {}).items()})
+    if theta:
+        values.update(theta)
+    kc: dict[str, float] = {}
+    for name, terms in joint_terms(joints_cfg).items():
+        for term in terms:
+            kc[term] = kc.get(term, 0.0) + values.get(name, 0.0)
+    return kc
+
+
 def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | None = None,
                       extra_k: dict[str, float] | None = None):
     """Stiffness and mass coefficients of the rig at joint parameters ``theta``.
@@ -180,15 +204,7 @@ def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | Non
     identified parameters, the configured value for fixed ones).  Returns ``(k_coeffs, m_coeffs)``
     for :meth:`Model.K` and :meth:`Model.M`.
     """
-    jcfg = cfg["joints"]
-    values = {name: float(np.sqrt(s["lower"] * s["upper"])) for name, s in jcfg["parameters"].items()}
-    values.update({k: float(v) for k, v in jcfg.get("fixed", {}).items()})
-    if theta:
-        values.update(theta)
-    kc: dict[str, float] = {}
-    for name, terms in joint_terms(jcfg).items():
-        for term in terms:
-            kc[term] = kc.get(term, 0.0) + values.get(name, 0.0)
+    kc = joint_coefficients(cfg["joints"], theta)
     kc["K_railfix"] = float(cfg["rig"]["rails"].get("fixing_stiffness_N_per_m3", RAIL_BONDED_N_PER_M3))
     if "K_mount" in model.stiffness:
         kc["K_mount"] = cfg["rig"]["support"]["k_mount_N_per_m"] / model.meta["mount_area_each_m2"]

@@ -264,6 +264,7 @@ def _load(inputs: dict) -> dict:
         "points": pd.read_csv(inputs["points"]),
         "paper_table1": pd.read_csv(inputs["paper_table1"]),
         "mesh_check": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("mesh_check") or []))},
+        "rigidity": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("rigidity") or []))},
     }
 
 
@@ -404,6 +405,29 @@ def _params_html(data: dict) -> str:
             + f"<ul class='note'>{''.join(extra)}</ul>")
 
 
+def _rigidity_html(data: dict) -> str:
+    """The identified joints as a catalogue's carriage rigidity (rule carriage_rigidity)."""
+    if not data.get("rigidity"):
+        return ""
+    rows = []
+    for state, d in data["rigidity"].items():
+        for direction, r in d["directions"].items():
+            rows.append({"state": state, "direction": direction, "springs": r["joint_springs_N_per_um"],
+                         "parts": r["parts_N_per_um"], "assembly": r["assembly_N_per_um"],
+                         "low": r["assembly_ci95_low_N_per_um"], "high": r["assembly_ci95_high_N_per_um"],
+                         "share": 100 * r["joint_share_of_compliance"]})
+    heads = {"springs": "joint springs alone (N/µm)", "parts": "carriage and rail alone (N/µm)",
+             "assembly": "carriage on its rail (N/µm)", "low": "95 % low", "high": "95 % high",
+             "share": "joints' share of the compliance (%)"}
+    fm = {k: ",.0f" for k in ("springs", "parts", "assembly", "low", "high")} | {"share": ".0f"}
+    return ("<h3>Carriage rigidity, as a guide catalogue states it</h3>"
+            "<p class='note'>One carriage on a rail segment, rail bottom clamped, carriage top moved as a "
+            "rigid plate (results/identify/&lt;state&gt;/carriage_rigidity.json). Compare the assembly's "
+            "rigidity with the catalogue of the guide: the joint springs act in series with the carriage's "
+            "and rail's own deformation.</p>"
+            + _html_table(pd.DataFrame(rows), fm, heads, text_cols=("state", "direction")))
+
+
 def _mesh_check_html(data: dict) -> str:
     """The mesh check (rule mesh_check, opt-in): the parameters' first-order change on a refined mesh."""
     if not data.get("mesh_check"):
@@ -500,7 +524,7 @@ def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str
          + "<p class='note'>FE modes paired with the measured modes (verify stage), drawn at the 36 measuring "
            "points: table 3×6 grid on top, base lines below; the scale is arbitrary.</p>"),
         ("params", "Identified joint parameters", _img(figs["parameters"], "identified parameters")
-         + _params_html(data) + _mesh_check_html(data)),
+         + _params_html(data) + _rigidity_html(data) + _mesh_check_html(data)),
         ("surface", "DOE and response-surface diagnostics", _img(figs["doe"], "DOE")
          + _img(figs["surface"], "surface diagnostics") + _diag_html(data)),
         ("prov", "Configuration and provenance", _provenance_html(cfg, prov)),
@@ -526,7 +550,8 @@ def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
     inputs : dict
         Paths: ``table1, table2, table3, paper_table1, diagnostics, sheet, points`` (one each),
         ``verify, params, frf, stiffness, modes`` (one per state; the state is the parent folder name)
-        and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check).
+        and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check) and ``rigidity``
+        (one JSON per state, from the rule carriage_rigidity).
     outputs : dict
         ``html`` and one PNG path per figure (``frf, errors, parameters, surface, doe, mode_shapes``);
         figures without a path are only embedded.

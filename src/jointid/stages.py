@@ -365,8 +365,7 @@ def _measured(cfg: dict, state: str, pts):
     from .errors import DataError
 
     ds = read_dataset(_dataset_for(cfg, state), measuring_points=pts)
-    min_f = cfg.get("solver", {}).get("min_freq_Hz")  # identify's sections hold it; scout's do not
-    low = below_band(ds.name, {state: ds.freqs(state)}, float(min_f)) if min_f is not None else []
+    low = below_band(ds.name, {state: ds.freqs(state)}, float(cfg["solver"]["min_freq_Hz"]))
     if low:
         raise DataError(low)
     shapes = None

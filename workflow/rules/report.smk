@@ -72,6 +72,7 @@ rule report:
         paper_table1="data/paper/paper_table1.csv",
         verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
         params=expand(f"{R}/identify/{{state}}/params.json", state=STATES),
+        rigidity=expand(f"{R}/identify/{{state}}/carriage_rigidity.json", state=STATES),
         frf=expand(f"{R}/harmonic/{{state}}/frf.csv", state=STATES),
         stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
         modes=expand(f"{R}/harmonic/{{state}}/modes.npz", state=STATES),

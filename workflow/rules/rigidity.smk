@@ -1,0 +1,28 @@
+# Carriage rigidity: each state's identified joint springs in a catalogue-style test of one carriage
+# on its rail (jointid.blockrigidity), the number to hold against a guide catalogue.
+#   results/identify/{state}/carriage_rigidity.json (per direction: springs, parts, assembly, interval)
+
+CFG_RIGIDITY = sections(config, "materials", "rig", "joints", "mesh.element", "solver.backend",
+                        "carriage_rigidity")
+
+
+rule carriage_rigidity:
+    input:
+        params=rules.identify.output.params,
+    output:
+        json=f"{R}/identify/{{state}}/carriage_rigidity.json",
+    params:
+        cfg=CFG_RIGIDITY,
+    log:
+        "logs/carriage_rigidity/{state}.log",
+    benchmark:
+        "benchmarks/out/carriage_rigidity/{state}.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,  # 1.4-1.5 GB measured (the 41k-DOF factorisations of the default 6 mm cells)
+        runtime=5,
+    script:
+        "../scripts/carriage_rigidity.py"
+
+
+EXTRA_TARGETS.extend(expand(f"{R}/identify/{{state}}/carriage_rigidity.json", state=STATES))
