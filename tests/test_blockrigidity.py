@@ -10,6 +10,7 @@ import pytest
 from conftest import REPO
 from jointid.blockrigidity import block_rig, block_rigidity, run_carriage_rigidity
 from jointid.config import load_config
+from jointid.errors import ModelError
 
 THETA = {"k_normal_N_per_m3": 3.0e11, "k_lateral_N_per_m3": 1.3e12, "k_feed_N_per_m3": 8.4e9}
 CELL_M = 0.008  # coarse: the tests check the mechanics, not the last digit
@@ -70,7 +71,7 @@ def test_the_rigidity_converges_with_the_cell_size(cfg):
 def test_a_carriage_that_does_not_wrap_the_rail_is_refused(cfg):
     rig = copy.deepcopy(cfg["rig"])
     rig["carriages"]["width_m"] = rig["rails"]["width_m"]
-    with pytest.raises(ValueError, match="must wrap the rail"):
+    with pytest.raises(ModelError, match="must wrap the rail"):
         block_rig(rig)
 
 

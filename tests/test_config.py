@@ -288,7 +288,7 @@ BAD = [
      "solver.shift_Hz: 0 with rig.support.kind: free factorises a singular stiffness (rigid-body modes) — "
      "use a negative shift, e.g. -10"),
     ("unknown top-level key", lambda c: c.update(reprot={}),
-     "reprot: unknown key — did you mean 'report'? (allowed: materials, rig, mesh, mesh_check, joints, states, measurements, "
+     "reprot: unknown key — did you mean 'report'? (allowed: materials, rig, mesh, mesh_check, carriage_rigidity, joints, states, measurements, "
      "datasets, doe, surface, identify, solver, harmonic, effects, report)"),
     ("non-finite", lambda c: c["rig"]["base"].update(width_m=float("inf")),
      "rig.base.width_m: inf is not a finite number — give a finite value"),

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import ModelError
 from .mesh import build_mesh
 from .model import assemble_solids_and_joints, joint_coefficients
 from .modal import factorize
@@ -52,7 +53,7 @@ def block_rig(rig_cfg: dict, overhang_m: float | None = None) -> Rig:
     rh, gc, fh = r["height_m"], c["ground_clearance_m"], c["flank_contact_height_m"]
     w, W, L, ch = r["width_m"], c["width_m"], c["length_m"], c["height_m"]
     if not (gc < rh - fh and fh > 0 and ch > rh and W > w):
-        raise ValueError("rig.carriages: the carriage must wrap the rail (ground_clearance_m < rail height - "
+        raise ModelError("rig.carriages: the carriage must wrap the rail (ground_clearance_m < rail height - "
                          "flank_contact_height_m, height_m > rail height, width_m > rail width)")
     over = 2 * rh if overhang_m is None else overhang_m
     Lr = L + 2 * over
