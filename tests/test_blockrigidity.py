@@ -76,8 +76,9 @@ def test_a_carriage_that_does_not_wrap_the_rail_is_refused(cfg):
 
 
 def test_stage_writes_every_direction_with_an_interval(cfg, tmp_path):
+    springs = _spring_rigidity(cfg, THETA)
     params = {"parameters": {n: {"value": v, "ci95_low": 0.8 * v, "ci95_high": 1.25 * v} for n, v in THETA.items()},
-              "per_carriage": {}}
+              "per_carriage": {"k_lateral_per_carriage_N_per_um": {"value": springs["lateral"] * 1e-6}}}
     (tmp_path / "params.json").write_text(json.dumps(params))
     run_cfg = copy.deepcopy(cfg)
     run_cfg["carriage_rigidity"]["cell_size_m"] = CELL_M
@@ -89,3 +90,6 @@ def test_stage_writes_every_direction_with_an_interval(cfg, tmp_path):
         assert r["assembly_N_per_um"] == pytest.approx(doc["directions"][d]["assembly_N_per_um"], rel=1e-9)
         assert r["assembly_ci95_low_N_per_um"] < r["assembly_N_per_um"] < r["assembly_ci95_high_N_per_um"], d
         assert 0 < r["joint_share_of_compliance"] < 1, d
+    # the springs alone: the identification's per-carriage value, by the parameter's direction
+    assert written["directions"]["lateral"]["joint_springs_N_per_um"] == pytest.approx(springs["lateral"] * 1e-6)
+    assert written["directions"]["normal"]["joint_springs_N_per_um"] is None  # not in per_carriage here

@@ -121,10 +121,12 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     res = block_rigidity(cfg, value, cell)
     low = block_rigidity(cfg, {n: v["ci95_low"] for n, v in par["parameters"].items()}, cell, parts=False)
     high = block_rigidity(cfg, {n: v["ci95_high"] for n, v in par["parameters"].items()}, cell, parts=False)
-    springs = {d: 0.0 for d in DIRECTIONS}  # k_<direction>_per_carriage_N_per_um of the identification
-    for name, v in par.get("per_carriage", {}).items():
-        if name.split("_")[1] in springs:
-            springs[name.split("_")[1]] += v["value"]
+    springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction
+    along = {"x": "lateral", "y": "normal", "z": "feed"}
+    for name, spec in cfg["joints"]["parameters"].items():
+        per = par.get("per_carriage", {}).get(name.replace("_N_per_m3", "_per_carriage_N_per_um"))
+        if per is not None:
+            springs[along[spec["direction"]]] += per["value"]
     rows = {}
     for d in DIRECTIONS:
         a = res.assembly_N_per_m[d] * 1e-6
