@@ -109,9 +109,10 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     """Rule ``carriage_rigidity``: the identified joints of one state as a catalogue's block rigidity.
 
     Writes, per direction: the joint springs alone (parameter x contact area), the carriage and rail
-    alone (stiff joints), the assembly (both in series, the catalogue's quantity) with the interval
-    that the parameters' 95 % intervals give (the rigidity grows with every spring), and the joints'
-    share of the assembly's compliance (1 - assembly / parts: the compliance they add over stiff joints).
+    alone (stiff joints), the assembly (both in series, the catalogue's quantity) with every parameter
+    at the low and at the high end of its 95 % interval (``assembly_ci95_low/high``: the rigidity grows
+    with every spring, so this is an outer bound of its interval), and the joints' share of the
+    assembly's compliance (1 - assembly / parts: the compliance they add over stiff joints).
     """
     from . import io
 
