@@ -417,7 +417,8 @@ def _rigidity_html(data: dict) -> str:
                          "low": r["assembly_ci95_low_N_per_um"], "high": r["assembly_ci95_high_N_per_um"],
                          "share": 100 * r["joint_share_of_compliance"]})
     heads = {"springs": "joint springs alone (N/µm)", "parts": "carriage and rail alone (N/µm)",
-             "assembly": "carriage on its rail (N/µm)", "low": "95 % low", "high": "95 % high",
+             "assembly": "carriage on its rail (N/µm)", "low": "all parameters at 95 % low",
+             "high": "all parameters at 95 % high",
              "share": "joints' share of the compliance (%)"}
     fm = {k: ",.0f" for k in ("springs", "parts", "assembly", "low", "high")} | {"share": ".0f"}
     return ("<h3>Carriage rigidity, as a guide catalogue states it</h3>"
