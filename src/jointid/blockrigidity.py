@@ -21,7 +21,7 @@ import numpy as np
 
 from .errors import ModelError
 from .mesh import build_mesh
-from .model import assemble_solids_and_joints, joint_coefficients
+from .model import assemble_solids_and_joints, dof_parts, joint_coefficients
 from .modal import factorize
 from .rig import Box, Rig
 
@@ -69,40 +69,51 @@ def block_rig(rig_cfg: dict, overhang_m: float | None = None) -> Rig:
                dims={"rail_top_m": rh, "carriage_top_m": ch})
 
 
-def block_rigidity(cfg: dict, theta: dict[str, float], cell_m: float = 0.006, element: str | None = None,
-                   backend: str | None = None, parts: bool = True) -> BlockRigidity:
-    """Catalogue-style rigidity of one carriage on its rail at joint parameters ``theta`` (N/m^3).
+class BlockTest:
+    """The catalogue test of :func:`block_rig`, meshed and assembled once for any joint parameters.
 
     ``cfg`` is the whole validated configuration (rig, materials, joints, mesh.element, solver.backend).
-    ``parts=False`` skips the stiff-joint test (``parts_N_per_m`` is then empty).
     """
-    rig = block_rig(cfg["rig"])
-    rmesh = build_mesh(rig, cell_m)
-    basis, stiffness, _, _ = assemble_solids_and_joints(cfg, rig, rmesh, element or cfg["mesh"]["element"])
-    y = basis.doflocs[1]
-    part = -np.ones(basis.N, int)
-    for pid in np.unique(rmesh.part):
-        part[np.unique(basis.element_dofs[:, rmesh.part == pid])] = pid
-    rail_bottom = np.flatnonzero((part == 1) & (np.abs(y) < 1e-9))
-    plate = np.flatnonzero((part == 2) & (np.abs(y - rig.dims["carriage_top_m"]) < 1e-9))
-    n = 3 * basis.N
-    moved = np.concatenate([3 * plate + c for c in range(3)])
-    free = np.setdiff1d(np.arange(n), np.concatenate([3 * rail_bottom + c for c in range(3)] + [moved]))
-    kc = joint_coefficients(cfg["joints"], theta)
-    out = {}
-    for label, scale in (("assembly", 1.0), ("parts", STIFF_JOINTS))[: 2 if parts else 1]:
-        K = (stiffness["K0"] + sum((scale * v) * stiffness[term] for term, v in kc.items())).tocsr()
-        lu = factorize(K[free][:, free], backend or cfg["solver"]["backend"])
-        Kfm = K[free][:, moved]
-        res = {}
-        for name, d in DIRECTIONS.items():
-            u = np.zeros(n)
-            u[3 * plate + d] = 1.0  # the rigid plate moved by 1 m along d, clamped otherwise
-            u[free] = -lu.solve(Kfm @ u[moved])
-            res[name] = float((K @ u)[3 * plate + d].sum())  # reaction on the plate, N
-        out[label] = res
-    return BlockRigidity(assembly_N_per_m=out["assembly"], parts_N_per_m=out.get("parts", {}), n_dofs=int(n),
-                         cell_m=float(cell_m))
+
+    def __init__(self, cfg: dict, cell_m: float = 0.006, element: str | None = None, backend: str | None = None):
+        rig = block_rig(cfg["rig"])
+        rmesh = build_mesh(rig, cell_m)
+        basis, self.stiffness, _, _ = assemble_solids_and_joints(cfg, rig, rmesh, element or cfg["mesh"]["element"])
+        y, part = basis.doflocs[1], dof_parts(basis, rmesh)
+        rail_bottom = np.flatnonzero((part == 1) & (np.abs(y) < 1e-9))
+        self.plate = np.flatnonzero((part == 2) & (np.abs(y - rig.dims["carriage_top_m"]) < 1e-9))
+        self.n = 3 * basis.N
+        self.moved = np.concatenate([3 * self.plate + c for c in range(3)])
+        self.free = np.setdiff1d(np.arange(self.n),
+                                 np.concatenate([3 * rail_bottom + c for c in range(3)] + [self.moved]))
+        self.joints, self.cell_m = cfg["joints"], float(cell_m)
+        self.backend = backend or cfg["solver"]["backend"]
+
+    def rigidity(self, theta: dict[str, float], parts: bool = True) -> BlockRigidity:
+        """Rigidity at joint parameters ``theta`` (N/m^3); ``parts=False`` skips the stiff-joint test
+        (``parts_N_per_m`` is then empty)."""
+        kc = joint_coefficients(self.joints, theta)
+        out = {}
+        for label, scale in (("assembly", 1.0), ("parts", STIFF_JOINTS))[: 2 if parts else 1]:
+            K = (self.stiffness["K0"] + sum((scale * v) * self.stiffness[t] for t, v in kc.items())).tocsr()
+            lu = factorize(K[self.free][:, self.free], self.backend)
+            Kfm = K[self.free][:, self.moved]
+            res = {}
+            for name, d in DIRECTIONS.items():
+                u = np.zeros(self.n)
+                u[3 * self.plate + d] = 1.0  # the rigid plate moved by 1 m along d, clamped otherwise
+                u[self.free] = -lu.solve(Kfm @ u[self.moved])
+                res[name] = float((K @ u)[3 * self.plate + d].sum())  # reaction on the plate, N
+            out[label] = res
+        return BlockRigidity(assembly_N_per_m=out["assembly"], parts_N_per_m=out.get("parts", {}),
+                             n_dofs=int(self.n), cell_m=self.cell_m)
+
+
+def block_rigidity(cfg: dict, theta: dict[str, float], cell_m: float = 0.006, element: str | None = None,
+                   backend: str | None = None, parts: bool = True) -> BlockRigidity:
+    """Catalogue-style rigidity of one carriage on its rail at joint parameters ``theta`` (N/m^3):
+    :class:`BlockTest` for one parameter point."""
+    return BlockTest(cfg, cell_m, element, backend).rigidity(theta, parts)
 
 
 def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str, log=print) -> dict:
@@ -118,10 +129,9 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
 
     par = io.read_json(params_json)
     cell = cfg["carriage_rigidity"]["cell_size_m"]
-    value = {n: v["value"] for n, v in par["parameters"].items()}
-    res = block_rigidity(cfg, value, cell)
-    low = block_rigidity(cfg, {n: v["ci95_low"] for n, v in par["parameters"].items()}, cell, parts=False)
-    high = block_rigidity(cfg, {n: v["ci95_high"] for n, v in par["parameters"].items()}, cell, parts=False)
+    test = BlockTest(cfg, cell)
+    at = lambda key: {n: v[key] for n, v in par["parameters"].items()}  # noqa: E731
+    res, low, high = test.rigidity(at("value")), test.rigidity(at("ci95_low"), False), test.rigidity(at("ci95_high"), False)
     springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction
     along = {"x": "lateral", "y": "normal", "z": "feed"}
     for name, spec in cfg["joints"]["parameters"].items():

@@ -104,9 +104,7 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
         (np.tile(Pc.data, 3),
          (np.concatenate([3 * Pc.row + c for c in range(3)]), np.concatenate([3 * Pc.col + c for c in range(3)]))),
         shape=(3 * len(pts), 3 * basis.N))
-    dof_part = -np.ones(basis.N, dtype=int)
-    for pid in np.unique(rmesh.part):
-        dof_part[np.unique(basis.element_dofs[:, rmesh.part == pid])] = pid
+    dof_part = dof_parts(basis, rmesh)
     areas = {face: float(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder).sum())
              for face in ("top", "flank", "motor", "mount")}
     meta = {"n_elements": int(rmesh.mesh.t.shape[1]), "n_dofs": int(3 * basis.N),
@@ -157,6 +155,14 @@ def assemble_solids_and_joints(cfg: dict, rig, rmesh, element: str):
         for d, i in fem.DIRS.items():
             stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, basis.doflocs, i, dof_body)
     return basis, stiffness, M0, dof_body
+
+
+def dof_parts(basis, rmesh) -> np.ndarray:
+    """Part id of each scalar DOF (the last part in id order wins on shared nodes; -1: none)."""
+    part = -np.ones(basis.N, dtype=int)
+    for pid in np.unique(rmesh.part):
+        part[np.unique(basis.element_dofs[:, rmesh.part == pid])] = pid
+    return part
 
 
 def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Model:
