@@ -19,8 +19,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # before numpy is imported below
 os.environ.setdefault("PYTHONHASHSEED", "0")
 
-from jointid.workflowconfig import validated, sections, merged
-from jointid.stages import doe_sheet, zoom_enabled
+from jointid.config.snakefile import validated, sections, merged
+from jointid.stages.core import doe_sheet, zoom_enabled
 
 configfile: "config.yaml"
 config = validated(config)
@@ -53,7 +53,7 @@ def cfg_identify(state):
 
 def state_datasets(wc):
     """Measured datasets of all states (the pairing of frequency-only states is shared)."""
-    from jointid.frf import dataset_folder
+    from jointid.response.drive_point import dataset_folder
 
     return sorted({dataset_folder(config, s) for s in STATES})
 
@@ -133,7 +133,7 @@ rule doe:
         "workflow/scripts/doe.py"
 
 
-# solver.method: rom -- one parametric reduced-order model (jointid.rom) over the joint-parameter box,
+# solver.method: rom -- one parametric reduced-order model (jointid.fe.rom) over the joint-parameter box,
 # built and verified against full solves once; every modal job then evaluates it.  With method full
 # (the default) no job asks for it, and the modal rule's params leave out the ROM keys so that the
 # full path's jobs, params and results stay exactly those it had before the option existed.

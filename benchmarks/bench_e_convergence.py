@@ -19,7 +19,7 @@ LIMIT_PCT = 0.5
 
 
 def _references(base: dict) -> list[tuple[str, dict]]:
-    from jointid.config import load_config
+    from jointid.config.core import load_config
 
     from .common import ROOT
 
@@ -36,7 +36,7 @@ def _references(base: dict) -> list[tuple[str, dict]]:
 
 
 def _compare(a: dict, b: dict) -> list[dict]:
-    from jointid.modal import mac, pair_by_mac
+    from jointid.fe.modal import mac, pair_by_mac
 
     m = mac(np.array(a["shapes"]), np.array(b["shapes"]))
     pairs = {r: (c, v) for r, c, v in pair_by_mac(m, 0.0)}

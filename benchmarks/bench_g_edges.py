@@ -56,11 +56,11 @@ def with_lines(rig, coords: dict[int, list[float]], offset: float):
 
 
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
-    from jointid.config import load_config
-    from jointid.model import build_model, joint_terms
-    from jointid.rig import build_rig
-    from jointid.stages import solve_point
-    from jointid.updating import log_jacobian
+    from jointid.config.core import load_config
+    from jointid.fe.model import build_model, joint_terms
+    from jointid.geometry.rig import build_rig
+    from jointid.stages.core import solve_point
+    from jointid.identification.updating import log_jacobian
 
     res = Result("g")
     cfg = load_config(ROOT / "config.yaml", overrides=COARSE if quick else None)
@@ -105,7 +105,7 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
 def _change(f0, s0, track, f, s):
     """Modes of a refined mesh paired with the default mesh's by MAC: ``(index, macs, ok, change %,
     modes ordered by change)``."""
-    from jointid.meshcheck import pair_meshes
+    from jointid.identification.meshcheck import pair_meshes
 
     index, macs = pair_meshes(s0, s)
     ok = track & (index >= 0)
@@ -118,9 +118,9 @@ def _edge_levels(res: Result, cfg, theta, J, f0, s0, track, n0, data, quick):
     """Local refinement at the re-entrant edges, 1 to 4 levels (1 to 2 with ``quick``)."""
     import pandas as pd
 
-    from jointid.meshcheck import first_order_shift
-    from jointid.model import build_model
-    from jointid.stages import solve_point
+    from jointid.identification.meshcheck import first_order_shift
+    from jointid.fe.model import build_model
+    from jointid.stages.core import solve_point
 
     names = list(theta)
     verify = ROOT / "results" / "identify" / "power_off" / "verify.csv"

@@ -18,11 +18,11 @@ import pytest
 
 pytest.importorskip("pytest_benchmark")
 
-from jointid.config import load_config  # noqa: E402
-from jointid.doe import to_physical  # noqa: E402
-from jointid.modal import solve_model  # noqa: E402
-from jointid.model import base_coefficients, build_model  # noqa: E402
-from jointid.rom import build_rom, frequency_error  # noqa: E402
+from jointid.config.core import load_config  # noqa: E402
+from jointid.identification.doe import to_physical  # noqa: E402
+from jointid.fe.modal import solve_model  # noqa: E402
+from jointid.fe.model import base_coefficients, build_model  # noqa: E402
+from jointid.fe.rom import build_rom, frequency_error  # noqa: E402
 
 from .common import COARSE, ROOT  # noqa: E402
 

@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _cfg(args: dict) -> dict:
-    from jointid.config import load_config
+    from jointid.config.core import load_config
 
     return load_config(ROOT / "config.yaml", overrides=args.get("overrides") or None)
 
@@ -28,7 +28,7 @@ def _peak_rss_MB() -> float:
 
 
 def _full_solve(cfg, model, kc, mc, n, backend=None):
-    from jointid.modal import solve_model
+    from jointid.fe.modal import solve_model
 
     s = cfg["solver"]
     return solve_model(model, kc, mc, n, shift_Hz=s["shift_Hz"], backend=backend or s["backend"])
@@ -36,8 +36,8 @@ def _full_solve(cfg, model, kc, mc, n, backend=None):
 
 def task_solve(args: dict) -> dict:
     """Model assembly (``build_model``) and one modal solve at the default joint parameters."""
-    from jointid.modal import available_backend
-    from jointid.model import base_coefficients, build_model
+    from jointid.fe.modal import available_backend
+    from jointid.fe.model import base_coefficients, build_model
 
     cfg = _cfg(args)
     n = int(args.get("n_modes", 12))
@@ -56,8 +56,8 @@ def task_solve(args: dict) -> dict:
 
 
 def _material_groups(cfg, rmesh, rig):
-    from jointid import fem
-    from jointid.rig import PART_IDS
+    from jointid.fe import fem
+    from jointid.geometry.rig import PART_IDS
 
     inv = {v: k for k, v in PART_IDS.items()}
     lam = np.empty(len(rmesh.part))
@@ -85,10 +85,10 @@ def task_idiomatic(args: dict) -> dict:
     from skfem.helpers import dot
     from skfem.models.elasticity import linear_elasticity
 
-    from jointid import fem
-    from jointid.mesh import mesh_from_config
-    from jointid.model import base_coefficients, build_model
-    from jointid.rig import build_rig
+    from jointid.fe import fem
+    from jointid.geometry.mesh import mesh_from_config
+    from jointid.fe.model import base_coefficients, build_model
+    from jointid.geometry.rig import build_rig
 
     cfg = _cfg(args)
     n = int(args.get("n_modes", 12))
@@ -144,10 +144,10 @@ def task_idiomatic(args: dict) -> dict:
 
 def task_rom(args: dict) -> dict:
     """Build a ROM, then compare it with full solves at random interior points (speed and error)."""
-    from jointid.doe import to_physical
-    from jointid.modal import mac
-    from jointid.model import base_coefficients, build_model
-    from jointid.rom import build_rom, frequency_error
+    from jointid.identification.doe import to_physical
+    from jointid.fe.modal import mac
+    from jointid.fe.model import base_coefficients, build_model
+    from jointid.fe.rom import build_rom, frequency_error
 
     cfg = _cfg(args)
     n = int(args.get("n_modes", 12))

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from jointid.errors import DataError
-from jointid.measured import read_dataset, validate_dataset
+from jointid.data.dataset import read_dataset, validate_dataset
 
 POINTS = pd.DataFrame({"point": ["T01", "T02", "B01", "B02"],
                        "x_m": [0.0, 0.1, 0.0, 0.1], "y_m": [0.2, 0.2, 0.0, 0.0],

@@ -1,4 +1,4 @@
-"""Catalogue-style carriage rigidity (jointid.blockrigidity) against closed-form limits."""
+"""Catalogue-style carriage rigidity (jointid.response.carriage) against closed-form limits."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import json
 import pytest
 
 from conftest import REPO
-from jointid.blockrigidity import block_rig, block_rigidity, run_carriage_rigidity
-from jointid.config import load_config
+from jointid.response.carriage import block_rig, block_rigidity, run_carriage_rigidity
+from jointid.config.core import load_config
 from jointid.errors import ModelError
 
 THETA = {"k_normal_N_per_m3": 3.0e11, "k_lateral_N_per_m3": 1.3e12, "k_feed_N_per_m3": 8.4e9}

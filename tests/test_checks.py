@@ -1,4 +1,4 @@
-"""CI acceptance checks (jointid.checks): Table 1 gates on a positive power-on increase."""
+"""CI acceptance checks (jointid.reporting.checks): Table 1 gates on a positive power-on increase."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import sys
 import pandas as pd
 import pytest
 
-from jointid import checks
+from jointid.reporting import checks
 
 HEADER = "state,dynamic_stiffness_N_per_mm,paper_dynamic_stiffness_N_per_mm\n"
 
@@ -52,7 +52,7 @@ def test_table1_missing_or_incomplete_fails_with_the_fix(tmp_path):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "jointid.checks", *map(str, args)], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "jointid.reporting.checks", *map(str, args)], capture_output=True,
                           text=True, timeout=60)
 
 

@@ -1,4 +1,4 @@
-"""Tests of the configuration layer (jointid.config + workflow/schemas/config.schema.yaml)."""
+"""Tests of the configuration layer (jointid.config.core + workflow/schemas/config.schema.yaml)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from jointid.config import (
+from jointid.config.core import (
     MAX_NODES,
     SCHEMA_ENV,
     check_config,
@@ -115,7 +115,7 @@ def section_or_none(cfg, dotted):
 
 
 def test_damping_models_match_damping_module():
-    from jointid.damping import DAMPING_MODELS
+    from jointid.response.damping import DAMPING_MODELS
 
     schema = load_schema(SCHEMA)
     damping = schema["properties"]["harmonic"]["properties"]["damping"]
@@ -460,7 +460,7 @@ def test_other_projects_schema_is_ignored(tmp_path, monkeypatch):
 
 # ------------------------------------------------------------------------------------------ CLI
 def run_cli(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "jointid.config", *args], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "jointid.config.core", *args], cwd=cwd,
                           capture_output=True, text=True, timeout=60)
 
 
@@ -488,7 +488,7 @@ def test_committed_reference_equals_generated():
     generated = config_reference_markdown(load_schema(SCHEMA))
     assert DOC.read_text(encoding="utf-8") == generated, (
         "docs/config-reference.md is stale: run "
-        "`python -m jointid.config reference --output docs/config-reference.md`"
+        "`python -m jointid.config.core reference --output docs/config-reference.md`"
     )
 
 
@@ -501,7 +501,7 @@ def test_reference_lists_every_leaf_key():
 
 # ------------------------------------------------------------------- numbers given as text
 def test_number_from_text_is_the_shared_rule():
-    from jointid.config import number_from_text
+    from jointid.config.core import number_from_text
 
     for text, value in (("1e3", 1000.0), ("2.0e8", 2.0e8), ("-1E-6", -1e-6), (" .5 ", 0.5), ("7", 7.0), ("3.", 3.0)):
         assert number_from_text(text) == value
@@ -532,11 +532,11 @@ def test_overlay_without_null_says_how_to_switch():
 
 def test_snakemake_merge_of_configfiles_gives_the_same(tmp_path, monkeypatch):
     """`snakemake --configfile config.yaml mine.yaml`: Snakemake merges the files (deeply, null kept)
-    before jointid.workflowconfig.validated sees them."""
+    before jointid.config.snakefile.validated sees them."""
     from snakemake.common.configfile import load_configfile
     from snakemake.utils import update_config
 
-    from jointid.workflowconfig import validated
+    from jointid.config.snakefile import validated
 
     monkeypatch.chdir(REPO)  # validated() checks the dataset folders relative to the working directory
     mine = tmp_path / "mine.yaml"
@@ -651,7 +651,7 @@ def test_weights_and_model_modes_are_checked_against_the_measured_modes_before_a
 
 
 def test_cli_and_snakefile_check_the_datasets(workdir, capsys):
-    from jointid.workflowconfig import validated
+    from jointid.config.snakefile import validated
 
     res = run_cli("check", str(CONFIG), "--set", "states.power_on.dataset=rig2x", cwd=workdir)
     assert res.returncode == 1 and "Traceback" not in res.stderr

@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from jointid import correlate
-from jointid import effects as E
-from jointid.diagnose import (ReducedSolver, Variant, EffectSpec, append_history, identifiability, limit_threads,
+from jointid.correlate import pairing as correlate
+from jointid.diagnosis import effects as E
+from jointid.diagnosis.core import (ReducedSolver, Variant, EffectSpec, append_history, identifiability,
                               score_test)
 from conftest import coarse_config_dict
 
@@ -143,8 +143,8 @@ def test_shape_residuals_vanish_for_scaled_shapes_and_rank_points():
 # ---------------------------------------------------------------- reduced solver on the coarse rig
 @pytest.fixture(scope="module")
 def coarse():
-    from jointid.config import load_config
-    from jointid.model import build_model
+    from jointid.config.core import load_config
+    from jointid.fe.model import build_model
 
     limit_threads(1)
     cfg = coarse_config_dict()
@@ -161,7 +161,7 @@ def _solver_at_reference(cfg, system) -> ReducedSolver:
 
 
 def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
-    from jointid.modal import solve_modes
+    from jointid.fe.modal import solve_modes
 
     cfg, system = coarse
     solver = _solver_at_reference(cfg, system)
@@ -182,8 +182,8 @@ def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
 
 
 def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos(coarse, monkeypatch):
-    from jointid import reduced
-    from jointid.modal import solve_modes
+    from jointid.fe import reduced
+    from jointid.fe.modal import solve_modes
 
     cfg, system = coarse
     solver = _solver_at_reference(cfg, system)
@@ -269,7 +269,7 @@ def test_workflow_diagnoses_registered_datasets_only(tmp_path):
     (["--history", "."], "--history .: is a folder"),
 ])
 def test_command_line_mistakes_are_reported_before_any_work(tmp_path, capsys, extra, expected):
-    from jointid.diagnose import main
+    from jointid.diagnosis.core import main
 
     rc = main(["--dataset", str(ROOT / "data" / "paper"), "--out", str(tmp_path / "out"),
                "--config", str(ROOT / "config.yaml"), *extra])
@@ -279,9 +279,9 @@ def test_command_line_mistakes_are_reported_before_any_work(tmp_path, capsys, ex
 
 
 def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
-    from jointid.diagnose import main
+    from jointid.diagnosis.core import main
     from jointid.errors import ModelError
-    from jointid.model import load_model
+    from jointid.fe.model import load_model
 
     (tmp_path / "f.txt").write_text("x")
     assert main(["--dataset", str(ROOT / "data" / "paper"), "--out", str(tmp_path / "f.txt")]) == 1
@@ -295,9 +295,9 @@ def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
 
 
 def test_measured_modes_below_the_tracked_band_are_refused(coarse):
-    from jointid.diagnose import dataset_states
+    from jointid.diagnosis.core import dataset_states
     from jointid.errors import DataError
-    from jointid.measured import read_dataset
+    from jointid.data.dataset import read_dataset
 
     cfg, system = coarse
     ds = read_dataset(ROOT / "data" / "paper")
@@ -308,7 +308,7 @@ def test_measured_modes_below_the_tracked_band_are_refused(coarse):
 
 
 def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
-    from jointid.diagnose import StateData, diagnose
+    from jointid.diagnosis.core import StateData, diagnose
     from jointid.errors import DataError
 
     cfg, system = coarse

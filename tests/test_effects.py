@@ -5,18 +5,18 @@ import math
 import numpy as np
 import pytest
 
-from jointid import effects as E
-from jointid.config import load_config
-from jointid.emforce import carriage_loads_N
+from jointid.diagnosis import effects as E
+from jointid.config.core import load_config
+from jointid.response.emforce import carriage_loads_N
 from jointid.errors import ConfigError
-from jointid.modal import solve_modes
-from jointid.model import base_coefficients, build_model
+from jointid.fe.modal import solve_modes
+from jointid.fe.model import base_coefficients, build_model
 from conftest import coarse_config_dict
 
 
 @pytest.fixture(scope="module")
 def setup():
-    from jointid.diagnose import limit_threads
+    from jointid.threads import limit_threads
 
     limit_threads(1)
     cfg = coarse_config_dict()

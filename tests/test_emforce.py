@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from jointid import emforce as em
+from jointid.response import emforce as em
 from jointid.errors import DataError, NumericalWarning
 
 

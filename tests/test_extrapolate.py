@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jointid.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit, level_config
-from jointid.stages import _corrected
-from jointid.updating import log_jacobian
+from jointid.fe.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit, level_config
+from jointid.stages.core import _corrected
+from jointid.identification.updating import log_jacobian
 from test_localrefine import _cantilever_freqs
 
 

@@ -5,10 +5,10 @@ import pytest
 import scipy.sparse as sp
 from skfem import Basis, ElementHex2
 
-from jointid import fem
-from jointid.mesh import build_mesh
-from jointid.modal import solve_modes
-from jointid.rig import Box, Rig
+from jointid.fe import fem
+from jointid.geometry.mesh import build_mesh
+from jointid.fe.modal import solve_modes
+from jointid.geometry.rig import Box, Rig
 
 
 def _rig(boxes, top=(), flank=()):
@@ -137,9 +137,9 @@ def test_vectorised_assembly_equals_scikit_fem_linear_elasticity():
 
 # ---------------------------------------------------------------- nested refinement (mesh check)
 def test_halved_grid_is_nested_and_halves_the_chosen_cells():
-    from jointid.config import load_config
-    from jointid.mesh import mesh_from_config
-    from jointid.rig import build_rig
+    from jointid.config.core import load_config
+    from jointid.geometry.mesh import mesh_from_config
+    from jointid.geometry.rig import build_rig
 
     from conftest import REPO
 
@@ -170,8 +170,8 @@ def test_halved_grid_is_nested_and_halves_the_chosen_cells():
 
 def test_nested_refinement_lowers_every_frequency():
     """Min-max principle: on a nested (richer) mesh no eigenfrequency can rise."""
-    from jointid.meshcheck import pair_meshes
-    from jointid.model import base_coefficients, build_model
+    from jointid.identification.meshcheck import pair_meshes
+    from jointid.fe.model import base_coefficients, build_model
 
     from conftest import coarse_config_dict
 

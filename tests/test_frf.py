@@ -1,4 +1,4 @@
-"""Harmonic stage (jointid.frf): modal superposition + residual against a direct solve on a small rig
+"""Harmonic stage (jointid.response.drive_point): modal superposition + residual against a direct solve on a small rig
 model, the singular-K fallback, damping choices, and K_min = 2 zeta sqrt(1 - zeta^2) k for one mode."""
 
 import json
@@ -8,13 +8,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jointid import damping as dm
-from jointid import frf
-from jointid import harmonic as hm
-from jointid.config import load_config
+from jointid.response import damping as dm
+from jointid.response import drive_point as frf
+from jointid.response import harmonic as hm
+from jointid.config.core import load_config
 from jointid.errors import ConfigError, DataError, NumericalWarning
-from jointid.modal import Modes
-from jointid.model import base_coefficients, build_model, save_model
+from jointid.fe.modal import Modes
+from jointid.fe.model import base_coefficients, build_model, save_model
 
 CONFIG = Path(__file__).resolve().parents[1] / "config.yaml"
 BAND = (300.0, 3500.0)

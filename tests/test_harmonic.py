@@ -7,8 +7,8 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from jointid import damping as dm
-from jointid import harmonic as hm
+from jointid.response import damping as dm
+from jointid.response import harmonic as hm
 from jointid.errors import ConfigError, DataError, ModelError, NumericalWarning
 
 

@@ -12,11 +12,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jointid import effects as E
-from jointid import synth
-from jointid.config import load_config
-from jointid.diagnose import diagnose, dataset_states, history_row, limit_threads, write_outputs
-from jointid.measured import read_dataset
+from jointid.diagnosis import effects as E
+from jointid.data import synth
+from jointid.config.core import load_config
+from jointid.diagnosis.core import diagnose, dataset_states, history_row, write_outputs
+from jointid.threads import limit_threads
+from jointid.data.dataset import read_dataset
 from conftest import coarse_config_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +29,7 @@ SUMMARY: dict = {}
 def rig():
     """Identification config of the tests: coarse mesh, normal and lateral joint stiffness identified,
     feed stiffness fixed (so the feed effect is not absorbed by an identified parameter)."""
-    from jointid.model import build_model
+    from jointid.fe.model import build_model
 
     limit_threads(1)
     cfg = coarse_config_dict()

@@ -1,4 +1,4 @@
-"""Tests of jointid.identify on a 3-DOF spring-mass chain with known stiffnesses.
+"""Tests of jointid.identification.identify on a 3-DOF spring-mass chain with known stiffnesses.
 
 Chain: ground -k1- m1 -k2- m2 -k3- m3, unit masses.  Frequencies from scipy.linalg.eigh.
 """
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 
-from jointid import doe
+from jointid.identification import doe
 from jointid.errors import NumericalWarning
-from jointid.identify import identify
-from jointid.surface import fit_surface
+from jointid.identification.identify import identify
+from jointid.identification.surface import fit_surface
 
 MASS = np.eye(3)  # kg
 K3_FIXED = 1.0e6  # N/m, third spring when only two are identified

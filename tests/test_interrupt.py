@@ -110,7 +110,7 @@ SIGTERM_STAGE = textwrap.dedent("""
     import sys, time
     from types import SimpleNamespace
     from jointid.io import atomic_path
-    from jointid.workflow import run_script
+    from jointid.stages.runner import run_script
 
     target, log = sys.argv[1], sys.argv[2]
 

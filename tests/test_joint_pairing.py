@@ -1,14 +1,14 @@
 """One pairing of measured and tracked modes for all frequency-only states
-(jointid.updating.identify_states_jointly)."""
+(jointid.identification.updating.identify_states_jointly)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from jointid import doe
-from jointid.surface import fit_surface
-from jointid.updating import identify_state, identify_states_jointly
+from jointid.identification import doe
+from jointid.identification.surface import fit_surface
+from jointid.identification.updating import identify_state, identify_states_jointly
 
 NAMES = ["k_normal_N_per_m3", "k_feed_N_per_m3"]
 LOWER = np.array([2e11, 3e9])
@@ -86,7 +86,7 @@ DOC = {"names": NAMES, "tracked_modes": [1, 2, 3, 4]}
 
 
 def test_notes_name_a_competing_pairing_only_when_it_fits_about_as_well():
-    from jointid.stages import _pairing_notes
+    from jointid.stages.core import _pairing_notes
 
     close = _info((1.0, 1.0), (2.0, 2.5))  # 1 dof per state: delta chi2 1 and 1.5
     far = _info((1.0, 1.0), (9.0, 9.0))
@@ -98,7 +98,7 @@ def test_notes_name_a_competing_pairing_only_when_it_fits_about_as_well():
 
 
 def test_notes_say_when_a_state_on_its_own_pairs_otherwise():
-    from jointid.stages import _pairing_notes
+    from jointid.stages.core import _pairing_notes
 
     info = _info((1.0, 30.0), (20.0, 2.0))  # "off" prefers [0, 1, 3], "on" [0, 2, 3]; summed: [0, 2, 3]
     shared = info["candidates"][0]["pairing"]

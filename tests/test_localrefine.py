@@ -5,8 +5,9 @@ import pytest
 import scipy.sparse as sp
 from skfem import Basis, ElementHex1, ElementHex2
 
-from jointid import fem, localrefine
-from jointid.modal import solve_modes
+from jointid.fe import fem
+from jointid.geometry import localrefine
+from jointid.fe.modal import solve_modes
 
 
 def _boxes_with_hanging_nodes():
@@ -128,7 +129,7 @@ def test_local_refinement_is_sandwiched_between_the_coarse_and_the_halved_mesh()
 
 
 def test_rig_model_on_the_locally_refined_mesh(tmp_path):
-    from jointid.model import base_coefficients, build_model, load_model, save_model
+    from jointid.fe.model import base_coefficients, build_model, load_model, save_model
 
     from conftest import coarse_config_dict
 
@@ -164,7 +165,7 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
     assert back.n_dofs == model.n_dofs and "vertex_indptr" in back.meta["mesh"]
     import meshio
 
-    from jointid.vtk import write_mesh_vtu
+    from jointid.fe.vtk import write_mesh_vtu
 
     write_mesh_vtu(back, tmp_path / "m.vtu", modes=modes.phi[:, :2], freqs_Hz=modes.freqs_Hz[:2])
     u = next(v for k, v in meshio.read(tmp_path / "m.vtu").point_data.items() if k.startswith("mode_01"))
@@ -178,9 +179,9 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
 
 
 def test_edges_class_adds_one_nested_level():
-    from jointid.config import load_config
-    from jointid.mesh import mesh_from_config
-    from jointid.rig import build_rig
+    from jointid.config.core import load_config
+    from jointid.geometry.mesh import mesh_from_config
+    from jointid.geometry.rig import build_rig
 
     from conftest import REPO
 

@@ -8,9 +8,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from jointid import measured
+from jointid.data import dataset as measured
 from jointid.errors import DataError
-from jointid.measured import read_dataset, validate_dataset, write_dataset
+from jointid.data.dataset import read_dataset, validate_dataset, write_dataset
 
 PAPER = Path(__file__).resolve().parents[1] / "data" / "paper"
 TABLE2 = [344.3, 1416.1, 1879.9, 2017.1, 2519.6, 3096.6]  # paper, Table 2, experimental (Hz)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from jointid.meshcheck import first_order_shift
-from jointid.updating import log_jacobian
+from jointid.identification.meshcheck import first_order_shift
+from jointid.identification.updating import log_jacobian
 
 
 def test_shift_equals_the_refit_of_a_linear_model():

@@ -12,15 +12,15 @@ import pytest
 import yaml
 
 from conftest import REPO, copy_workflow, run_snakemake, write_config
-from jointid import doe
-from jointid.config import load_config
+from jointid.identification import doe
+from jointid.config.core import load_config
 from jointid.errors import ModelError, NumericalWarning
-from jointid.identify import identify
-from jointid.modal import solve_modes
-from jointid.model import base_coefficients, build_model
-from jointid.points import dof_labels
-from jointid.surface import fit_surface
-from jointid.updating import identify_state
+from jointid.identification.identify import identify
+from jointid.fe.modal import solve_modes
+from jointid.fe.model import base_coefficients, build_model
+from jointid.geometry.points import dof_labels
+from jointid.identification.surface import fit_surface
+from jointid.identification.updating import identify_state
 
 BACKENDS = ["pardiso", "scipy"]
 N_MODES = 8

@@ -5,10 +5,10 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from jointid import fem
-from jointid.modal import (available_backend, factorize_pencil, shift_invert_lanczos, shift_sigma, solve_model,
+from jointid.fe import fem
+from jointid.fe.modal import (available_backend, factorize_pencil, shift_invert_lanczos, shift_sigma, solve_model,
                            solve_modes)
-from jointid.pencil import FreePencil
+from jointid.fe.pencil import FreePencil
 
 N = 240
 
@@ -96,8 +96,8 @@ def test_modes_equal_dense_reference_and_ordering_is_reused(model, backend):
 
 
 def test_cached_model_ordering_serves_any_parameter_point(tmp_path):
-    from jointid.modal import factorize_shifted, model_ordering
-    from jointid.model import load_model, save_model
+    from jointid.fe.modal import factorize_shifted, model_ordering
+    from jointid.fe.model import load_model, save_model
 
     if available_backend("auto") != "pardiso":
         pytest.skip("pypardiso not installed")

@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jointid import figures as fg
-from jointid import report as rp
-from jointid.config import config_hash, load_config
+from jointid.reporting import figures as fg
+from jointid.reporting import page as rp
+from jointid.config.core import config_hash, load_config
 
 from conftest import REPO, STATES, clone_run, run_snakemake
 

@@ -12,13 +12,13 @@ import yaml
 
 from conftest import copy_workflow, scheduled_jobs, snakemake_cmd, tail, workflow_env, write_config
 from jointid import io
-from jointid.config import load_config
-from jointid.doe import to_physical
+from jointid.config.core import load_config
+from jointid.identification.doe import to_physical
 from jointid.errors import ConfigError, ModelError, NumericalWarning
-from jointid.modal import mac, solve_modes
-from jointid.model import base_coefficients, build_model, save_model
-from jointid.rom import ROM, build_rom, frequency_error, load_rom, residual_indicator, training_points
-from jointid.stages import doe_sheet, polish_on_model, run_modal, run_rom
+from jointid.fe.modal import mac, solve_modes
+from jointid.fe.model import base_coefficients, build_model, save_model
+from jointid.fe.rom import ROM, build_rom, frequency_error, load_rom, residual_indicator, training_points
+from jointid.stages.core import doe_sheet, polish_on_model, run_modal, run_rom
 
 ROOT = Path(__file__).resolve().parents[1]
 TOL = 1e-4

@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jointid.errors import NumericalWarning
-from jointid.frf import solve_band_modes
-from jointid.modal import available_backend, check_frequency, count_modes_below, solve_model, solve_modes
+from jointid.response.drive_point import solve_band_modes
+from jointid.fe.modal import available_backend, check_frequency, count_modes_below, solve_model, solve_modes
 
 BACKENDS = ["scipy"] + (["pardiso"] if available_backend("auto") == "pardiso" else [])
 K_SPRING, MASS = 1.0e6, 0.5  # N/m, kg

@@ -1,13 +1,13 @@
-"""Tests of jointid.surface: exact recovery, diagnostics, serialisation, Jacobians."""
+"""Tests of jointid.identification.surface: exact recovery, diagnostics, serialisation, Jacobians."""
 
 import json
 
 import numpy as np
 import pytest
 
-from jointid import doe
+from jointid.identification import doe
 from jointid.errors import ConfigError
-from jointid.surface import Surface, diagnostics, fit_surface, quadratic_basis, verification_errors
+from jointid.identification.surface import Surface, diagnostics, fit_surface, quadratic_basis, verification_errors
 
 
 def _known_quadratic(X):

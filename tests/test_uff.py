@@ -6,8 +6,8 @@ import pytest
 import pyuff
 
 from jointid.errors import DataError
-from jointid.measured import read_dataset
-from jointid.uff import import_uff, main, map_nodes, modes_from_frf
+from jointid.data.dataset import read_dataset
+from jointid.data.uff import import_uff, main, map_nodes, modes_from_frf
 
 POINTS = pd.DataFrame({"point": ["T01", "T02", "B01", "B02"],
                        "x_m": [0.0, 0.1, 0.0, 0.1], "y_m": [0.2, 0.2, 0.0, 0.0],

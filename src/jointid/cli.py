@@ -16,8 +16,15 @@ from __future__ import annotations
 import importlib
 import sys
 
-from .errors import JointidError
+from jointid.errors import JointidError
 
+MODULES = {
+    "diagnose": "jointid.diagnosis.core",
+    "config": "jointid.config.core",
+    "checks": "jointid.reporting.checks",
+    "synth": "jointid.data.synth",
+    "uff": "jointid.data.uff",
+}
 COMMANDS = {
     "diagnose": "diagnose which listed physical effect the model lacks (--dataset DIR --out DIR)",
     "config": "check a config file, print the key reference or a config hash (check|reference|hash)",
@@ -50,6 +57,11 @@ def main(argv: list[str] | None = None) -> int:
         The command's exit status; 0 for ``--help``, 2 for no or an unknown command.
     """
     args = sys.argv[1:] if argv is None else list(argv)
+    if args and args[0] in ("-V", "--version"):
+        from jointid import __version__
+
+        print(f"jointid {__version__}")
+        return 0
     if args and args[0] in ("-h", "--help"):
         print(usage())
         return 0
@@ -57,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         what = f"unknown command {args[0]!r}" if args else "no command given"
         print(f"jointid: {what}; choose one of: {', '.join(COMMANDS)}\n\n{usage()}", file=sys.stderr)
         return 2
-    module = importlib.import_module(f"{__package__}.{args[0]}")
+    module = importlib.import_module(MODULES[args[0]])
     try:
         return module.main(args[1:])
     except JointidError as exc:  # a command that lets one escape still ends with a message, not a traceback

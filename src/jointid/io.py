@@ -7,7 +7,7 @@ touches the previous result until the new one is complete.
 Temporary files are named ``.<name>.p<pid>h<host>_<random>.tmp`` (``<host>``: 8 hex digits of a
 hash of the host name).  A writer killed with SIGKILL cannot remove its own; the next write of the
 same target removes it (:func:`remove_stale_temporaries`), and the SIGTERM handler of
-:func:`jointid.workflow.run_script` removes those in flight (:func:`remove_in_flight`).
+:func:`jointid.stages.runner.run_script` removes those in flight (:func:`remove_in_flight`).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 # Carriage rigidity: each state's identified joint springs in a catalogue-style test of one carriage
-# on its rail (jointid.blockrigidity), the number to hold against a guide catalogue.
+# on its rail (jointid.response.carriage), the number to hold against a guide catalogue.
 #   results/identify/{state}/carriage_rigidity.json (per direction: springs, parts, assembly, interval)
 
 CFG_RIGIDITY = sections(config, "materials", "rig", "joints", "mesh.element", "solver.backend",

@@ -1,8 +1,8 @@
 """Snakemake adapter: diagnose one registered dataset (which listed physical effect is missing)."""
 import os
 
-from jointid.workflow import run_script
-from jointid import diagnose
+from jointid.stages.runner import run_script
+from jointid.diagnosis import core as diagnose
 
 run_script(snakemake, lambda cfg, inp, out: diagnose.run_diagnosis(
     cfg, snakemake.wildcards.dataset, cfg["dataset"]["path"], inp.matrices, os.path.dirname(out.ranking),

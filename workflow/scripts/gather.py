@@ -1,6 +1,6 @@
 """Snakemake adapter: gather the per-point modal results."""
-from jointid.workflow import run_script
-from jointid import stages
+from jointid.stages.runner import run_script
+from jointid.stages import core as stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_gather(
     inp.sheet, list(inp.modes), out.table, out.arrays), provenance=True)

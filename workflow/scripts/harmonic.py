@@ -1,6 +1,6 @@
 """Snakemake adapter: drive-point FRF and dynamic stiffness of one state at its identified parameters."""
-from jointid.workflow import run_script
-from jointid import frf
+from jointid.stages.runner import run_script
+from jointid.response import drive_point as frf
 
 run_script(snakemake, lambda cfg, inp, out: frf.run_harmonic(
     cfg, snakemake.wildcards.state, inp.params, inp.matrices, out.frf, out.stiffness,

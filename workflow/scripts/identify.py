@@ -1,7 +1,7 @@
 """Snakemake adapter: identify the joint parameters of one state on the surfaces (rule identify), or
 on the surfaces alone without the FE polish (rule scout: no model matrices among the inputs)."""
-from jointid.workflow import run_script
-from jointid import stages
+from jointid.stages.runner import run_script
+from jointid.stages import core as stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_identify(
     cfg, snakemake.wildcards.state, inp.surface, inp.points, out.params, inp.get("matrices"),

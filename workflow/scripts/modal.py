@@ -1,6 +1,6 @@
 """Snakemake adapter: modal solve at one DOE point (full FE solve, or the ROM with solver.method: rom)."""
-from jointid.workflow import run_script
-from jointid import stages
+from jointid.stages.runner import run_script
+from jointid.stages import core as stages
 
 
 def _theta(cfg, inp):

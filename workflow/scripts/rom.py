@@ -1,6 +1,6 @@
 """Snakemake adapter: build and verify the parametric reduced-order model (solver.method: rom)."""
-from jointid.workflow import run_script
-from jointid import stages
+from jointid.stages.runner import run_script
+from jointid.stages import core as stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_rom(
     cfg, inp.matrices, inp.sheet, out.rom, out.summary), provenance=True)

@@ -1,6 +1,6 @@
 """Snakemake adapter: Tables 2 and 3 beside the paper's values."""
-from jointid.workflow import run_script
-from jointid import stages
+from jointid.stages.runner import run_script
+from jointid.stages import core as stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_tables(
     {"power_off": inp.verify[0], "power_on": inp.verify[1]}, inp.paper,

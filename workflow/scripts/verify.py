@@ -1,6 +1,6 @@
 """Snakemake adapter: full FE re-solve at the identified parameters."""
-from jointid.workflow import run_script
-from jointid import stages
+from jointid.stages.runner import run_script
+from jointid.stages import core as stages
 
 run_script(snakemake, lambda cfg, inp, out: stages.run_verify(
     cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table,

@@ -1,0 +1,253 @@
+"""Test/analysis correlation: frequency errors, MAC matrix, MAC pairing, shape residuals per point.
+
+* :func:`pair_modes` pairs measured with model modes: by MAC (one-to-one, Hungarian) when shapes are
+  measured, else by an order-preserving log-frequency assignment.  Measured modes without a partner
+  (MAC below the threshold) and model modes inside the measured band that no measured mode took are
+  *listed*, never silently dropped.
+* :func:`frequency_errors` tabulates the per-mode relative error ``(f_model - f_meas) / f_meas``.
+* :func:`shape_residuals` scales each paired model shape onto the measured one (modal scale factor,
+  least squares) and gives the residual at every measured point DOF; :func:`point_residuals`
+  summarises them per measuring point (where the model fails).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from jointid.fe.modal import mac, pair_by_mac
+from jointid.identification.tracking import ordered_assignment, pair_by_frequency  # noqa: F401 (re-exported)
+
+__all__ = ["Pairing", "mac_matrix", "pair_modes", "pair_states_by_frequency", "ordered_assignment",
+           "frequency_errors", "shape_residuals", "point_residuals", "error_summary"]
+
+
+@dataclass
+class Pairing:
+    """Measured-to-model mode pairing of one state.
+
+    Attributes
+    ----------
+    model_index : ndarray (m,)
+        Model mode index paired with each measured mode, -1 if unpaired.
+    mac : ndarray (m,)
+        MAC of each pair (NaN when paired by frequency only).
+    method : str
+        ``mac`` or ``frequency``.
+    unpaired_measured : list of int
+        Measured modes (0-based) without a model partner.
+    unpaired_model : list of int
+        Model modes inside the measured band (0-based) that no measured mode took.
+    """
+
+    model_index: np.ndarray
+    mac: np.ndarray
+    method: str
+    unpaired_measured: list = field(default_factory=list)
+    unpaired_model: list = field(default_factory=list)
+
+    @property
+    def paired(self) -> np.ndarray:
+        """Indices of the measured modes that have a partner."""
+        return np.flatnonzero(self.model_index >= 0)
+
+
+def below_band(dataset: str, freqs_by_state: dict, min_freq_Hz: float) -> list[str]:
+    """Problem lines for measured modes below ``solver.min_freq_Hz``: model modes there count as
+    rigid-body or mount modes and are never paired, so such a measured mode would be paired with an
+    unrelated model mode."""
+    return [f"{dataset}: measured {state} mode {i + 1} at {f:g} Hz lies below solver.min_freq_Hz = "
+            f"{min_freq_Hz:g} Hz, under which model modes count as rigid-body or mount modes and are never "
+            "paired — lower solver.min_freq_Hz below the lowest measured mode"
+            for state, freqs in freqs_by_state.items() for i, f in enumerate(freqs) if f < min_freq_Hz]
+
+
+def mac_matrix(meas_shapes: np.ndarray, model_shapes: np.ndarray) -> np.ndarray:
+    """MAC between measured ``(n_labels, m)`` and model ``(n_labels, n)`` shapes: ``(m, n)``.
+
+    Labels with NaN in the measured set are ignored.
+    """
+    meas = np.asarray(meas_shapes, float)
+    model = np.asarray(model_shapes, float)
+    ok = ~np.isnan(meas).any(axis=1)
+    return mac(meas[ok], model[ok])
+
+
+def pair_modes(f_meas, f_model, meas_shapes=None, model_shapes=None, *, threshold: float = 0.5,
+               min_freq_Hz: float = 0.0) -> Pairing:
+    """Pair measured modes with model modes.
+
+    Parameters
+    ----------
+    f_meas : (m,) measured frequencies, Hz.
+    f_model : (n,) model frequencies, Hz (ascending).
+    meas_shapes, model_shapes : (n_labels, m), (n_labels, n), optional
+        Shapes at the measuring-point DOFs; when both are given the pairing is by MAC.
+    threshold : float
+        Smallest MAC accepted for a pair.
+    min_freq_Hz : float
+        Model modes below this (rigid-body, mount modes) are never paired.
+
+    Returns
+    -------
+    Pairing
+    """
+    f_meas = np.asarray(f_meas, float)
+    f_model = np.asarray(f_model, float)
+    m = len(f_meas)
+    usable = np.flatnonzero(f_model >= min_freq_Hz)
+    index = -np.ones(m, dtype=int)
+    macs = np.full(m, np.nan)
+    if meas_shapes is not None and model_shapes is not None and np.isfinite(meas_shapes).any():
+        M = mac_matrix(meas_shapes, np.asarray(model_shapes)[:, usable])
+        for r, c, v in pair_by_mac(M, threshold):
+            index[r], macs[r] = usable[c], v
+        method = "mac"
+    else:
+        if len(usable) >= m:
+            index = usable[pair_by_frequency(f_meas, f_model[usable])]
+        else:
+            index[: len(usable)] = usable[pair_by_frequency(f_meas[: len(usable)], f_model[usable])]
+        method = "frequency"
+    taken = set(index[index >= 0].tolist())
+    hi = f_meas.max() * 1.02 if m else 0.0
+    lo = max(min_freq_Hz, f_meas.min() * 0.98) if m else 0.0
+    unpaired_model = [int(j) for j in usable if lo <= f_model[j] <= hi and j not in taken]
+    return Pairing(model_index=index, mac=macs, method=method,
+                   unpaired_measured=[int(i) for i in np.flatnonzero(index < 0)],
+                   unpaired_model=unpaired_model)
+
+
+def pair_states_by_frequency(f_meas: list, f_model: list, tracks: list, *, min_freq_Hz: float = 0.0) -> list:
+    """Frequency-only pairing of several states with one mode identity across the states.
+
+    Measured mode ``i`` is taken to be the same physical mode in every state (same count of modes,
+    numbered by frequency), and the model modes of each state are identified with those of the first
+    state by ``tracks``.  The order-preserving assignment minimises the squared log-frequency
+    distance summed over the states, so a mode cannot pair with a bounce mode in one state and a
+    pitch mode in the other.
+
+    Parameters
+    ----------
+    f_meas : list of (m,) arrays, one per state (same m).
+    f_model : list of (n,) arrays of model frequencies per state.
+    tracks : list of (n,) int arrays; ``tracks[s][j]`` is the model mode of state s continuing mode j
+        of the first state (-1 if lost); ``tracks[0]`` is the identity.
+    min_freq_Hz : float
+        First-state model modes below this are never paired.
+
+    Returns
+    -------
+    list of Pairing, one per state.
+    """
+    f0 = np.asarray(f_model[0], float)
+    ok = [j for j in np.argsort(f0) if f0[j] >= min_freq_Hz and all(t[j] >= 0 for t in tracks)]
+    m = len(f_meas[0])
+    cost = np.zeros((m, len(ok)))
+    for fm, fs, tr in zip(f_meas, f_model, tracks):
+        fs = np.asarray(fs, float)
+        cost += (np.log(np.asarray(fm, float))[:, None] - np.log(fs[np.asarray(tr)[ok]])[None, :]) ** 2
+    cols = ordered_assignment(cost) if len(ok) >= m else None
+    out = []
+    for fm, fs, tr in zip(f_meas, f_model, tracks):
+        fm, fs = np.asarray(fm, float), np.asarray(fs, float)
+        if cols is None:
+            out.append(pair_modes(fm, fs, min_freq_Hz=min_freq_Hz))
+            continue
+        index = np.asarray(tr)[np.asarray(ok)[cols]]
+        taken = set(index.tolist())
+        hi, lo = fm.max() * 1.02, max(min_freq_Hz, fm.min() * 0.98)
+        unpaired_model = [int(j) for j in range(len(fs)) if lo <= fs[j] <= hi and j not in taken]
+        out.append(Pairing(model_index=index.astype(int), mac=np.full(m, np.nan), method="frequency",
+                           unpaired_measured=[], unpaired_model=unpaired_model))
+    return out
+
+
+def frequency_errors(state: str, f_meas, f_model, pairing: Pairing, descriptions=None) -> pd.DataFrame:
+    """Per-mode comparison table of one state.
+
+    Columns ``state, mode, freq_meas_Hz, freq_model_Hz, error_pct, model_mode, mac, status,
+    description``; ``mode``/``model_mode`` are 1-based; ``status`` is ``paired``,
+    ``unpaired_measured`` or ``unpaired_model`` (a model mode inside the band that no measured mode
+    took).
+    """
+    f_meas = np.asarray(f_meas, float)
+    f_model = np.asarray(f_model, float)
+    rows = []
+    for i, j in enumerate(pairing.model_index):
+        if j >= 0:
+            rows.append({"state": state, "mode": i + 1, "freq_meas_Hz": f_meas[i], "freq_model_Hz": f_model[j],
+                         "error_pct": 100 * (f_model[j] - f_meas[i]) / f_meas[i], "model_mode": int(j) + 1,
+                         "mac": pairing.mac[i], "status": "paired",
+                         "description": "" if descriptions is None else str(descriptions[j])})
+        else:
+            rows.append({"state": state, "mode": i + 1, "freq_meas_Hz": f_meas[i], "freq_model_Hz": np.nan,
+                         "error_pct": np.nan, "model_mode": 0, "mac": np.nan, "status": "unpaired_measured",
+                         "description": "no model mode pairs with this measured mode"})
+    for j in pairing.unpaired_model:
+        rows.append({"state": state, "mode": 0, "freq_meas_Hz": np.nan, "freq_model_Hz": f_model[j],
+                     "error_pct": np.nan, "model_mode": int(j) + 1, "mac": np.nan, "status": "unpaired_model",
+                     "description": ("model mode in the band not seen in the test" if descriptions is None
+                                     else f"{descriptions[j]} (not seen in the test)")})
+    return pd.DataFrame(rows)
+
+
+def error_summary(errors: pd.DataFrame) -> pd.DataFrame:
+    """Per-state ``max_abs_error_pct``, ``rms_error_pct`` and counts from :func:`frequency_errors`."""
+    out = []
+    for state, g in errors.groupby("state", sort=False):
+        e = g.loc[g.status == "paired", "error_pct"].to_numpy(float)
+        out.append({"state": state, "n_paired": len(e),
+                    "n_unpaired_measured": int((g.status == "unpaired_measured").sum()),
+                    "n_unpaired_model": int((g.status == "unpaired_model").sum()),
+                    "max_abs_error_pct": float(np.abs(e).max()) if len(e) else np.nan,
+                    "rms_error_pct": float(np.sqrt(np.mean(e ** 2))) if len(e) else np.nan})
+    return pd.DataFrame(out)
+
+
+def shape_residuals(state: str, meas_shapes, model_shapes, pairing: Pairing, labels) -> pd.DataFrame:
+    """Shape residual at each measured point DOF of each paired mode.
+
+    Each measured shape is normalised to unit length; the model shape is scaled onto it by the
+    modal scale factor ``a = (s . m) / (s . s)`` (least squares, fixes sign and scale).
+
+    Returns
+    -------
+    DataFrame
+        ``state, mode, point, direction, measured, model, residual`` (dimensionless, shapes of unit
+        norm); empty if nothing was measured.
+    """
+    rows = []
+    if meas_shapes is None:
+        return pd.DataFrame(columns=["state", "mode", "point", "direction", "measured", "model", "residual"])
+    meas = np.asarray(meas_shapes, float)
+    model = np.asarray(model_shapes, float)
+    for i, j in enumerate(pairing.model_index):
+        if j < 0:
+            continue
+        ok = np.isfinite(meas[:, i])
+        if not ok.any():
+            continue
+        mv = meas[ok, i] / np.linalg.norm(meas[ok, i])
+        sv = model[ok, j]
+        a = float(sv @ mv) / float(sv @ sv) if sv @ sv > 0 else 0.0
+        for lab, mvk, svk in zip(np.asarray(labels)[ok], mv, a * sv):
+            point, direction = lab.split(":")
+            rows.append({"state": state, "mode": i + 1, "point": point, "direction": direction,
+                         "measured": mvk, "model": svk, "residual": svk - mvk})
+    return pd.DataFrame(rows, columns=["state", "mode", "point", "direction", "measured", "model", "residual"])
+
+
+def point_residuals(residuals: pd.DataFrame) -> pd.DataFrame:
+    """RMS shape residual per measuring point over modes and directions (where the model fails).
+
+    Columns ``point, rms_residual, n_values``, sorted worst first.
+    """
+    if residuals.empty:
+        return pd.DataFrame(columns=["point", "rms_residual", "n_values"])
+    g = residuals.groupby("point")["residual"]
+    out = pd.DataFrame({"rms_residual": g.apply(lambda s: float(np.sqrt(np.mean(np.square(s))))),
+                        "n_values": g.size()}).reset_index()
+    return out.sort_values("rms_residual", ascending=False, kind="stable").reset_index(drop=True)

@@ -1,0 +1,222 @@
+"""Synthetic measured datasets with hidden effects (for proving the diagnosis).
+
+``python -m jointid.data.synth --truth TRUTH.yaml --out DIR [--config config.yaml ...]``
+
+A truth file describes the "real" rig: true joint stiffnesses, library effects at given magnitudes
+(``jointid.diagnosis.effects``), optional perturbations *outside* the library (decoys), optionally a finer mesh,
+the operating states, what is measured and the noise.  The synthesiser solves the full FE model and
+writes a dataset in the measurement format (``measured.write_dataset``): natural frequencies, damping
+ratios, mode shapes at the measuring points and optionally a drive-point FRF.  Nothing of the truth
+except the measured inputs (motor force per state, frequency uncertainty) reaches the dataset; the
+diagnosis never reads the truth file.
+
+Truth file (all keys optional except ``states``)::
+
+    base_config: [config.yaml]           # config files merged in order (relative to the truth file's
+                                         # working directory); --config on the command line wins
+    overrides: {mesh: {refine: 2}}       # merged into the config of the truth model
+    joints: {k_normal_N_per_m3: 8.0e+11} # true joint stiffnesses; default geometric mean of bounds
+    states: {power_off: {em_force_N: 0.0}, power_on: {em_force_N: 1000.0}}
+    effects: {em_preload: {beta: 0.2}}   # library effects: parameter values and options
+    perturbations:                       # outside the library (decoys)
+      - {kind: carriage_joint_scale, carriage: 0, factor: 0.4}    # one carriage's joint layers
+      - {kind: term_scale, term: K_railfix, factor: 0.5}          # any stiffness/mass term
+    measurement: {band_Hz: [100, 3500], max_modes: 12, shapes: true, directions: [x, y, z],
+                  frf: false, drive_point: T05, drive_direction: y, n_freq: 400}
+    noise: {seed: 1, frequency_pct: 0.2, shape_pct: 2.0, damping_ratio: 0.02}
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from jointid.diagnosis.effects import StateInfo, apply_effects, baseline_coefficients, build_system, enabled_effects
+from jointid.errors import ConfigError, JointidError
+from jointid.threads import limit_threads
+from jointid.yamlio import deep_merge, read_merged, read_yaml
+from jointid.fe.modal import solve_model
+
+__all__ = ["synthesise", "write_synthetic", "load_truth", "main"]
+
+TRUTH_KEYS = {"description", "base_config", "overrides", "joints", "states", "effects", "perturbations",
+              "measurement", "noise"}
+MEASUREMENT_DEFAULTS = {"band_Hz": [100.0, 3500.0], "max_modes": 12, "shapes": True,
+                        "directions": ["x", "y", "z"], "frf": False, "drive_point": "T05",
+                        "drive_direction": "y", "n_freq": 400}
+NOISE_DEFAULTS = {"seed": 0, "frequency_pct": 0.2, "shape_pct": 2.0, "damping_ratio": 0.02}
+
+
+def load_truth(path) -> dict:
+    """Read and check a truth file; raise :class:`ConfigError` listing every problem."""
+    path = Path(path)
+    truth = read_yaml(path, str(path)) or {}
+    if not isinstance(truth, dict):
+        raise ConfigError(f"{path}: the truth file is not a mapping of keys — see the example in jointid.data.synth")
+    check_truth(truth, str(path))
+    return truth
+
+
+def check_truth(truth: dict, where: str = "truth") -> None:
+    problems = []
+    for k in truth:
+        if k not in TRUTH_KEYS:
+            problems.append(f"{where}: {k}: unknown key — allowed keys: {', '.join(sorted(TRUTH_KEYS))}")
+    if not truth.get("states"):
+        problems.append(f"{where}: states: missing — give e.g. states: {{power_off: {{em_force_N: 0.0}}}}")
+    for i, p in enumerate(truth.get("perturbations") or []):
+        if p.get("kind") not in ("carriage_joint_scale", "term_scale"):
+            problems.append(f"{where}: perturbations[{i}].kind: {p.get('kind')!r} is unknown — use "
+                            "carriage_joint_scale or term_scale")
+    if problems:
+        raise ConfigError(problems)
+
+
+def truth_config(truth: dict, base_cfg: dict) -> dict:
+    """Validated configuration of the truth model (base config + the truth's overrides)."""
+    from jointid.config.core import load_config
+
+    cfg = deep_merge(base_cfg, truth.get("overrides") or {})
+    return load_config(cfg)
+
+
+def _perturb(system, kc, mc, perturbations):
+    for p in perturbations or []:
+        if p["kind"] == "carriage_joint_scale":
+            c = int(p["carriage"])
+            dirs = set(p.get("directions", ["x", "y", "z"]))
+            for name in list(kc):
+                if name.endswith(f"@{c}") and name.split("@")[0].split("_")[2] in dirs:
+                    kc[name] *= float(p["factor"])
+        elif p["kind"] == "term_scale":
+            t = p["term"]
+            if t in system.stiffness:
+                kc[t] = kc.get(t, 0.0) * float(p["factor"])
+            elif t in system.mass:
+                mc[t] = mc.get(t, 0.0) * float(p["factor"])
+            else:
+                raise ConfigError(f"perturbations: term {t!r} is not a model term — use one of "
+                                  f"{', '.join(list(system.stiffness) + list(system.mass))}")
+
+
+def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
+    """Solve the truth model and return the dataset tables.
+
+    Parameters
+    ----------
+    truth : dict
+        Parsed truth file (see module doc).
+    base_cfg : dict
+        Configuration the truth's ``overrides`` are merged into.
+    model : fem.Model, optional
+        A model already built for exactly the truth configuration (saves the assembly).
+
+    Returns
+    -------
+    dict
+        ``modes``, ``shapes`` (or None), ``frf`` (or None) DataFrames and ``conditions`` dict, ready
+        for :func:`jointid.data.dataset.write_dataset`; plus ``truth_freqs_Hz`` per state (noise-free).
+    """
+    from jointid.fe.model import build_model
+
+    check_truth(truth)
+    cfg = truth_config(truth, base_cfg)
+    model = model or build_model(cfg)
+    system = build_system(model, cfg)
+    meas = {**MEASUREMENT_DEFAULTS, **(truth.get("measurement") or {})}
+    noise = {**NOISE_DEFAULTS, **(truth.get("noise") or {})}
+    rng = np.random.default_rng(int(noise["seed"]))
+    specs = enabled_effects(truth.get("effects") or {})
+    theta = {k: float(v) for k, v in (truth.get("joints") or {}).items()}
+    pts = system.meta["points"]
+    labels = system.labels
+    keep_rows = [i for i, lab in enumerate(labels) if lab.split(":")[1] in meas["directions"]]
+    lo, hi = map(float, meas["band_Hz"])
+    modes_rows, shape_rows, frf_rows, conds, clean = [], [], [], {}, {}
+    for sname, scfg in truth["states"].items():
+        state = StateInfo(sname, float((scfg or {}).get("em_force_N", 0.0)))
+        kc, mc = baseline_coefficients(system, cfg, theta)
+        kc, mc = apply_effects(system, kc, mc, state, [(s.effect, s.values, s.options) for s in specs])
+        _perturb(system, kc, mc, truth.get("perturbations"))
+        n = int(meas["max_modes"]) + 8
+        modes = solve_model(system, kc, mc, n, shift_Hz=cfg["solver"]["shift_Hz"],
+                            backend=cfg["solver"]["backend"])
+        sel = np.flatnonzero((modes.freqs_Hz >= lo) & (modes.freqs_Hz <= hi))[: int(meas["max_modes"])]
+        f_true = modes.freqs_Hz[sel]
+        clean[sname] = f_true
+        f_noisy = f_true * (1 + noise["frequency_pct"] / 100 * rng.standard_normal(len(sel)))
+        order = np.argsort(f_noisy)
+        zeta = noise["damping_ratio"] * (1 + 0.1 * rng.standard_normal(len(sel)))
+        shapes = (system.probe @ modes.phi[:, sel])
+        for new, j in enumerate(order):
+            modes_rows.append({"state": sname, "mode": new + 1, "freq_Hz": float(f_noisy[j]),
+                               "damping_ratio": float(np.clip(zeta[j], 1e-4, 0.5))})
+            if meas["shapes"]:
+                v = shapes[keep_rows, j]
+                v = v / np.abs(v).max()
+                rms = np.sqrt(np.mean(v ** 2))
+                v = v + noise["shape_pct"] / 100 * rms * rng.standard_normal(len(v))
+                for i, val in zip(keep_rows, v):
+                    point, direction = labels[i].split(":")
+                    shape_rows.append({"state": sname, "mode": new + 1, "point": point,
+                                       "direction": direction, "value": float(val)})
+        cond = {"em_force_N": state.em_force_N}
+        if meas["frf"]:
+            from jointid.response.harmonic import frf_modal
+
+            lab = f"{meas['drive_point']}:{meas['drive_direction']}"
+            row = labels.index(lab)
+            drive = np.asarray(system.probe[row] @ modes.phi).ravel()
+            f_axis = np.linspace(lo, hi, int(meas["n_freq"]))
+            H = frf_modal(f_axis, modes.freqs_Hz, noise["damping_ratio"], drive, drive)
+            for fq, h in zip(f_axis, H):
+                frf_rows.append({"state": sname, "point": meas["drive_point"],
+                                 "direction": meas["drive_direction"], "freq_Hz": float(fq),
+                                 "re": float(h.real), "im": float(h.imag)})
+            cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
+        conds[sname] = cond
+    conditions = {"source": f"synthetic dataset (jointid.data.synth), noise seed {int(noise['seed'])}",
+                  "frequency_uncertainty_pct": float(noise["frequency_pct"]), "states": conds}
+    return {"modes": pd.DataFrame(modes_rows),
+            "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
+            "frf": pd.DataFrame(frf_rows) if frf_rows else None,
+            "conditions": conditions, "truth_freqs_Hz": clean, "points": pts}
+
+
+def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
+    """Synthesise and write the dataset folder ``out_dir``; returns the :class:`measured.Dataset`."""
+    from jointid.data.dataset import write_dataset
+
+    out = synthesise(truth, base_cfg, model=model)
+    return write_dataset(out_dir, out["modes"], out["shapes"], out["frf"], conditions=out["conditions"],
+                         measuring_points=out["points"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m jointid.data.synth", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--truth", required=True, help="truth YAML file")
+    ap.add_argument("--out", required=True, help="dataset folder to write")
+    ap.add_argument("--config", nargs="*", default=None,
+                    help="config files merged in order (default: the truth's base_config, else config.yaml)")
+    args = ap.parse_args(argv)
+    try:
+        limit_threads(1)
+        truth = load_truth(args.truth)
+        paths = args.config or truth.get("base_config") or ["config.yaml"]
+        if isinstance(paths, str):
+            paths = [paths]
+        ds = write_synthetic(truth, read_merged(paths), args.out)
+    except JointidError as exc:
+        print(str(exc), file=sys.stderr)
+        return 1
+    n = {s: len(ds.freqs(s)) for s in ds.states}
+    print(f"synth: wrote {args.out} ({', '.join(f'{s}: {k} modes' for s, k in n.items())})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

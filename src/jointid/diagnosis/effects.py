@@ -1,0 +1,522 @@
+"""Library of candidate physical effects: named, parameterised modifications of the affine FE model.
+
+The diagnosis (``jointid.diagnosis.core``) asks which of these effects the calibrated model lacks.  Each
+effect changes only the *coefficients* of existing terms of :class:`jointid.fe.fem.Model` (or, for the
+base support, replaces the clamped bottom by springs), so every variant stays affine:
+
+    K(x, state) = K0 + sum_a g_a(x, state) K_a,      M(x) = M0 + sum_b h_b(x) M_b
+
+and modal sensitivities are exact (``dlambda = phi^T (dK - lambda dM) phi``).
+
+The system of terms (:class:`System`)
+------------------------------------
+``build_system(model, cfg)`` derives from a built model:
+
+* the joint layers split per carriage: ``K_top_y@0 .. K_top_y@3`` (carriage numbers follow
+  ``model.meta['carriage_centres_m']``), so a per-carriage contact pressure can scale each block;
+* a clamped base bottom turned into a bonded spring layer to the ground, ``K_foundation`` at
+  1e15 N/m^3 (the value standing in for a bonded rail fixing, ``model.RAIL_BONDED_N_PER_M3``), so the
+  base support can be softened continuously; the bonded layer reproduces the clamped frequencies to
+  better than 1e-4 (checked in ``tests/test_effects.py``).
+
+Effects (parameters in the config units; ``null`` = value at which the effect is absent)
+------------------------------------------------------------------------------------------
+``em_preload``        beta [-], null 0, range 0..1.  Pressure-dependent joint law k'' = alpha p^beta
+                      (Yoshimura; PHYSICS.md): every joint layer of carriage c is scaled by
+                      ``((F_c + P) / (F_c,0 + P))^beta``, F_c the carriage load from the statics load
+                      share of the motor attraction + carried weight (``emforce.carriage_loads_N``),
+                      F_c,0 the same without motor force, P the block preload.  alpha is tied to the
+                      calibrated joint stiffness at the weight-only pressure, so the power-off state
+                      is the baseline.  Options: ``preload_N`` (0), ``force_x_m``, ``force_z_m``
+                      (point of action of the attraction relative to the table centre, 0),
+                      ``carried_mass_kg`` (default: table + carriages + motors from the model),
+                      ``directions`` (spring directions following the law, default [x, y]: the
+                      contact directions; the feed direction Z of a guide is held by the servo or
+                      brake, not by contact pressure — add z for a sliding joint that is).
+``added_mass_table``  mass_kg, null 0, range 0..30 kg: mass spread over the table top (fixture,
+                      workpiece, accelerometers).
+``added_mass_edge``   mass_kg, null 0, range 0..15 kg: mass on the table's +X side face (cable
+                      chain, encoder read head).
+``rail_fixing``       k_railfix_N_per_m3, null inf (bonded), range 1e10..inf: compliance of the
+                      bolted rail-to-base interface, per unit area, all directions, in series with
+                      the bonded layer.
+``base_support``      k_foundation_N_per_m3, null inf (clamped), range 1e8..inf: the base rests on an
+                      elastic foundation (levelling elements, floor) over its bottom face instead of
+                      being clamped; per unit area, all directions.  Needs ``rig.support.kind:
+                      clamped``.
+``feed_stiffness``    k_feed_extra_N_per_m3, null 0, range 0..2e11: extra feed-direction (Z)
+                      stiffness per area at the carriage joints (servo position loop or brake
+                      holding the table), on the rail-top and flank layers.  Collinear with an
+                      identified ``k_feed`` parameter (the diagnosis reports it as such).
+
+Enabling effects in ``config.yaml``::
+
+    effects:
+      em_preload: {beta: 0.2, fit: true, preload_N: 0.0}
+      added_mass_edge: {mass_kg: 1.5, fit: false}
+
+``fit`` (default true) lets the diagnosis calibrate the effect's parameters together with the joint
+parameters, starting at the given values; ``fit: false`` keeps them fixed.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from jointid.errors import ConfigError, ModelError
+from jointid.fe.fem import Model
+from jointid.fe.model import RAIL_BONDED_N_PER_M3, base_coefficients
+from jointid.geometry.rig import PART_IDS
+
+__all__ = ["EFFECTS", "Effect", "Param", "StateInfo", "System", "build_system", "baseline_coefficients",
+           "apply_effects", "enabled_effects", "effect_table", "carried_mass_kg"]
+
+G = 9.81
+JOINT_FACES = ("top", "flank")
+BONDED_N_PER_M3 = RAIL_BONDED_N_PER_M3
+
+
+# ------------------------------------------------------------------ system of terms
+@dataclass
+class StateInfo:
+    """Operating state as the effects see it: name and vertical motor attraction (N)."""
+
+    name: str
+    em_force_N: float = 0.0
+
+
+@dataclass
+class System:
+    """Affine terms of the diagnosis model (joint layers split per carriage, penalty support).
+
+    Attributes
+    ----------
+    stiffness, mass : dict of name -> CSR (n_dofs, n_dofs)
+        ``K0``/``M0`` plus affine terms; joint layers as ``K_<face>_<d>@<carriage>``.
+    fixed : ndarray
+        Constrained DOFs (empty when the clamped support is a bonded spring layer).
+    probe : CSR (3 * n_points, n_dofs)
+        Displacements at the measuring points, rows (point, direction).
+    labels : list of str
+        ``"<point>:<direction>"`` per probe row.
+    carriage_xz_m : ndarray (n_carriages, 2)
+        Carriage centres (X, Z) in m.
+    carried_mass_kg : float
+        Mass resting on the joints (table + carriages + motors), kg.
+    support : str
+        ``rig.support.kind`` of the model.
+    model : Model
+        The model the system was built from.
+    """
+
+    stiffness: dict
+    mass: dict
+    fixed: np.ndarray
+    probe: sp.csr_matrix
+    labels: list
+    carriage_xz_m: np.ndarray
+    carried_mass_kg: float
+    support: str
+    model: Model
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_dofs(self) -> int:
+        return self.stiffness["K0"].shape[0]
+
+    @property
+    def n_carriages(self) -> int:
+        return len(self.carriage_xz_m)
+
+    @property
+    def ordering(self):
+        """The model's cached fill-reducing ordering when the free DOFs are the model's."""
+        same = np.array_equal(np.asarray(self.fixed), np.asarray(self.model.fixed))
+        return self.model.ordering if same else None
+
+    def K(self, kc: dict) -> sp.csr_matrix:
+        """``K0 + sum kc[name] * stiffness[name]`` (CSR)."""
+        out = self.stiffness["K0"].copy()
+        for name, c in kc.items():
+            if c != 0.0:
+                out = out + c * self.stiffness[name]
+        return out.tocsr()
+
+    def M(self, mc: dict) -> sp.csr_matrix:
+        out = self.mass["M0"].copy()
+        for name, c in mc.items():
+            if c != 0.0:
+                out = out + c * self.mass[name]
+        return out.tocsr()
+
+
+def carried_mass_kg(model: Model) -> float:
+    """Mass resting on the carriage joints: table + carriages (from ``M0``) + motor primaries, kg.
+
+    The body formed by the table and the carriages shares no node with the rails or the base (the
+    joints are spring layers between duplicated nodes), so the row sums of ``M0`` over its nodes add
+    up to its mass (partition of unity).  Nodes on the carriage/table interface are owned by both
+    parts (``dof_part == -1``) and counted with the body.
+    """
+    part = model.dof_part
+    body = np.isin(part, [PART_IDS["carriage"], PART_IDS["table"]]) | (part < 0)
+    M0 = model.mass["M0"]
+    ey = np.zeros(M0.shape[0])
+    ey[1::3] = 1.0
+    rows = 3 * np.flatnonzero(body) + 1
+    return float((M0 @ ey)[rows].sum() + model.meta.get("motor_mass_kg", 0.0))
+
+
+def _split_by_carriage(A: sp.csr_matrix, owner: np.ndarray, n: int) -> list[sp.csr_matrix]:
+    """Split a joint layer into per-carriage parts by the owner of each (vector) DOF."""
+    C = A.tocoo()
+    orow, ocol = owner[C.row], owner[C.col]
+    if np.any(orow != ocol):
+        raise ModelError("joint layer couples DOFs of two carriages — the carriages overlap; check "
+                         "rig.carriages.pitch_m and length_m")
+    out = []
+    for c in range(n):
+        sel = orow == c
+        out.append(sp.csr_matrix((C.data[sel], (C.row[sel], C.col[sel])), shape=A.shape))
+    return out
+
+
+def build_system(model: Model, cfg: dict) -> System:
+    """Diagnosis system of ``model``: joint terms per carriage and the clamped support as springs.
+
+    Parameters
+    ----------
+    model : Model
+        Built or loaded model (``model.build_model`` / ``model.load_model``).
+    cfg : dict
+        Validated configuration (uses ``rig.support.kind``).
+    """
+    from jointid.geometry.points import dof_labels
+    import pandas as pd
+
+    centres = np.asarray(model.meta["carriage_centres_m"], float)
+    xz = centres[:, [0, 2]]
+    loc = model.doflocs[[0, 2]].T  # (n_scalar, 2)
+    d2 = ((loc[:, None, :] - xz[None, :, :]) ** 2).sum(axis=2)
+    owner = np.repeat(np.argmin(d2, axis=1), 3)
+    stiffness = {"K0": model.stiffness["K0"]}
+    for name, A in model.stiffness.items():
+        face = name.split("_")[1] if name.count("_") == 2 else ""
+        if name.startswith("K_") and face in JOINT_FACES:
+            for c, part in enumerate(_split_by_carriage(A, owner, len(xz))):
+                stiffness[f"{name}@{c}"] = part
+        elif name != "K0":
+            stiffness[name] = A
+    support = model.meta.get("support", cfg["rig"]["support"]["kind"])
+    fixed = np.asarray(model.fixed, dtype=np.int64)
+    if support == "clamped":
+        fixed = np.array([], dtype=np.int64)  # bonded foundation layer instead (see module doc)
+    pts = pd.DataFrame(model.meta["points"])
+    return System(stiffness=stiffness, mass=dict(model.mass), fixed=fixed, probe=model.probe,
+                  labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model),
+                  support=support, model=model, meta={"points": pts})
+
+
+def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) -> tuple[dict, dict]:
+    """Term coefficients of the baseline (no effect) at joint parameters ``theta`` (N/m^3).
+
+    Joint terms are expanded to every carriage with the same value; a clamped support becomes the
+    bonded foundation layer.  Returns ``(kc, mc)`` for :meth:`System.K` / :meth:`System.M`.
+    """
+    kc0, mc = base_coefficients(cfg, system.model, theta)
+    kc = {}
+    for name, v in kc0.items():
+        if name.split("_")[1] in JOINT_FACES and name.count("_") == 2:
+            for c in range(system.n_carriages):
+                kc[f"{name}@{c}"] = float(v)
+        else:
+            kc[name] = float(v)
+    if system.support == "clamped":
+        kc["K_foundation"] = BONDED_N_PER_M3
+    return kc, dict(mc)
+
+
+# ------------------------------------------------------------------ effect definitions
+@dataclass(frozen=True)
+class Param:
+    """One parameter of an effect.
+
+    ``kind`` sets the dimensionless test variable ``t`` used by the diagnosis (0 = effect absent):
+    ``linear``: ``t = (value - null) / nominal``; ``compliance`` (null = inf, a stiffness in series
+    with a bonded layer): ``t = nominal / value``.
+    """
+
+    name: str
+    unit: str
+    null: float
+    lower: float
+    upper: float
+    nominal: float
+    kind: str
+    description: str
+
+    def to_t(self, value: float) -> float:
+        if self.kind == "compliance":
+            return 0.0 if math.isinf(value) else self.nominal / value
+        return (value - self.null) / self.nominal
+
+    def from_t(self, t: float) -> float:
+        """Physical value of the test variable ``t`` (a tiny negative ``t`` of a compliance gives a
+        negative stiffness, i.e. a slightly stiffer than bonded layer: used by finite differences)."""
+        if self.kind == "compliance":
+            return math.inf if t == 0 else self.nominal / t
+        return self.null + t * self.nominal
+
+    def fd_step(self, t: float) -> float:
+        """Finite-difference step in ``t`` for coefficient derivatives."""
+        if self.kind == "compliance":
+            # keep the series compliance t / nominal far below the bonded one near t = 0
+            return max(1e-6 * abs(t), 1e-4 * self.nominal / BONDED_N_PER_M3)
+        return 1e-6 * max(abs(t), 1.0)
+
+    @property
+    def t_bounds(self) -> tuple[float, float]:
+        a, b = self.to_t(self.lower), self.to_t(self.upper)
+        return (min(a, b), max(a, b))
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A named, documented, parameterised modification of the model.
+
+    ``apply(system, kc, mc, state, values, options)`` modifies the coefficient dicts in place;
+    ``values`` maps parameter names to physical values.  ``requires(system, cfg, states, options)``
+    returns None or a sentence saying why the effect cannot act here.
+    """
+
+    name: str
+    title: str
+    description: str
+    params: tuple
+    options: dict
+    apply: Callable
+    requires: Callable | None = None
+
+    def param(self, name: str) -> Param:
+        return next(p for p in self.params if p.name == name)
+
+    def null_values(self) -> dict:
+        return {p.name: p.null for p in self.params}
+
+
+def _carriage_loads(system: System, state: StateInfo, opts: dict, force: float) -> np.ndarray:
+    from jointid.response.emforce import carriage_loads_N
+
+    m = opts.get("carried_mass_kg") or system.carried_mass_kg
+    w = force + m * G
+    lx = force * opts.get("force_x_m", 0.0) / w if w > 0 else 0.0
+    lz = force * opts.get("force_z_m", 0.0) / w if w > 0 else 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return carriage_loads_N(force, m, system.carriage_xz_m[:, 0], system.carriage_xz_m[:, 1],
+                                load_x_m=lx, load_z_m=lz)
+
+
+def pressure_ratio(system: System, state: StateInfo, opts: dict) -> np.ndarray:
+    """Contact-pressure ratio of each carriage, loaded state over weight only, ``(n_carriages,)``."""
+    pre = float(opts.get("preload_N", 0.0))
+    f = _carriage_loads(system, state, opts, float(state.em_force_N)) + pre
+    f0 = _carriage_loads(system, state, opts, 0.0) + pre
+    if np.any(f <= 0) or np.any(f0 <= 0):
+        raise ModelError(f"effects.em_preload: a carriage lifts off in state {state.name} (loads "
+                         f"{np.round(f, 1).tolist()} N) — the law k = alpha p^beta needs contact; "
+                         "give preload_N or check force_x_m / force_z_m")
+    return f / f0
+
+
+def _apply_em(system, kc, mc, state, values, opts):
+    beta = values["beta"]
+    if beta == 0.0 or state.em_force_N == 0.0:
+        return
+    scale = pressure_ratio(system, state, opts) ** beta
+    dirs = set(opts.get("directions") or ("x", "y"))
+    for name in list(kc):
+        if "@" in name and name.split("@")[0].split("_")[2] in dirs:
+            kc[name] *= float(scale[int(name.split("@")[1])])
+
+
+def _apply_mass(term):
+    def apply(system, kc, mc, state, values, opts):
+        if values["mass_kg"] != 0.0:
+            mc[term] = mc.get(term, 0.0) + values["mass_kg"]
+    return apply
+
+
+def _series(term, pname):
+    def apply(system, kc, mc, state, values, opts):
+        k = values[pname]
+        if math.isinf(k):
+            return
+        kc[term] = 1.0 / (1.0 / kc.get(term, BONDED_N_PER_M3) + 1.0 / k)
+    return apply
+
+
+def _apply_feed(system, kc, mc, state, values, opts):
+    k = values["k_feed_extra_N_per_m3"]
+    if k == 0.0:
+        return
+    for c in range(system.n_carriages):
+        for face in JOINT_FACES:
+            name = f"K_{face}_z@{c}"
+            kc[name] = kc.get(name, 0.0) + k
+
+
+def _needs_two_forces(system, cfg, states, opts):
+    forces = {round(float(s.em_force_N), 6) for s in states}
+    if len(forces) < 2:
+        return ("needs states with different em_force_N (one force level only: the law cannot be "
+                "told from the joint stiffness itself)")
+    return None
+
+
+def _needs_clamped(system, cfg, states, opts):
+    if system.support != "clamped":
+        return f"applies to a clamped base (rig.support.kind is {system.support})"
+    return None
+
+
+EFFECTS: dict[str, Effect] = {
+    "em_preload": Effect(
+        name="em_preload", title="electromagnetic preload of the joints",
+        description=("Motor attraction raises the carriage contact pressure; joint stiffness per area "
+                     "follows k'' = alpha p^beta with p from the statics load share per carriage."),
+        params=(Param("beta", "-", 0.0, 0.0, 1.0, 1.0, "linear",
+                      "exponent of the pressure law k'' = alpha p^beta (Yoshimura: 0.3-0.8 for "
+                      "sliding joints; ~0.1 or less for preloaded rolling blocks)"),),
+        options={"preload_N": 0.0, "force_x_m": 0.0, "force_z_m": 0.0, "carried_mass_kg": None,
+                 "directions": ["x", "y"]},
+        apply=_apply_em, requires=_needs_two_forces),
+    "added_mass_table": Effect(
+        name="added_mass_table", title="added mass on the table top",
+        description="Fixture, workpiece or sensors spread over the table top.",
+        params=(Param("mass_kg", "kg", 0.0, 0.0, 30.0, 5.0, "linear", "added mass"),),
+        options={}, apply=_apply_mass("M_table_top")),
+    "added_mass_edge": Effect(
+        name="added_mass_edge", title="added mass on the table edge",
+        description="Cable chain or encoder read head on the table's +X side face.",
+        params=(Param("mass_kg", "kg", 0.0, 0.0, 15.0, 2.0, "linear", "added mass"),),
+        options={}, apply=_apply_mass("M_table_edge")),
+    "rail_fixing": Effect(
+        name="rail_fixing", title="compliant rail fixing",
+        description="Bolted rail-to-base interface compliance per area (all directions).",
+        params=(Param("k_railfix_N_per_m3", "N/m^3", math.inf, 1.0e10, math.inf, 1.0e12, "compliance",
+                      "rail-to-base interface stiffness per area"),),
+        options={}, apply=_series("K_railfix", "k_railfix_N_per_m3")),
+    "base_support": Effect(
+        name="base_support", title="elastic base support",
+        description="The base rests on an elastic foundation over its bottom face instead of a clamp.",
+        params=(Param("k_foundation_N_per_m3", "N/m^3", math.inf, 1.0e8, math.inf, 1.0e10, "compliance",
+                      "foundation stiffness per area of the base bottom, all directions"),),
+        options={}, apply=_series("K_foundation", "k_foundation_N_per_m3"), requires=_needs_clamped),
+    "feed_stiffness": Effect(
+        name="feed_stiffness", title="feed-direction stiffness (servo or brake)",
+        description="Extra Z stiffness per area at the carriage joints (position loop, brake).",
+        params=(Param("k_feed_extra_N_per_m3", "N/m^3", 0.0, 0.0, 2.0e11, 1.0e10, "linear",
+                      "extra feed-direction stiffness per area on the rail-top and flank layers"),),
+        options={}, apply=_apply_feed),
+}
+
+
+# ------------------------------------------------------------------ config and application
+@dataclass
+class Enabled:
+    """An effect switched on in the config: its physical parameter values, options and fit flag."""
+
+    effect: Effect
+    values: dict
+    options: dict
+    fit: bool = True
+
+
+def enabled_effects(effects_cfg: dict | None) -> list[Enabled]:
+    """Parse the ``effects`` config section (name -> {param values, options, fit}).
+
+    Raises
+    ------
+    ConfigError
+        One line per unknown effect, unknown key or out-of-range value.
+    """
+    problems, out = [], []
+    for name, spec in (effects_cfg or {}).items():
+        if name not in EFFECTS:
+            close = difflib.get_close_matches(name, list(EFFECTS), n=1)
+            hint = f"did you mean {close[0]!r}? " if close else ""
+            problems.append(f"config.yaml: effects.{name}: unknown effect — {hint}use one of "
+                            f"{', '.join(EFFECTS)}")
+            continue
+        eff = EFFECTS[name]
+        spec = dict(spec or {})
+        fit = spec.pop("fit", True)
+        if not isinstance(fit, bool):
+            problems.append(f"config.yaml: effects.{name}.fit: {fit!r} is not true/false — write fit: true "
+                            "or fit: false")
+        values, opts = {}, dict(eff.options)
+        for key, v in spec.items():
+            if key in {p.name for p in eff.params}:
+                p = eff.param(key)
+                try:
+                    v = float(v)
+                except (TypeError, ValueError):
+                    problems.append(f"config.yaml: effects.{name}.{key}: {v!r} is not a number — give "
+                                    f"{p.description} in {p.unit}")
+                    continue
+                if not (p.lower <= v <= p.upper):
+                    problems.append(f"config.yaml: effects.{name}.{key}: {v:g} is outside the plausible "
+                                    f"range {p.lower:g}..{p.upper:g} {p.unit} — give a value inside it")
+                values[key] = v
+            elif key == "directions":
+                if not isinstance(v, list) or not v or any(d not in ("x", "y", "z") for d in v):
+                    problems.append(f"config.yaml: effects.{name}.directions: {v!r} is not a list of x, y, z — "
+                                    "write e.g. directions: [x, y]")
+                opts[key] = v
+            elif key in eff.options:
+                opts[key] = v
+            else:
+                allowed = [p.name for p in eff.params] + list(eff.options) + ["fit"]
+                close = difflib.get_close_matches(key, allowed, n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                problems.append(f"config.yaml: effects.{name}.{key}: unknown key — {hint}allowed keys: "
+                                f"{', '.join(allowed)}")
+        for p in eff.params:
+            if p.name not in values:
+                # start value: the null for a linear parameter, the nominal for a compliance
+                values[p.name] = p.nominal if p.kind == "compliance" else p.null
+        out.append(Enabled(eff, values, opts, bool(fit)))
+    if problems:
+        raise ConfigError(problems)
+    return out
+
+
+def apply_effects(system: System, kc: dict, mc: dict, state: StateInfo,
+                  active: list[tuple[Effect, dict, dict]]) -> tuple[dict, dict]:
+    """Coefficients with the ``active`` effects ``[(effect, values, options), ...]`` applied.
+
+    Effects act in the given order on copies of ``kc``/``mc`` (returned).
+    """
+    kc, mc = dict(kc), dict(mc)
+    for eff, values, opts in active:
+        eff.apply(system, kc, mc, state, values, opts)
+    return kc, mc
+
+
+def effect_table() -> list[dict]:
+    """One row per effect parameter (for docs and reports): effect, parameter, unit, null, range."""
+    rows = []
+    for e in EFFECTS.values():
+        for p in e.params:
+            rows.append({"effect": e.name, "title": e.title, "parameter": p.name, "unit": p.unit,
+                         "null": p.null, "lower": p.lower, "upper": p.upper,
+                         "description": p.description})
+    return rows

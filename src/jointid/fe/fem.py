@@ -1,0 +1,195 @@
+"""Assembly of the affine FE model ``K(theta) = K0 + sum_i theta_i K_i``, ``M(mu) = M0 + sum_j mu_j M_j``.
+
+* ``K0``, ``M0``: isotropic linear elasticity and consistent mass of all solids (vectorised assembly of
+  the nine scalar gradient blocks; identical to scikit-fem's ``linear_elasticity`` form, much faster).
+* ``K_<face>_<dir>``: a zero-thickness spring layer on a joint face, unit stiffness per area (1 N/m^3):
+  ``K = D^T S D``, ``S`` the facet mass matrix over the contact facets, ``D`` the jump
+  ``u_carriage - u_rail`` in one global direction.  Multiplying by ``k''`` [N/m^3] gives the joint.
+* ``K_mount``: base mounts, unit stiffness per area in all three directions against the ground.
+* ``M_motor``: the motor primaries as a unit-mass (1 kg) layer spread over the table-underside patch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+from skfem import BilinearForm, Basis, ElementHex1, ElementHex2, FacetBasis
+
+from jointid.geometry.mesh import RigMesh
+
+ELEMENTS = {"hex1": (ElementHex1, 2), "hex2": (ElementHex2, 4)}  # element, exact quadrature order
+DIRS = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass
+class Model:
+    """Assembled model matrices (vector DOFs interleaved: dof = 3 * scalar_dof + component).
+
+    ``stiffness`` and ``mass`` map names to sparse CSR matrices: ``K0`` / ``M0`` plus affine terms.
+    ``fixed`` lists constrained DOFs (clamped support), ``probe`` interpolates displacements at the
+    measuring points: ``u_points = probe @ u`` with rows ordered (point, direction).
+    """
+
+    stiffness: dict[str, sp.csr_matrix]
+    mass: dict[str, sp.csr_matrix]
+    fixed: np.ndarray
+    probe: sp.csr_matrix
+    doflocs: np.ndarray  # (3, n_scalar_dofs)
+    dof_part: np.ndarray  # (n_scalar_dofs,) part id owning each scalar dof (-1 if ambiguous)
+    meta: dict = field(default_factory=dict)
+    # fill-reducing ordering of K - sigma M on the free DOFs (PARDISO, 1-based), cached with the
+    # model by the mesh stage so that no later factorisation has to reorder (None: not computed)
+    ordering: np.ndarray | None = None
+
+    @property
+    def n_dofs(self) -> int:
+        return self.stiffness["K0"].shape[0]
+
+    def K(self, coeffs: dict[str, float]) -> sp.csr_matrix:
+        """``K0 + sum coeffs[name] * stiffness[name]``."""
+        return _affine_sum(self.stiffness, "K0", coeffs)
+
+    def M(self, coeffs: dict[str, float]) -> sp.csr_matrix:
+        """``M0 + sum coeffs[name] * mass[name]``."""
+        return _affine_sum(self.mass, "M0", coeffs)
+
+
+def _affine_sum(terms: dict[str, sp.csr_matrix], base: str, coeffs: dict[str, float]) -> sp.csr_matrix:
+    """``terms[base] + sum coeffs[name] * terms[name]``.  The affine terms (joint layers, masses on
+    patches) touch few DOFs: summed among themselves first, the large base matrix is added once
+    (one pass over its entries instead of one per term)."""
+    extra = None
+    for name, c in coeffs.items():
+        if c != 0.0:
+            t = c * terms[name]
+            extra = t if extra is None else extra + t
+    return (terms[base] + extra).tocsr() if extra is not None else terms[base].copy().tocsr()
+
+
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lamé constants (lambda, mu) in Pa from Young's modulus [Pa] and Poisson's ratio."""
+    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+def _vector_from_scalar_blocks(blocks, n):
+    """Interleave 3x3 scalar blocks ``blocks[c][d]`` (n x n) into a (3n x 3n) matrix."""
+    rows, cols, vals = [], [], []
+    for c in range(3):
+        for d in range(3):
+            B = blocks[c][d].tocoo()
+            rows.append(3 * B.row + c)
+            cols.append(3 * B.col + d)
+            vals.append(B.data)
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(3 * n, 3 * n))
+
+
+def assemble_elasticity(basis: Basis, lam_e: np.ndarray, mu_e: np.ndarray, rho_e: np.ndarray,
+                        chunk: int = 4000) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """Stiffness and consistent mass of isotropic solids with per-element constants.
+
+    ``basis`` is a *scalar* basis; returns vector-valued (3N x 3N) K and M.  Element matrices are
+    built in chunks with einsum: G_ab = int d_a(phi_i) d_b(phi_j) dx, then
+    K_cd = lam G_cd + mu G_dc + mu delta_cd sum_e G_ee.
+    """
+    n = basis.N
+    dofs = basis.element_dofs  # (nloc, nel)
+    nloc, nel = dofs.shape
+    grads = np.stack([basis.basis[i][0].grad for i in range(nloc)])  # (nloc, 3, nel, nqp)
+    vals = np.stack([basis.basis[i][0].value for i in range(nloc)])  # (nloc, nel, nqp)
+    dx = basis.dx  # (nel, nqp)
+    parts = [[[] for _ in range(3)] for _ in range(3)]
+    mparts, rparts, cparts = [], [], []
+    for s in range(0, nel, chunk):
+        e = slice(s, min(nel, s + chunk))
+        g = grads[:, :, e, :]
+        w = dx[e]
+        G = np.einsum("iaeq,jbeq,eq->abije", g, g, w, optimize=True)  # (3, 3, i, j, e)
+        trace = G[0, 0] + G[1, 1] + G[2, 2]
+        lam, mu = lam_e[e], mu_e[e]
+        for c in range(3):
+            for d in range(3):
+                blk = lam * G[c, d] + mu * G[d, c]
+                if c == d:
+                    blk = blk + mu * trace
+                parts[c][d].append(blk.reshape(-1))
+        Me = np.einsum("ieq,jeq,eq->ije", vals[:, e], vals[:, e], w * rho_e[e][:, None], optimize=True)
+        mparts.append(Me.reshape(-1))
+        de = dofs[:, e]
+        rparts.append(np.broadcast_to(de[:, None, :], (nloc, nloc, de.shape[1])).reshape(-1))
+        cparts.append(np.broadcast_to(de[None, :, :], (nloc, nloc, de.shape[1])).reshape(-1))
+    r, cidx = np.concatenate(rparts), np.concatenate(cparts)
+    Kb = [[sp.csr_matrix((np.concatenate(parts[c][d]), (r, cidx)), shape=(n, n)) for d in range(3)]
+          for c in range(3)]
+    K = _vector_from_scalar_blocks(Kb, n)
+    Ms = sp.csr_matrix((np.concatenate(mparts), (r, cidx)), shape=(n, n))
+    M = sp.kron(Ms, sp.eye(3), format="csr")
+    return K, M
+
+
+def facet_mass(mesh, elem, facets: np.ndarray, intorder: int) -> sp.csr_matrix:
+    """Scalar facet mass matrix ``int_F phi_i phi_j dA`` over the given facets (N x N)."""
+    if len(facets) == 0:
+        return sp.csr_matrix((Basis(mesh, elem, intorder=1).N,) * 2)
+    fb = FacetBasis(mesh, elem, facets=facets, intorder=intorder)
+
+    @BilinearForm
+    def mass(u, v, w):
+        return u * v
+
+    S = mass.assemble(fb).tocsr()
+    S.data[np.abs(S.data) < 1e-14 * np.abs(S.data).max()] = 0.0  # off-facet dofs: round-off only
+    S.eliminate_zeros()
+    return S
+
+
+def jump_operator(S: sp.csr_matrix, doflocs: np.ndarray, direction: int,
+                  dof_body: np.ndarray | None = None) -> sp.csr_matrix:
+    """Jump ``u_side - u_partner`` in one direction for the facet dofs of ``S``.
+
+    The partner of each facet dof is a dof of the other body at the same location (duplicated node);
+    ``dof_body`` (body of each scalar dof) tells the bodies apart where one body has several dofs at
+    one place (hanging nodes, ``jointid.geometry.localrefine``).  Returns D with shape (N, 3N).
+    """
+    n = S.shape[0]
+    rowsum = np.asarray(abs(S).sum(axis=1)).ravel()
+    active = np.flatnonzero(rowsum > 1e-10 * rowsum.max())
+    tree = cKDTree(doflocs.T)
+    k = 2 if dof_body is None else 16  # hanging nodes: a few dofs of one body may share a place
+    dist, idx = tree.query(doflocs[:, active].T, k=k)
+    if dof_body is None:
+        other = idx != active[:, None]
+    else:
+        other = dof_body[np.minimum(idx, n - 1)] != dof_body[active][:, None]
+    first = np.argmax(other, axis=1)
+    rows_ = np.arange(len(active))
+    partner = idx[rows_, first]
+    d_partner = np.where(other[rows_, first], dist[rows_, first], np.inf)
+    scale = np.ptp(doflocs, axis=1).max()
+    if np.any(d_partner > 1e-9 * scale):
+        raise ValueError("joint face dofs without a partner on the other body: mesh interface is broken")
+    rows = np.concatenate([active, active])
+    cols = np.concatenate([3 * active + direction, 3 * partner + direction])
+    vals = np.concatenate([np.ones(len(active)), -np.ones(len(active))])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n, 3 * n))
+
+
+def spring_layer(S: sp.csr_matrix, doflocs: np.ndarray, direction: int,
+                 dof_body: np.ndarray | None = None) -> sp.csr_matrix:
+    """Unit (1 N/m^3) spring layer ``D^T S D`` between the two bodies in one direction."""
+    D = jump_operator(S, doflocs, direction, dof_body)
+    return (D.T @ S @ D).tocsr()
+
+
+def ground_springs(S: sp.csr_matrix) -> sp.csr_matrix:
+    """Unit springs per area to the ground in all three directions: kron(S, I3)."""
+    return sp.kron(S, sp.eye(3), format="csr")
+
+
+def surface_mass(S: sp.csr_matrix) -> sp.csr_matrix:
+    """A 1 kg mass layer spread uniformly over the facets of ``S`` (vector, consistent)."""
+    area = S.sum()
+    return sp.kron(S / area, sp.eye(3), format="csr")

@@ -1,0 +1,311 @@
+"""Rayleigh-Ritz eigen-solver on an adaptively enriched subspace of an affine FE model.
+
+``K(c) = K0 + sum c_a K_a``, ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.fem.Model`, or the
+diagnosis' :class:`jointid.diagnosis.effects.System` with its effect terms).  The subspace starts from the exact
+modes at a reference point plus their first-order responses ``A^-1 (dK - lambda dM) phi`` to given
+coefficient directions; at each new point the residuals ``K phi - lambda M phi`` of the Ritz pairs are
+checked in the full space and, where the estimated relative eigenvalue error exceeds ``tol``, the
+preconditioned residuals are added (Davidson step with the reference factorisation, or a
+factorisation and Lanczos solve at a distant point).  The answers are therefore full-FE answers to
+``tol`` (1e-6 by default) at the cost of a few dense ``r x r`` eigen-problems.  Used by the diagnosis
+(every fit) and by the identification's FE polish.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from jointid.errors import ModelError
+from jointid.fe.modal import TWO_PI, count_pencil_modes_below, factorize_pencil, shift_invert_lanczos
+from jointid.fe.pencil import FreePencil
+
+if TYPE_CHECKING:
+    from jointid.diagnosis.effects import System
+    from jointid.fe.fem import Model
+
+
+@dataclass
+class Solution:
+    """Eigen-solution of one state: ``freqs_Hz (n,)``, reduced vectors ``Y (r, n)``, all pairs."""
+
+    freqs_Hz: np.ndarray
+    lam: np.ndarray
+    Y: np.ndarray
+    lam_all: np.ndarray
+    Y_all: np.ndarray
+    kc: dict
+    mc: dict
+    shapes: np.ndarray  # (n_labels, n)
+    generation: int = 0
+    error: float = float("nan")  # estimated relative eigenvalue error after refinement (nan: not refined)
+
+
+def _pad(Y: np.ndarray, r: int) -> np.ndarray:
+    """Reduced vectors of an earlier (smaller) basis expressed in the current one."""
+    return Y if Y.shape[0] == r else np.vstack([Y, np.zeros((r - Y.shape[0], Y.shape[1]))])
+
+
+class ReducedSolver:
+    """Rayleigh-Ritz eigen-solver of a :class:`System` on an adaptively enriched subspace.
+
+    Parameters
+    ----------
+    system : System or jointid.fe.fem.Model
+        Anything with ``stiffness`` and ``mass`` term dicts (``K0``, ``M0`` first), ``fixed``, ``probe``
+        and ``n_dofs``.
+    kc, mc : dict
+        Reference coefficients (the subspace starts from the exact modes there).
+    n_modes : int
+        Number of modes returned by :meth:`solve`.
+    n_seed : int, optional
+        Number of reference modes whose first-order responses seed the subspace (default all).
+    directions : list of (dkc, dmc)
+        Coefficient directions whose first-order mode responses seed the subspace.
+    shift_Hz : float
+        Negative spectral shift of the factorisation ``A = K - sigma M``.
+    tol : float
+        Largest accepted estimated relative eigenvalue error of the returned modes.
+    """
+
+    def __init__(self, system: System | Model, kc: dict, mc: dict, n_modes: int, directions=(), *,
+                 shift_Hz: float = -10.0, backend: str = "auto", tol: float = 1e-6, max_basis: int = 900,
+                 n_seed: int | None = None):
+        self.system = system
+        self.n_modes = int(n_modes)
+        self.tol = tol
+        self.backend = backend
+        self.max_basis = max_basis
+        self.sigma = -abs(TWO_PI * shift_Hz) ** 2 if shift_Hz <= 0 else (TWO_PI * shift_Hz) ** 2
+        self.pencil = FreePencil(system)
+        self.free = self.pencil.free
+        sel, n = self.free, system.n_dofs
+        self.K_terms, self.M_terms = self.pencil.K_terms, self.pencil.M_terms
+        # rows touched by each (mostly very sparse) term: projections only need those rows
+        self._rows = {}
+        for terms in (self.K_terms, self.M_terms):
+            for k, A in terms.items():
+                rows = np.flatnonzero(np.diff(A.indptr) > 0)
+                self._rows[k] = (rows, A[rows][:, rows].tocsr()) if len(rows) < 0.5 * A.shape[0] else None
+        self.P = system.probe[:, sel].tocsr() if len(sel) < n else system.probe.tocsr()
+        self.n_full_solves = 0
+        self.n_refine = 0
+        self.generation = 0
+        self.V = np.zeros((len(sel), 0))
+        self.Kr = {k: np.zeros((0, 0)) for k in self.K_terms}
+        self.Mr = {k: np.zeros((0, 0)) for k in self.M_terms}
+        self.M_ref = None
+        self._refactor(kc, mc)
+        phi, f = self._lanczos(kc, mc, self.n_modes + 4)
+        lam = (TWO_PI * f) ** 2
+        self._append(phi)
+        lam, phi = lam[: n_seed or len(lam)], phi[:, : n_seed or len(lam)]
+        blocks = []
+        for dkc, dmc in directions:
+            R = np.zeros_like(phi)
+            for name, c in dkc.items():
+                R += c * (self.K_terms[name] @ phi)
+            for name, c in dmc.items():
+                R -= c * (self.M_terms[name] @ phi) * lam[None, :]
+            if np.abs(R).max() > 0:
+                blocks.append(self.fac.solve(R))
+        if blocks:
+            self._append(np.hstack(blocks))
+
+    # ------------------------------------------------------------ assembly helpers
+    def K(self, kc: dict) -> sp.csr_matrix:
+        """Full stiffness matrix (free DOFs) at coefficients ``kc``."""
+        return self.pencil.K(kc)
+
+    def M(self, mc: dict) -> sp.csr_matrix:
+        """Full mass matrix (free DOFs) at coefficients ``mc``."""
+        return self.pencil.M(mc)
+
+    def _refactor(self, kc, mc):
+        if getattr(self, "fac", None) is not None:
+            self.fac.free()
+        self.n_factorizations = getattr(self, "n_factorizations", 0) + 1
+        try:
+            self.fac = factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend)
+        except ModelError as exc:
+            detail = getattr(exc, "detail", exc)
+            raise ModelError(f"diagnosis: factorisation of K - sigma M failed ({detail}) — a stiffness "
+                             "coefficient is zero or negative; check the joint parameters and effects") from None
+        if self.M_ref is None:
+            self.M_ref = self.M(mc)
+
+    def _lanczos(self, kc, mc, k):
+        """Exact modes at ``(kc, mc)`` with the current factorisation: mass-normalised vectors, Hz."""
+        self.n_full_solves += 1
+        return shift_invert_lanczos(self.K(kc), self.M(mc), self.fac, k, self.sigma)
+
+    def _append(self, W: np.ndarray) -> int:
+        """M_ref-orthonormalise ``W`` against the basis, drop dependent columns, project the terms."""
+        M = self.M_ref
+        W = np.array(W, float)
+        norms0 = np.sqrt(np.einsum("ij,ij->j", W, M @ W))
+        W = W[:, norms0 > 0] / norms0[norms0 > 0]
+        for _ in range(2):
+            if self.V.shape[1]:
+                W -= self.V @ (self.V.T @ (M @ W))
+        G = W.T @ (M @ W)
+        G = 0.5 * (G + G.T)
+        w, Q = np.linalg.eigh(G)
+        keep = w > 1e-10
+        if not keep.any():
+            return 0
+        W = W @ (Q[:, keep] / np.sqrt(w[keep]))
+        # one more pass for numerical orthogonality
+        if self.V.shape[1]:
+            W -= self.V @ (self.V.T @ (M @ W))
+        G = W.T @ (M @ W)
+        Lc = np.linalg.cholesky(0.5 * (G + G.T))
+        W = sla.solve_triangular(Lc, W.T, lower=True).T
+        V_old = self.V
+        for group, terms, red in (("K", self.K_terms, self.Kr), ("M", self.M_terms, self.Mr)):
+            for name, A in terms.items():
+                sub = self._rows[name]
+                if sub is None:
+                    AW = A @ W
+                    off = V_old.T @ AW
+                    blk = W.T @ AW
+                else:
+                    rows, Ars = sub
+                    AW = Ars @ W[rows]
+                    off = V_old[rows].T @ AW
+                    blk = W[rows].T @ AW
+                old = red[name]
+                red[name] = np.block([[old, off], [off.T, 0.5 * (blk + blk.T)]])
+        self.V = np.hstack([V_old, W])
+        self.PV = self.P @ self.V
+        self._regroup()
+        return W.shape[1]
+
+    def _regroup(self):
+        self._group_red, self._group_size = {}, {}
+        for name, A in self.Kr.items():
+            if "@" in name:
+                g = name.split("@")[0]
+                self._group_red[g] = self._group_red.get(g, 0.0) + A
+                self._group_size[g] = self._group_size.get(g, 0) + 1
+
+    def _grouped(self, coeffs: dict, red: dict, base: str):
+        """Sum ``base + sum c_a red[a]``, using the pre-summed carriage groups where all carriages of a
+        joint layer share one coefficient (the usual case)."""
+        out = red[base].copy()
+        groups: dict[str, list] = {}
+        for name, c in coeffs.items():
+            if c == 0.0:
+                continue
+            if "@" in name:
+                groups.setdefault(name.split("@")[0], []).append((name, c))
+            else:
+                out += c * red[name]
+        for g, items in groups.items():
+            cs = [c for _, c in items]
+            if len(items) == self._group_size.get(g, -1) and max(cs) == min(cs):
+                out += cs[0] * self._group_red[g]
+            else:
+                for name, c in items:
+                    out += c * red[name]
+        return out
+
+    def reduced(self, kc: dict, mc: dict):
+        """Reduced stiffness and mass matrices ``(r, r)`` at coefficients ``(kc, mc)``."""
+        return self._grouped(kc, self.Kr, "K0"), self._grouped(mc, self.Mr, "M0")
+
+    # ------------------------------------------------------------ solve
+    def _ritz(self, kc, mc, n=None):
+        Kr, Mr = self.reduced(kc, mc)
+        n = min(n or self.n_modes, Kr.shape[0])
+        lam, Y = sla.eigh(Kr, Mr, check_finite=False, subset_by_index=[0, n - 1], driver="gvx")
+        return lam, Y
+
+    def solve(self, kc: dict, mc: dict, n: int | None = None, *, refine: bool = True) -> Solution:
+        """Lowest ``n`` modes at coefficients ``(kc, mc)``, refined until their estimated error < tol."""
+        n = n or self.n_modes
+        lam, Y = self._ritz(kc, mc, n)
+        worst = float("nan")
+        if refine:
+            last = np.inf
+            K = M = None
+            for it in range(12):
+                phi = self.V @ Y[:, :n]
+                if K is None:  # assembled once per point, on the first residual check
+                    K, M = self.K(kc), self.M(mc)
+                R = K @ phi - (M @ phi) * lam[None, :n]
+                D = self.fac.solve(R)
+                err = np.abs(np.einsum("ij,ij->j", R, D)) / np.maximum(np.abs(lam[:n]), 1.0)
+                worst = float(err.max())
+                if worst <= self.tol:
+                    break
+                self.n_refine += 1
+                if self.V.shape[1] > self.max_basis:
+                    self._refactor(kc, mc)
+                    self._reset(self._lanczos(kc, mc, n + 4)[0])
+                elif worst > 1e-2 or worst > 0.5 * last:
+                    # far from the reference or slow progress: exact modes at this point, which
+                    # also becomes the new preconditioner
+                    self._refactor(kc, mc)
+                    self._append(self._lanczos(kc, mc, n + 4)[0])
+                else:
+                    self._append(D[:, err > self.tol])
+                last = worst
+                lam, Y = self._ritz(kc, mc, n)
+        lam_n = lam[:n]
+        freqs = np.sqrt(np.clip(lam_n, 0.0, None)) / TWO_PI
+        return Solution(freqs_Hz=freqs, lam=lam_n, Y=Y[:, :n], lam_all=lam, Y_all=Y, kc=dict(kc),
+                        mc=dict(mc), shapes=self.PV @ Y[:, :n], generation=self.generation, error=worst)
+
+    def _reset(self, phi):
+        self.generation += 1
+        self.V = np.zeros((phi.shape[0], 0))
+        self.Kr = {k: np.zeros((0, 0)) for k in self.K_terms}
+        self.Mr = {k: np.zeros((0, 0)) for k in self.M_terms}
+        self._append(phi)
+
+    def full_phi(self, sol: Solution) -> np.ndarray:
+        """Mass-normalised full-space mode shapes of a solution, ``(n_dofs, n)`` (zeros at fixed DOFs)."""
+        phi = np.zeros((self.system.n_dofs, sol.Y.shape[1]))
+        phi[self.free] = self.V @ sol.Y
+        return phi
+
+    def verify(self, kc: dict, mc: dict, n: int | None = None) -> float:
+        """Check the reduced solution at ``(kc, mc)`` against the full model.
+
+        The refined Ritz pairs each satisfy the full-space residual test; a Sturm count between the
+        ``n``-th and the next Ritz value (:func:`jointid.fe.modal.count_modes_below`, one factorisation)
+        then confirms that they are the lowest ``n`` modes, and their estimated error is returned.
+        Where the count differs (a mode the subspace lacks), a full Lanczos solve, whose modes join
+        the subspace.  Returns the largest relative frequency error over the lowest ``n`` modes
+        (estimated, or the difference to the full solve).
+        """
+        n = n or self.n_modes
+        red = self.solve(kc, mc, n, refine=True)
+        lam = self._ritz(kc, mc, n + 1)[0]
+        f = np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
+        if len(f) > n and f[n] > f[n - 1] * (1.0 + 1e-6) and np.isfinite(red.error):
+            count = count_pencil_modes_below(self.pencil, kc, mc, 0.5 * (f[n - 1] + f[n]), self.backend)
+            if count == n:
+                return 0.5 * red.error  # relative frequency error = half the eigenvalue error
+        self._refactor(kc, mc)
+        phi, f_full = self._lanczos(kc, mc, n + 2)
+        f_full = f_full[:n]
+        self._append(phi)
+        return float(np.max(np.abs(red.freqs_Hz - f_full) / np.maximum(f_full, 1.0)))
+
+    def sensitivity(self, sol: Solution, dkc: dict, dmc: dict) -> np.ndarray:
+        """``dlambda / dx`` of the ``n`` modes of ``sol`` for one coefficient direction, ``(n,)``."""
+        Y = _pad(sol.Y, self.V.shape[1])
+        out = np.zeros(Y.shape[1])
+        for name, c in dkc.items():
+            if c != 0.0:
+                out += c * np.einsum("ij,ij->j", Y, self.Kr[name] @ Y)
+        for name, c in dmc.items():
+            if c != 0.0:
+                out -= c * sol.lam * np.einsum("ij,ij->j", Y, self.Mr[name] @ Y)
+        return out

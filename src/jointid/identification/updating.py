@@ -1,0 +1,298 @@
+"""Response-surface model updating: surfaces over the DOE, identification per state, FE verification.
+
+Stages (each reads and writes files, see ``jointid.stages.core`` for the workflow wiring):
+
+1. :func:`fit_surfaces` — track the modes through the DOE by MAC, fit one surface per tracked mode
+   to ``ln f`` over the coded log-parameters, and check it at fresh verification points solved by FE.
+2. :func:`identify_state` — pair measured and tracked modes (MAC when shapes are measured, else
+   order-preserving frequency assignment, re-paired at each optimum until stable), then bounded
+   multi-start least squares on the weighted relative frequency error.
+3. :func:`verify_state` — re-solve the full FE model at the optimum and report FE, surface and
+   measured frequencies side by side (the table values are the FE ones).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+
+from jointid.identification.doe import to_coded, to_physical
+from jointid.errors import DataError, NumericalWarning
+from jointid.identification.identify import identify
+from jointid.identification.surface import Surface, diagnostics, fit_surface
+from jointid.fe.modal import mac
+from jointid.identification.tracking import pair_by_frequency, pair_by_shapes, track_doe
+
+
+def mac_one(a: np.ndarray, b: np.ndarray) -> float:
+    return float(mac(a, b)[0, 0])
+
+
+class LogFrequencyModel:
+    """Natural frequencies ``exp(surface(x))`` of the tracked modes, with their Jacobian."""
+
+    def __init__(self, surface: Surface, select: np.ndarray | None = None):
+        self.surface = surface
+        self.select = select
+
+    def __call__(self, x):
+        f = np.exp(self.surface(np.asarray(x, float)))
+        return f if self.select is None else f[self.select]
+
+    def jacobian(self, x):
+        x = np.asarray(x, float)
+        f = np.exp(self.surface(x))
+        J = f[:, None] * self.surface.jacobian(x)
+        return J if self.select is None else J[self.select]
+
+
+# ------------------------------------------------------------------ 1. surfaces
+def fit_surfaces(sheet: pd.DataFrame, freqs: np.ndarray, shapes: np.ndarray, descriptions: np.ndarray,
+                 names: list[str], band_Hz: tuple[float, float], kind: str = "quadratic"):
+    """Track modes through the DOE and fit one surface per tracked mode.
+
+    Returns ``(surface_doc, diagnostics DataFrame)``; ``surface_doc`` is JSON-serialisable.
+    """
+    X = sheet[[f"x_{n}" for n in names]].to_numpy()
+    design = (sheet["role"] == "design").to_numpy()
+    ref = int(np.argmin(np.where(design, np.abs(X).sum(axis=1), np.inf)))
+    ref_modes, tf, tm = track_doe(freqs, shapes, ref, band_Hz)
+    lost = np.isnan(tf[design]).any(axis=0)
+    keep = np.flatnonzero(~lost)
+    if len(keep) == 0:
+        raise DataError("surface: no mode could be tracked through the whole DOE — narrow the "
+                        "joints.parameters bounds or raise solver.n_modes")
+    Y = np.log(tf[design][:, keep])
+    surf = fit_surface(X[design], Y, kind=kind)
+    diag = diagnostics(surf, X[design], Y).reset_index(drop=True)
+    verify = ~design & ~np.isnan(tf[:, keep]).any(axis=1)
+    rows = []
+    for col, r in enumerate(keep):
+        row = {"tracked_mode": int(r + 1), "ref_freq_Hz": float(freqs[ref, ref_modes[r]]),
+               "description": str(descriptions[ref][ref_modes[r]]),
+               "min_mac_in_doe": float(tm[design, r].min())}
+        row.update({k: float(diag.loc[col, k]) for k in ("r2", "r2_adj", "r2_pred", "rmse")})
+        if verify.any():
+            pred = np.exp(surf.predict(X[verify])[:, col])
+            err = 100 * np.abs(pred - tf[verify, r]) / tf[verify, r]
+            row["verify_max_error_pct"] = float(err.max())
+        else:
+            row["verify_max_error_pct"] = float("nan")
+        rows.append(row)
+    for r in np.flatnonzero(lost):
+        rows.append({"tracked_mode": int(r + 1), "ref_freq_Hz": float(freqs[ref, ref_modes[r]]),
+                     "description": str(descriptions[ref][ref_modes[r]]) + " (lost in DOE: not fitted)",
+                     "min_mac_in_doe": float(np.nanmin(tm[design, r]))})
+    diag_df = pd.DataFrame(rows)
+    doc = {"names": names, "kind": kind, "ref_point": str(sheet["point"].iloc[ref]),
+           "tracked_modes": [int(r + 1) for r in keep],
+           "ref_freqs_Hz": [float(freqs[ref, ref_modes[r]]) for r in keep],
+           "descriptions": [str(descriptions[ref][ref_modes[r]]) for r in keep],
+           "ref_shapes": shapes[ref][:, ref_modes[keep]].tolist(),
+           "surface": surf.to_dict()}
+    return doc, diag_df
+
+
+# ------------------------------------------------------------------ 2. identification
+def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
+                   meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
+                   seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None):
+    """Identify the joint parameters of one state from measured frequencies.
+
+    Returns ``(result, pairing, warnings list)`` where ``pairing[i]`` is the column of the tracked
+    mode paired with measured mode ``i``.  A given ``pairing`` is kept as it is; otherwise it comes
+    from the measured shapes (MAC) or, for frequencies alone, from the best of several starts, each
+    re-paired by frequency until stable.  ``candidates`` (a list) collects ``(pairing, cost)`` of
+    every start in that last case.
+    """
+    surf = Surface.from_dict(doc["surface"])
+    names = doc["names"]
+    full = LogFrequencyModel(surf)
+    n_track = len(doc["tracked_modes"])
+    if len(f_meas) > n_track:
+        raise DataError(f"measurement: {len(f_meas)} measured modes but only {n_track} model modes are "
+                        "tracked in the band — raise solver.n_modes or widen the tracked band")
+    caught: list[str] = []
+
+    def run(pairing):
+        model = LogFrequencyModel(surf, pairing)
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always", NumericalWarning)
+            res = identify(model, f_meas, weights=weights, jacobian=model.jacobian, n_starts=n_starts,
+                           seed=seed, sigma_rel=sigma_rel, names=names, lower=lower, upper=upper)
+        return res, [str(x.message) for x in w]
+
+    if pairing is not None:
+        pairing = np.asarray(pairing, int)
+        res, caught = run(pairing)
+        return res, pairing, caught
+    if meas_shapes is not None:
+        ref_shapes = np.asarray(doc["ref_shapes"])
+        pairing, macs = pair_by_shapes(meas_shapes, ref_shapes)
+        if np.any(pairing < 0):
+            bad = ", ".join(str(i + 1) for i in np.flatnonzero(pairing < 0))
+            raise DataError(f"measurement: measured mode(s) {bad} have no model mode with MAC >= 0.5 — "
+                            "check the shapes or the model")
+        res, caught = run(pairing)
+        return res, pairing, caught
+    rng = np.random.default_rng(seed)
+    k = len(names)
+    starts = np.vstack([np.zeros(k), rng.uniform(-1, 1, size=(8, k))])
+    best = None
+    for x0 in starts:
+        pairing = pair_by_frequency(f_meas, full(x0))
+        for _ in range(10):
+            res, msgs = run(pairing)
+            new = pair_by_frequency(f_meas, full(res.x_coded))
+            if np.array_equal(new, pairing):
+                break
+            pairing = new
+        if candidates is not None:
+            candidates.append((tuple(int(c) for c in pairing), float(res.cost)))
+        if best is None or res.cost < best[0].cost - 1e-12:
+            best = (res, pairing, msgs)
+    return best
+
+
+def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tuple[np.ndarray, dict]:
+    """One pairing of measured and tracked modes for several frequency-only states.
+
+    Measured mode ``i`` is taken to be the same physical mode in every state (the convention of a
+    dataset that lists the states' modes side by side, as the paper's Tables 2 and 3 do), so all
+    states pair it with the same tracked mode.  Each state is identified with every pairing that a
+    start of any state converged to; the pairing of least summed cost wins.  Without that rule, with
+    model modes inside the band that the test did not see, a state can prefer a pairing that another
+    state rules out.
+
+    ``f_meas`` maps state -> measured frequencies (equal counts); ``kw`` as :func:`identify_state`
+    (``sigma_rel`` may be a mapping state -> value).  Returns ``(pairing, info)``: the summed-cost
+    winner; ``info[state]`` its cost there and the state's own best pairing; ``info["candidates"]``
+    every pairing tried with its summed cost and chi-square (``sum cost / sigma^2``), best first.
+    """
+    sig = kw.pop("sigma_rel", 0.01)
+    sigma = sig if isinstance(sig, dict) else {s: sig for s in f_meas}
+    cands, own = {}, {}
+    for state, f in f_meas.items():
+        found: list = []
+        _, p, _ = identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[state],
+                                 candidates=found, **kw)
+        own[state] = tuple(int(c) for c in p)
+        for pairing, _ in found:
+            cands.setdefault(pairing, None)
+    best, tried = None, []
+    for pairing in sorted(cands):
+        costs = {s: identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[s],
+                                   pairing=pairing, **kw)[0].cost for s, f in f_meas.items()}
+        total = sum(costs.values())
+        chi2 = sum(c / sigma[s] ** 2 for s, c in costs.items())
+        tried.append({"pairing": list(pairing), "cost": total, "chi2": chi2, "costs": costs,
+                      "chi2_by_state": {s: c / sigma[s] ** 2 for s, c in costs.items()}})
+        if best is None or total < best[0] - 1e-12:
+            best = (total, pairing, costs)
+    _, pairing, costs = best
+    info = {s: {"cost": costs[s], "own": list(own[s])} for s in f_meas}
+    info["candidates"] = sorted(tried, key=lambda t: t["cost"])
+    return np.asarray(pairing, int), info
+
+
+# ------------------------------------------------------------------ 3. verification
+def verify_pairing(doc: dict, pairing: np.ndarray, fe_shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """FE mode index for each paired tracked mode, by MAC with the tracked reference shapes."""
+    ref_shapes = np.asarray(doc["ref_shapes"])[:, pairing]
+    index, macs = pair_by_shapes(ref_shapes, fe_shapes, threshold=0.3)
+    return index, macs
+
+
+def coded(theta: dict, names: list[str], lower, upper) -> np.ndarray:
+    return to_coded(np.array([theta[n] for n in names]), lower, upper)
+
+
+def physical(x, lower, upper) -> np.ndarray:
+    return to_physical(np.asarray(x, float), lower, upper)
+
+
+# ------------------------------------------------------------------ FE polish
+def log_jacobian(stiffness: dict, phi: np.ndarray, lam: np.ndarray, terms: list[dict[str, float]],
+                 theta: np.ndarray) -> np.ndarray:
+    """``d ln f / d log10 theta_i`` of mass-normalised modes ``phi`` (columns) with eigenvalues ``lam``.
+
+    Exact modal sensitivities: ``d lambda / d theta_i = sum_t c phi^T K_t phi`` over the stiffness
+    terms ``terms[i] = {name: c}`` of parameter i (``stiffness[name]`` the matrices, in the space of
+    ``phi``); ``d ln f = d lambda / (2 lambda)``.  Returns ``(n_modes, n_params)``.
+    """
+    J = np.empty((phi.shape[1], len(theta)))
+    for i, (tm, th) in enumerate(zip(terms, theta)):
+        dlam = sum(c * np.einsum("ij,ij->j", phi, stiffness[t] @ phi) for t, c in tm.items())
+        J[:, i] = dlam * th * np.log(10) / (2 * lam)
+    return J
+
+
+def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
+              target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
+              max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print,
+              repair_min_Hz: float | None = None):
+    """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
+
+    ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms[, extra])`` gives the FE
+    modes (``extra`` ``(n, n_params)``: a part of ``d ln f / d log10 theta`` beyond ``phi``'s);
+    each measured mode follows the FE mode with the highest MAC to its current shape (starting from
+    ``target_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
+    exact modal sensitivities ``d lambda / d theta_i = phi^T K_i phi`` (mass-normalised phi).
+    ``terms[i]`` maps stiffness term names to the coefficient per unit of parameter i.
+    With ``repair_min_Hz`` (frequency-only data) the measured modes are re-paired at every iterate by
+    the order-preserving frequency assignment among FE modes above that frequency, the same rule as
+    on the surfaces; the best iterate is kept.
+
+    Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations)``.
+    """
+    lo, hi = np.log10(lower), np.log10(upper)
+    y = np.log10(np.asarray(theta0, float))
+    w = np.ones(len(f_meas)) if weights is None else np.asarray(weights, float)
+    shapes_now = np.asarray(target_shapes)
+    history = []
+    best = None
+    for it in range(max_iter + 1):
+        freqs, shapes, phi, stiff, *extra = solve(10 ** y)
+        if repair_min_Hz is not None:
+            cand = np.flatnonzero(freqs >= repair_min_Hz)
+            index = cand[pair_by_frequency(f_meas, freqs[cand])]
+            macs = np.array([mac_one(shapes_now[:, i], shapes[:, j]) for i, j in enumerate(index)])
+        else:
+            index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
+        if np.any(index < 0):
+            raise DataError("FE polish: a paired mode could not be followed by MAC — widen the DOE "
+                            "or check the pairing in results/identify/<state>/params.json")
+        f = freqs[index]
+        r = np.sqrt(w) * (f - f_meas) / f_meas
+        # d(f / f_meas) / d log10 theta = (f / f_meas) d ln f / d log10 theta
+        dlnf = log_jacobian(stiff, phi[:, index], (2 * np.pi * f) ** 2, terms, 10 ** y)
+        if extra:  # a part of d ln f / d log10 theta that the solve knows beyond phi (e.g. a correction factor's)
+            dlnf = dlnf + np.asarray(extra[0])[index]
+        J = (np.sqrt(w) * f / f_meas)[:, None] * dlnf
+        history.append(float(r @ r))
+        if best is None or history[-1] < best[0]:
+            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs))
+        log(f"  FE polish it {it}: max |error| {100 * np.abs(r / np.sqrt(w)).max():.3f} %, "
+            + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
+        shapes_now = shapes[:, index]
+        if it == max_iter:
+            break
+        # Levenberg-Marquardt step, clipped to the bounds
+        lam = 1e-3 * np.trace(J.T @ J) / len(y)
+        step = -np.linalg.solve(J.T @ J + lam * np.eye(len(y)), J.T @ r)
+        y_new = np.clip(y + step, lo, hi)
+        if np.max(np.abs(y_new - y)) < tol:
+            y = y_new
+            break
+        y = y_new
+    _, y, f, index, macs, J, freqs = best
+    cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
+    band = (np.min(f_meas), np.max(f_meas))
+    unpaired = [float(freqs[j]) for j in range(len(freqs))
+                if band[0] <= freqs[j] <= band[1] and j not in set(index.tolist())]
+    return {"theta": 10 ** y, "f_fe": f, "index": index, "mac": macs, "jacobian_log10": J,
+            "unpaired_in_band_Hz": unpaired,
+            "cov_log10": cov, "iterations": it, "cost_history": history,
+            "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}

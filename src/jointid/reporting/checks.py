@@ -1,0 +1,185 @@
+"""Acceptance checks on the reproduced tables (used by CI): ``python -m jointid.reporting.checks``.
+
+Two groups, selectable so that CI can gate on one and only report the other::
+
+    python -m jointid.reporting.checks --table1 results/tables      # Table 1: power-on stiffer than power-off
+    python -m jointid.reporting.checks --tables2-3 results/tables   # Tables 2, 3: frequency errors within bounds
+    python -m jointid.reporting.checks results/tables               # both
+
+Exit status 1 with one line per problem (where, what, how to fix) if a selected check fails.
+
+* Table 1 (``table1_dynamic_stiffness.csv``): the file exists and has rows ``power_off`` and
+  ``power_on`` with a finite positive ``dynamic_stiffness_N_per_mm``, and the increase power_on vs
+  power_off is positive (the paper: +42.1 %; the motor's attraction preloads the joints).
+* Tables 2 and 3: each exists with the required columns, every ``relative_error_pct`` is a finite
+  number and the largest |relative error| is within the bound (by default the paper's own: 8.1 %
+  power-off, 8.2 % power-on).
+
+A missing, unreadable (e.g. 0-byte) or incomplete table, or an empty / non-numeric checked cell,
+fails the check with the file, row and column named; it never passes silently.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+COLUMNS = ["order", "experimental_Hz", "simulation_Hz", "relative_error_pct", "paper_simulation_Hz",
+           "paper_relative_error_pct"]
+TABLES = {"table2_power_off.csv": 8.1, "table3_power_on.csv": 8.2}
+TABLE1 = "table1_dynamic_stiffness.csv"
+TABLE1_COLUMNS = ["state", "dynamic_stiffness_N_per_mm"]
+
+
+def _read_table(path: Path, columns: list[str], rule: str) -> tuple[pd.DataFrame | None, list[str]]:
+    """Read a result table as text cells; ``(DataFrame, [])`` or ``(None, [problem])``.
+
+    Parameters
+    ----------
+    path : Path
+        The table CSV.
+    columns : list of str
+        Columns it must have.
+    rule : str
+        Snakemake rule writing it, named in the fix.
+
+    Returns
+    -------
+    (df, problems)
+        ``df`` holds every cell as a string (empty cells as ``""``), or is None when the file is
+        missing, unreadable (e.g. 0 bytes), lacks a column or has no rows.
+    """
+    import pandas as pd
+
+    run = f"`snakemake -j2 {path.as_posix()}` (rule {rule})"
+    if not path.is_file():
+        return None, [f"{path}: missing — run {run}"]
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (ValueError, OSError) as exc:  # EmptyDataError, ParserError, UnicodeDecodeError, permissions
+        return None, [f"{path}: not a readable CSV ({exc}) — delete it and rerun {run}"]
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        return None, [f"{path}: columns {', '.join(missing)} missing — rerun {run}"]
+    if df.empty:
+        return None, [f"{path}: no data rows — rerun {run}"]
+    return df, []
+
+
+def _number(raw: str) -> float:
+    """The table cell ``raw`` as a float; NaN when it is empty or not a number."""
+    try:
+        return float(raw)
+    except ValueError:
+        return math.nan
+
+
+def _shown(raw: str) -> str:
+    """A table cell for a problem line: its text, or ``(empty)``."""
+    return raw.strip() or "(empty)"
+
+
+def _non_finite_cells(path: Path, df: pd.DataFrame, column: str, key: str, rule: str) -> list[str]:
+    """Problems for the cells of ``column`` that are empty, non-numeric or not finite.
+
+    Each problem names the file, the row (by its ``key`` column, e.g. ``order``) and the column.
+    """
+    return [f"{path}: {key} {_shown(row[key])}: {column} = {_shown(row[column])} is not a finite number — "
+            f"delete the table and rerun `snakemake -j2 {path.as_posix()}` (rule {rule})"
+            for _, row in df.iterrows() if not math.isfinite(_number(row[column]))]
+
+
+def check_frequency_tables(folder: str | Path, bounds: dict[str, float] = TABLES) -> list[str]:
+    """Problems of Tables 2 and 3 in ``folder`` (empty list = fine); prints the passing ones.
+
+    A table fails when it is missing or unreadable, lacks a column, has a missing or non-numeric
+    ``relative_error_pct`` or its largest |relative error| exceeds the bound.
+    """
+    problems = []
+    for name, bound in bounds.items():
+        path = Path(folder) / name
+        df, read_problems = _read_table(path, COLUMNS, "tables")
+        bad = read_problems or _non_finite_cells(path, df, "relative_error_pct", "order", "tables")
+        if bad:
+            problems += bad
+            continue
+        worst = max(abs(_number(v)) for v in df["relative_error_pct"])
+        if not worst <= bound:
+            problems.append(f"{path}: max |relative error| {worst:.2f} % exceeds the required {bound} %")
+        else:
+            print(f"{path}: max |relative error| {worst:.2f} % (required <= {bound} %)")
+    return problems
+
+
+def table1_increase_pct(folder: str | Path) -> tuple[float | None, list[str]]:
+    """Increase of the dynamic stiffness power_on vs power_off (%) from Table 1, and its problems.
+
+    Returns
+    -------
+    (increase_pct, problems)
+        ``increase_pct`` is ``100 * (k_on / k_off - 1)`` or None when it cannot be computed.
+    """
+    path = Path(folder) / TABLE1
+    df, problems = _read_table(path, TABLE1_COLUMNS, "table1")
+    if df is None:
+        return None, problems
+    k = {}
+    for state in ("power_off", "power_on"):
+        rows = df[df["state"] == state]
+        if len(rows) != 1:
+            problems.append(f"{path}: {len(rows)} rows for state {state}, expected 1 — the config needs "
+                            "states power_off and power_on; rerun rule table1")
+            continue
+        raw = rows["dynamic_stiffness_N_per_mm"].iloc[0]
+        v = _number(raw)
+        if not (math.isfinite(v) and v > 0):
+            problems.append(f"{path}: {state} dynamic_stiffness_N_per_mm = {_shown(raw)} is not a positive "
+                            f"number — see logs/harmonic/{state}.log")
+            continue
+        k[state] = float(v)
+    if problems:
+        return None, problems
+    return 100.0 * (k["power_on"] / k["power_off"] - 1.0), []
+
+
+def check_table1(folder: str | Path) -> list[str]:
+    """Problems of Table 1 in ``folder`` (empty list = fine); prints the increase when it passes."""
+    inc, problems = table1_increase_pct(folder)
+    path = Path(folder) / TABLE1
+    if inc is not None and not inc > 0:
+        problems.append(f"{path}: increase power_on vs power_off is {inc:+.1f} % (paper +42.1 %), not "
+                        "positive — the identified power-on joints do not stiffen the drive point; see the "
+                        "report's FRF overlay and governing modes")
+    elif inc is not None:
+        print(f"{path}: increase power_on vs power_off {inc:+.1f} % (required > 0; paper +42.1 %)")
+    return problems
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m jointid.reporting.checks",
+                                 description="Acceptance checks on the reproduced tables.")
+    ap.add_argument("folder", nargs="?", default="results/tables")
+    ap.add_argument("--table1", action="store_true",
+                    help="check Table 1 (exists, dynamic stiffness increases power-off -> power-on)")
+    ap.add_argument("--tables2-3", dest="tables23", action="store_true",
+                    help="check Tables 2 and 3 (max |relative error| within the paper's bounds)")
+    args = ap.parse_args(argv)
+    both = not (args.table1 or args.tables23)
+    problems = []
+    if args.table1 or both:
+        problems += check_table1(args.folder)
+    if args.tables23 or both:
+        problems += check_frequency_tables(args.folder)
+    for p in problems:
+        print(p, file=sys.stderr)
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,158 @@
+"""Rigidity of one carriage on its rail as a catalogue states it, from the identified joint springs.
+
+A catalogue quotes a block's rigidity as load over the block's deflection relative to the rail, with
+the rail on a rigid bed and the block under a rigid mounting plate.  The joint springs identified by
+this project (N/m^3 on the contact faces) are only part of that: the block's skirts and the rail's head
+deform in series with them.  To compare like with like, this module runs that test on the model's own
+parts: one carriage of the rig on a rail segment (the rig's cross-sections, materials and contact faces,
+and the joint spring layers at the given parameters), the rail's bottom clamped, the carriage's top
+face moved as a rigid plate by a unit displacement along X (lateral), Y (normal) or Z (feed).  The
+reaction force over the displacement is the rigidity.  The same test with stiff joints (every joint
+spring 1e4 times stiffer) gives the parts' own rigidity, which the springs act in series with.
+
+The model is its own small mesh (``cell_m`` cells, quadratic hexahedra), independent of the rig's mesh.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from jointid.errors import ModelError
+from jointid.geometry.mesh import build_mesh
+from jointid.fe.model import assemble_solids_and_joints, dof_parts, joint_coefficients
+from jointid.fe.modal import factorize
+from jointid.geometry.rig import Box, Rig
+
+DIRECTIONS = {"lateral": 0, "normal": 1, "feed": 2}
+STIFF_JOINTS = 1.0e4  # factor on every joint spring for "the parts alone"
+
+
+@dataclass(frozen=True)
+class BlockRigidity:
+    """Rigidity of one carriage on its rail, N/m per direction (``lateral``, ``normal``, ``feed``)."""
+
+    assembly_N_per_m: dict   # joint springs and parts in series: the catalogue's quantity
+    parts_N_per_m: dict      # the same test with stiff joints: carriage and rail alone
+    n_dofs: int
+    cell_m: float
+
+    def per_um(self, which: str = "assembly") -> dict:
+        """``{direction: N/um}`` of the assembly or the parts."""
+        src = self.assembly_N_per_m if which == "assembly" else self.parts_N_per_m
+        return {d: v * 1e-6 for d, v in src.items()}
+
+
+def block_rig(rig_cfg: dict, overhang_m: float | None = None) -> Rig:
+    """One carriage on a rail segment, the rail's bottom at Y = 0 and the carriage centred at Z = 0.
+
+    The segment sticks out of the carriage by ``overhang_m`` at either end (default: twice the rail
+    height, where the rail's deflection under the carriage has decayed)."""
+    r, c = rig_cfg["rails"], rig_cfg["carriages"]
+    rh, gc, fh = r["height_m"], c["ground_clearance_m"], c["flank_contact_height_m"]
+    w, W, L, ch = r["width_m"], c["width_m"], c["length_m"], c["height_m"]
+    if not (gc < rh - fh and fh > 0 and ch > rh and W > w):
+        raise ModelError("rig.carriages: the carriage must wrap the rail (ground_clearance_m < rail height - "
+                         "flank_contact_height_m, height_m > rail height, width_m > rail width)")
+    over = 2 * rh if overhang_m is None else overhang_m
+    Lr = L + 2 * over
+    boxes = [Box("rail", (-w / 2, 0.0, -Lr / 2), (w / 2, rh, Lr / 2)),
+             Box("carriage", (-W / 2, gc, -L / 2), (W / 2, ch, L / 2))]
+    contact = {"top": [Box("top", (-w / 2, rh, -L / 2), (w / 2, rh, L / 2))],
+               "flank": [Box("flank", (x, rh - fh, -L / 2), (x, rh, L / 2)) for x in (-w / 2, w / 2)]}
+    xs = np.array(sorted({-W / 2, -w / 2, w / 2, W / 2}))
+    ys = np.array(sorted({0.0, gc, rh - fh, rh, ch}))
+    zs = np.array(sorted({-Lr / 2, -L / 2, L / 2, Lr / 2}))
+    return Rig(boxes=boxes, contact=contact, patches={}, carriage_centres=np.array([[0.0, rh, 0.0]]),
+               breakpoints=(xs, ys, zs), materials={"rail": r["material"], "carriage": c["material"]},
+               dims={"rail_top_m": rh, "carriage_top_m": ch})
+
+
+class BlockTest:
+    """The catalogue test of :func:`block_rig`, meshed and assembled once for any joint parameters.
+
+    ``cfg`` is the whole validated configuration (rig, materials, joints, mesh.element, solver.backend).
+    """
+
+    def __init__(self, cfg: dict, cell_m: float = 0.006, element: str | None = None, backend: str | None = None):
+        rig = block_rig(cfg["rig"])
+        rmesh = build_mesh(rig, cell_m)
+        basis, self.stiffness, _, _ = assemble_solids_and_joints(cfg, rig, rmesh, element or cfg["mesh"]["element"])
+        y, part = basis.doflocs[1], dof_parts(basis, rmesh)
+        rail_bottom = np.flatnonzero((part == 1) & (np.abs(y) < 1e-9))
+        self.plate = np.flatnonzero((part == 2) & (np.abs(y - rig.dims["carriage_top_m"]) < 1e-9))
+        self.n = 3 * basis.N
+        self.moved = np.concatenate([3 * self.plate + c for c in range(3)])
+        self.free = np.setdiff1d(np.arange(self.n),
+                                 np.concatenate([3 * rail_bottom + c for c in range(3)] + [self.moved]))
+        self.joints, self.cell_m = cfg["joints"], float(cell_m)
+        self.backend = backend or cfg["solver"]["backend"]
+
+    def rigidity(self, theta: dict[str, float], parts: bool = True) -> BlockRigidity:
+        """Rigidity at joint parameters ``theta`` (N/m^3); ``parts=False`` skips the stiff-joint test
+        (``parts_N_per_m`` is then empty)."""
+        kc = joint_coefficients(self.joints, theta)
+        out = {}
+        for label, scale in (("assembly", 1.0), ("parts", STIFF_JOINTS))[: 2 if parts else 1]:
+            K = (self.stiffness["K0"] + sum((scale * v) * self.stiffness[t] for t, v in kc.items())).tocsr()
+            lu = factorize(K[self.free][:, self.free], self.backend)
+            Kfm = K[self.free][:, self.moved]
+            res = {}
+            for name, d in DIRECTIONS.items():
+                u = np.zeros(self.n)
+                u[3 * self.plate + d] = 1.0  # the rigid plate moved by 1 m along d, clamped otherwise
+                u[self.free] = -lu.solve(Kfm @ u[self.moved])
+                res[name] = float((K @ u)[3 * self.plate + d].sum())  # reaction on the plate, N
+            out[label] = res
+        return BlockRigidity(assembly_N_per_m=out["assembly"], parts_N_per_m=out.get("parts", {}),
+                             n_dofs=int(self.n), cell_m=self.cell_m)
+
+
+def block_rigidity(cfg: dict, theta: dict[str, float], cell_m: float = 0.006, element: str | None = None,
+                   backend: str | None = None, parts: bool = True) -> BlockRigidity:
+    """Catalogue-style rigidity of one carriage on its rail at joint parameters ``theta`` (N/m^3):
+    :class:`BlockTest` for one parameter point."""
+    return BlockTest(cfg, cell_m, element, backend).rigidity(theta, parts)
+
+
+def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str, log=print) -> dict:
+    """Rule ``carriage_rigidity``: the identified joints of one state as a catalogue's block rigidity.
+
+    Writes, per direction: the joint springs alone (parameter x contact area), the carriage and rail
+    alone (stiff joints), the assembly (both in series, the catalogue's quantity) with every parameter
+    at the low and at the high end of its 95 % interval (``assembly_ci95_low/high``: the rigidity grows
+    with every spring, so this is an outer bound of its interval), and the joints' share of the
+    assembly's compliance (1 - assembly / parts: the compliance they add over stiff joints).
+    """
+    from jointid import io
+
+    par = io.read_json(params_json)
+    cell = cfg["carriage_rigidity"]["cell_size_m"]
+    test = BlockTest(cfg, cell)
+    at = lambda key: {n: v[key] for n, v in par["parameters"].items()}  # noqa: E731
+    res, low, high = test.rigidity(at("value")), test.rigidity(at("ci95_low"), False), test.rigidity(at("ci95_high"), False)
+    springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction
+    along = {"x": "lateral", "y": "normal", "z": "feed"}
+    for name, spec in cfg["joints"]["parameters"].items():
+        per = par.get("per_carriage", {}).get(name.replace("_N_per_m3", "_per_carriage_N_per_um"))
+        if per is not None:
+            springs[along[spec["direction"]]] += per["value"]
+    rows = {}
+    for d in DIRECTIONS:
+        a = res.assembly_N_per_m[d] * 1e-6
+        rows[d] = {"joint_springs_N_per_um": springs[d] or None, "parts_N_per_um": res.parts_N_per_m[d] * 1e-6,
+                   "assembly_N_per_um": a, "assembly_ci95_low_N_per_um": low.assembly_N_per_m[d] * 1e-6,
+                   "assembly_ci95_high_N_per_um": high.assembly_N_per_m[d] * 1e-6,
+                   "joint_share_of_compliance": 1 - a / (res.parts_N_per_m[d] * 1e-6)}
+        log(f"carriage_rigidity[{state}]: {d}: assembly {a:,.0f} N/um "
+            f"[{rows[d]['assembly_ci95_low_N_per_um']:,.0f}, {rows[d]['assembly_ci95_high_N_per_um']:,.0f}]"
+            + (f", joint springs alone {springs[d]:,.0f}" if springs[d] else "")
+            + f", carriage and rail alone {rows[d]['parts_N_per_um']:,.0f} N/um "
+            f"(joints {100 * rows[d]['joint_share_of_compliance']:.0f} % of the compliance)")
+    doc = {"state": state, "cell_size_m": cell, "n_dofs": res.n_dofs,
+           "test": "one carriage on a rail segment (2 rail heights beyond either end), rail bottom clamped, "
+                   "carriage top moved as a rigid plate; rigidity = reaction / displacement",
+           "directions": rows}
+    io.write_json(out_json, doc)
+    return doc
