@@ -8,7 +8,7 @@ from __future__ import annotations
 
 
 def limit_threads(n: int = 1) -> list[str]:
-    """Limit every loaded BLAS / OpenMP thread pool (OpenBLAS, MKL with PARDISO) to ``n`` threads.
+    """Limit every loaded BLAS thread pool (OpenBLAS, MKL with PARDISO) to ``n`` threads.
 
     MKL is loaded first (``pypardiso``, when installed) so that its pool is limited too; the limit
     holds for the rest of the process.  Returns the libraries adjusted, as ``"<path>:<api>"``.
@@ -19,6 +19,6 @@ def limit_threads(n: int = 1) -> list[str]:
         import pypardiso  # noqa: F401
     except Exception:
         pass
-    threadpool_limits(limits=int(n))
+    threadpool_limits(limits=int(n), user_api="blas")
     return [f"{lib['filepath']}:{lib['internal_api']}" for lib in threadpool_info()
             if lib["internal_api"] in ("openblas", "mkl", "blis")]
