@@ -7,7 +7,7 @@ import ast
 import sys
 from pathlib import Path
 
-LAYERS = ["errors", "io", "yamlio", "threads", "data", "config", "geometry", "fe", "correlate",
+LAYERS = ["errors", "io", "yamlio", "threads", "correlate", "data", "config", "geometry", "fe",
           "identification", "response", "diagnosis", "reporting", "stages", "cli"]
 
 
