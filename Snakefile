@@ -19,6 +19,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # before numpy is imported below
 os.environ.setdefault("PYTHONHASHSEED", "0")
 
+from jointid.config.datasets import dataset_folder
 from jointid.config.snakefile import validated, sections, merged
 from jointid.stages.core import doe_sheet, zoom_enabled
 
@@ -53,8 +54,6 @@ def cfg_identify(state):
 
 def state_datasets(wc):
     """Measured datasets of all states (the pairing of frequency-only states is shared)."""
-    from jointid.response.drive_point import dataset_folder
-
     return sorted({dataset_folder(config, s) for s in STATES})
 
 

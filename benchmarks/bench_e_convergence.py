@@ -19,7 +19,7 @@ LIMIT_PCT = 0.5
 
 
 def _references(base: dict) -> list[tuple[str, dict]]:
-    from jointid.config.core import load_config
+    from jointid.config import load_config
 
     from .common import ROOT
 

@@ -19,7 +19,7 @@ LIMIT_PCT = 2.0
 
 
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
-    from jointid.config.core import load_config
+    from jointid.config import load_config
     from jointid.fe.model import build_model
     from jointid.stages.core import polish_on_model
 

@@ -56,7 +56,7 @@ def with_lines(rig, coords: dict[int, list[float]], offset: float):
 
 
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
-    from jointid.config.core import load_config
+    from jointid.config import load_config
     from jointid.fe.model import build_model, joint_terms
     from jointid.geometry.rig import build_rig
     from jointid.stages.core import solve_point

@@ -18,7 +18,7 @@ import pytest
 
 pytest.importorskip("pytest_benchmark")
 
-from jointid.config.core import load_config  # noqa: E402
+from jointid.config import load_config  # noqa: E402
 from jointid.identification.doe import to_physical  # noqa: E402
 from jointid.fe.modal import solve_model  # noqa: E402
 from jointid.fe.model import base_coefficients, build_model  # noqa: E402

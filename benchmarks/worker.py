@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _cfg(args: dict) -> dict:
-    from jointid.config.core import load_config
+    from jointid.config import load_config
 
     return load_config(ROOT / "config.yaml", overrides=args.get("overrides") or None)
 

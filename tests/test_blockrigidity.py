@@ -9,7 +9,7 @@ import pytest
 
 from conftest import REPO
 from jointid.response.carriage import block_rig, block_rigidity, run_carriage_rigidity
-from jointid.config.core import load_config
+from jointid.config import load_config
 from jointid.errors import ModelError
 
 THETA = {"k_normal_N_per_m3": 3.0e11, "k_lateral_N_per_m3": 1.3e12, "k_feed_N_per_m3": 8.4e9}

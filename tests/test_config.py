@@ -1,4 +1,4 @@
-"""Tests of the configuration layer (jointid.config.core + workflow/schemas/config.schema.yaml)."""
+"""Tests of the configuration layer (jointid.config + its schema src/jointid/config/schema.yaml)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from jointid.config.core import (
+from jointid.config import (
     MAX_NODES,
     SCHEMA_ENV,
     check_config,
@@ -28,7 +28,7 @@ from jointid.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config.yaml"
-SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
+SCHEMA = REPO / "src" / "jointid" / "config" / "schema.yaml"
 DOC = REPO / "docs" / "config-reference.md"
 
 
@@ -103,7 +103,7 @@ def test_schema_defaults_match_config_yaml(default):
                        if section_or_none(shipped, k) != section_or_none(default, k))
     assert differing == [], (
         f"config.yaml and the schema defaults differ at {differing}: update `default:` in "
-        "workflow/schemas/config.schema.yaml and regenerate docs/config-reference.md"
+        "src/jointid/config/schema.yaml and regenerate docs/config-reference.md"
     )
 
 
@@ -460,7 +460,7 @@ def test_other_projects_schema_is_ignored(tmp_path, monkeypatch):
 
 # ------------------------------------------------------------------------------------------ CLI
 def run_cli(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "jointid.config.core", *args], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "jointid.config", *args], cwd=cwd,
                           capture_output=True, text=True, timeout=60)
 
 
@@ -488,7 +488,7 @@ def test_committed_reference_equals_generated():
     generated = config_reference_markdown(load_schema(SCHEMA))
     assert DOC.read_text(encoding="utf-8") == generated, (
         "docs/config-reference.md is stale: run "
-        "`python -m jointid.config.core reference --output docs/config-reference.md`"
+        "`python -m jointid.config reference --output docs/config-reference.md`"
     )
 
 
@@ -501,7 +501,7 @@ def test_reference_lists_every_leaf_key():
 
 # ------------------------------------------------------------------- numbers given as text
 def test_number_from_text_is_the_shared_rule():
-    from jointid.config.core import number_from_text
+    from jointid.config import number_from_text
 
     for text, value in (("1e3", 1000.0), ("2.0e8", 2.0e8), ("-1E-6", -1e-6), (" .5 ", 0.5), ("7", 7.0), ("3.", 3.0)):
         assert number_from_text(text) == value

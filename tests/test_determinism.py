@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from conftest import REPO, STATES, file_hashes, is_wall_clock, normalised
-from jointid.config.core import config_hash, load_config
+from jointid.config import config_hash, load_config
 from jointid.reporting.provenance import PACKAGES, provenance, provenance_path, write_provenance
 
 BYTE_IDENTICAL = ("results/**/*",)  # every result file, arrays (npz), mesh (vtu), figures included

@@ -143,7 +143,7 @@ def test_shape_residuals_vanish_for_scaled_shapes_and_rank_points():
 # ---------------------------------------------------------------- reduced solver on the coarse rig
 @pytest.fixture(scope="module")
 def coarse():
-    from jointid.config.core import load_config
+    from jointid.config import load_config
     from jointid.fe.model import build_model
 
     limit_threads(1)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from jointid.diagnosis import effects as E
-from jointid.config.core import load_config
+from jointid.config import load_config
 from jointid.response.emforce import carriage_loads_N
 from jointid.errors import ConfigError
 from jointid.fe.modal import solve_modes

@@ -137,7 +137,7 @@ def test_vectorised_assembly_equals_scikit_fem_linear_elasticity():
 
 # ---------------------------------------------------------------- nested refinement (mesh check)
 def test_halved_grid_is_nested_and_halves_the_chosen_cells():
-    from jointid.config.core import load_config
+    from jointid.config import load_config
     from jointid.geometry.mesh import mesh_from_config
     from jointid.geometry.rig import build_rig
 

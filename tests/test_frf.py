@@ -11,7 +11,7 @@ import pytest
 from jointid.response import damping as dm
 from jointid.response import drive_point as frf
 from jointid.response import harmonic as hm
-from jointid.config.core import load_config
+from jointid.config import load_config
 from jointid.errors import ConfigError, DataError, NumericalWarning
 from jointid.fe.modal import Modes
 from jointid.fe.model import base_coefficients, build_model, save_model

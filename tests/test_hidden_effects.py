@@ -14,7 +14,7 @@ import pytest
 
 from jointid.diagnosis import effects as E
 from jointid.data import synth
-from jointid.config.core import load_config
+from jointid.config import load_config
 from jointid.diagnosis.core import diagnose, dataset_states, history_row, write_outputs
 from jointid.threads import limit_threads
 from jointid.data.dataset import read_dataset

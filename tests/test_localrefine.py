@@ -179,7 +179,7 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
 
 
 def test_edges_class_adds_one_nested_level():
-    from jointid.config.core import load_config
+    from jointid.config import load_config
     from jointid.geometry.mesh import mesh_from_config
     from jointid.geometry.rig import build_rig
 

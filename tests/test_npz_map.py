@@ -68,7 +68,7 @@ def test_object_arrays_are_refused(tmp_path):
 
 def test_saved_model_loads_mapped_and_solves_the_same(tmp_path):
     from conftest import coarse_config_dict
-    from jointid.config.core import load_config
+    from jointid.config import load_config
     from jointid.fe.modal import solve_model
     from jointid.fe.model import base_coefficients, build_model, load_model, save_model
 

@@ -13,7 +13,7 @@ import yaml
 
 from conftest import REPO, copy_workflow, run_snakemake, write_config
 from jointid.identification import doe
-from jointid.config.core import load_config
+from jointid.config import load_config
 from jointid.errors import ModelError, NumericalWarning
 from jointid.identification.identify import identify
 from jointid.fe.modal import solve_modes

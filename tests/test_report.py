@@ -11,7 +11,7 @@ import pytest
 
 from jointid.reporting import figures as fg
 from jointid.reporting import page as rp
-from jointid.config.core import config_hash, load_config
+from jointid.config import config_hash, load_config
 
 from conftest import REPO, STATES, clone_run, run_snakemake
 

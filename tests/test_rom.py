@@ -12,7 +12,7 @@ import yaml
 
 from conftest import copy_workflow, scheduled_jobs, snakemake_cmd, tail, workflow_env, write_config
 from jointid import io
-from jointid.config.core import load_config
+from jointid.config import load_config
 from jointid.identification.doe import to_physical
 from jointid.errors import ConfigError, ModelError, NumericalWarning
 from jointid.fe.modal import mac, solve_modes

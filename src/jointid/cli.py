@@ -20,7 +20,7 @@ from jointid.errors import JointidError
 
 MODULES = {
     "diagnose": "jointid.diagnosis.core",
-    "config": "jointid.config.core",
+    "config": "jointid.config.__main__",
     "checks": "jointid.reporting.checks",
     "synth": "jointid.data.synth",
     "uff": "jointid.data.uff",

@@ -7,7 +7,7 @@
 # reruns only this rule.  With no `datasets:` block the run's measured dataset (measurements.dataset,
 # data/paper by default) is diagnosed under its folder name.
 
-from jointid.config.snakefile import registered_datasets
+from jointid.config.datasets import registered_datasets
 
 DIAG_DATASETS = registered_datasets(config)
 

@@ -4,7 +4,7 @@
 #   results/report/index.html (+ figures/*.png, wrapped for `snakemake --report report.html`)
 # Captions of the figures: workflow/report/*.rst (paths relative to this file).
 
-from jointid.response.drive_point import dataset_folder as _dataset_folder
+from jointid.config.datasets import dataset_folder as _dataset_folder
 
 FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
 

@@ -3,22 +3,23 @@
 from __future__ import annotations
 
 import copy
-import os
 import sys
 
+from jointid.config.load import load_config
 from jointid.errors import ConfigError
+from jointid.yamlio import deep_merge
+
+__all__ = ["merged", "sections", "validated"]
 
 
 def validated(config: dict) -> dict:
     """Validate (and fill defaults of) the Snakemake config; on error print the lines and exit 1.
 
     Snakemake has already merged the ``--configfile`` files (deeply, later files win; a ``null``
-    there survives and removes the key, as in :func:`jointid.config.core.check_config`).  The measured
+    there survives and removes the key, as in :func:`jointid.config.load.check_config`).  The measured
     dataset folders are checked too (relative to the working directory, as the rules read them),
     so a misnamed dataset stops the run here instead of as a missing input or a stale result.
     """
-    from jointid.config.core import load_config
-
     try:
         return load_config(dict(config), check_datasets=True)
     except ConfigError as exc:
@@ -59,33 +60,13 @@ def merged(*cfgs: dict) -> dict:
 
     Used for the provenance of a result that depends on a chain of rules: the union of the parts
     every rule of the chain takes.
+
+    Examples
+    --------
+    >>> merged({"a": {"x": 1}, "b": 1}, {"a": {"y": 2}, "b": 2})
+    {'a': {'x': 1, 'y': 2}, 'b': 2}
     """
     out: dict = {}
     for cfg in cfgs:
-        _merge_into(out, cfg)
+        out = deep_merge(out, cfg)
     return out
-
-
-def _merge_into(dest: dict, src: dict) -> None:
-    for k, v in src.items():
-        if isinstance(v, dict) and isinstance(dest.get(k), dict):
-            _merge_into(dest[k], v)
-        else:
-            dest[k] = copy.deepcopy(v)
-
-
-def registered_datasets(config: dict) -> dict:
-    """The datasets to diagnose: those under `datasets:`, else the measured dataset of the run.
-
-    Without a `datasets:` block the folder `measurements.dataset` (the paper's data by default) is
-    diagnosed under its folder name, with the states that use it.
-    """
-    named = dict(config.get("datasets") or {})
-    if named:
-        return named
-    path = config["measurements"]["dataset"]
-    states = [s for s, c in config["states"].items() if not c.get("dataset")]
-    name = os.path.basename(os.path.normpath(path))
-    if not states or not name.isidentifier():
-        return {}
-    return {name: {"path": path, "states": states}}

@@ -78,7 +78,7 @@ def check_truth(truth: dict, where: str = "truth") -> None:
 
 def truth_config(truth: dict, base_cfg: dict) -> dict:
     """Validated configuration of the truth model (base config + the truth's overrides)."""
-    from jointid.config.core import load_config
+    from jointid.config import load_config
 
     cfg = deep_merge(base_cfg, truth.get("overrides") or {})
     return load_config(cfg)

@@ -1188,7 +1188,7 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
     (the ``datasets.<name>`` entry: ``path``, ``states``); the model comes from ``matrices`` (the
     cached ``results/model/matrices.npz``) or ``model``.
     """
-    from jointid.config.core import config_hash
+    from jointid.config import config_hash
     from jointid.data.dataset import read_dataset
     from jointid.fe.model import load_model
 
@@ -1232,7 +1232,7 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m jointid.diagnosis.core --dataset DIR --out DIR [--config config.yaml ...] [--set k=v]``."""
     import argparse
 
-    from jointid.config.core import load_config
+    from jointid.config import load_config
     from jointid.errors import ConfigError, JointidError
 
     ap = argparse.ArgumentParser(prog="python -m jointid.diagnosis.core",

@@ -187,7 +187,7 @@ def provenance(cfg: dict, workdir=".") -> dict:
     from importlib import metadata
 
     import jointid
-    from jointid.config.core import config_hash
+    from jointid.config import config_hash
 
     versions = {}
     for name in PACKAGES:

@@ -11,7 +11,7 @@ A table ``results/tables/table2_power_off.csv`` gets a sidecar
 
 The sidecar is the only place where wall-clock time appears: the tables themselves stay
 byte-identical between runs of the same configuration.  The config hash is
-:func:`jointid.config.core.config_hash` of the configuration *given* (normally the sections the stage
+:func:`jointid.config.config_hash` of the configuration *given* (normally the sections the stage
 depends on, i.e. ``snakemake.params.cfg``), so it changes exactly when the stage's inputs change.
 
 Public API
@@ -34,7 +34,7 @@ from importlib import metadata
 from pathlib import Path
 
 from jointid import io
-from jointid.config.core import config_hash
+from jointid.config import config_hash
 
 __all__ = ["PACKAGES", "SUFFIX", "git_state", "provenance", "provenance_path", "sha256_file",
            "write_provenance"]

@@ -29,6 +29,7 @@ import pandas as pd
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from jointid.config.datasets import dataset_folder
 from jointid.response import damping as dm
 from jointid.response import harmonic as hm
 from jointid.errors import ConfigError, DataError, ModelError, NumericalWarning
@@ -38,7 +39,6 @@ from jointid.geometry.points import dof_labels
 __all__ = [
     "MODE_FACTOR",
     "HarmonicResult",
-    "dataset_folder",
     "direct_frf",
     "drive_vector",
     "frf_frame",
@@ -490,16 +490,6 @@ def frf_frame(res: HarmonicResult) -> pd.DataFrame:
 
 
 # ------------------------------------------------------------------ the workflow stage
-def dataset_folder(cfg: dict, state: str) -> str:
-    """Dataset folder of ``state``: ``states.<state>.dataset`` (a folder or a name in ``datasets``),
-    else ``measurements.dataset``."""
-    name = (cfg.get("states", {}).get(state) or {}).get("dataset")
-    if name:
-        named = cfg.get("datasets", {}).get(name)
-        return named["path"] if named else name
-    return cfg.get("measurements", {}).get("dataset", "data/paper")
-
-
 def _measured_by_fe_mode(cfg, state, verify_csv) -> tuple[dict, str]:
     """Measured damping ratios by 0-based FE mode index (paired via verify.csv), and a note."""
     from jointid.data.dataset import read_dataset

@@ -347,24 +347,19 @@ def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, o
 
 
 # ------------------------------------------------------------------ identification
-def _dataset_for(cfg: dict, state: str) -> str:
-    from jointid.response.drive_point import dataset_folder
-
-    return dataset_folder(cfg, state)
-
-
 AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are reported as alternatives
 
 
 def _measured(cfg: dict, state: str, pts):
     """``(frequencies, shapes or None, frequency uncertainty in %)`` of one state's measured modes."""
+    from jointid.config.datasets import dataset_folder
     from jointid.data.dataset import read_dataset
     from jointid.geometry.points import dof_labels
 
     from jointid.correlate.pairing import below_band
     from jointid.errors import DataError
 
-    ds = read_dataset(_dataset_for(cfg, state), measuring_points=pts)
+    ds = read_dataset(dataset_folder(cfg, state), measuring_points=pts)
     low = below_band(ds.name, {state: ds.freqs(state)}, float(cfg["solver"]["min_freq_Hz"]))
     if low:
         raise DataError(low)
