@@ -1,6 +1,6 @@
 """Print import cycles and upward (layer-breaking) imports among the jointid modules.
 
-Usage: ``python tools/import_graph.py [src/jointid]``.  Reads every ``import`` statement (module level and
+Usage: ``python tools/import_graph.py [src/jointid]`` (default: ``src/jointid`` under the working directory).  Reads every ``import`` statement (module level and
 inside functions, not under ``if TYPE_CHECKING``) with ``ast``; prints nothing and exits 0 when the graph is clean.
 """
 import ast
@@ -42,7 +42,7 @@ def layer(mod: str) -> int:
 
 
 def main(argv):
-    root = Path(argv[1] if len(argv) > 1 else Path(__file__).resolve().parents[1] / "src" / "jointid")
+    root = Path(argv[1]) if len(argv) > 1 else Path.cwd() / "src" / "jointid"  # the checkout you stand in
     mods = {module_name(p, root): p for p in root.rglob("*.py")}
     graph = {m: {i for i in imports(p, m) if i in mods and i != m} for m, p in mods.items()}
     bad = 0
