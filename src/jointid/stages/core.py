@@ -249,7 +249,7 @@ def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: st
 
     from jointid.errors import ModelError, NumericalWarning
     from jointid.fe.model import load_model
-    from jointid.identification.rom import build_rom
+    from jointid.identification.rom_build import build_rom
 
     s = cfg["solver"]
     tol = float(s.get("rom_tolerance", 1e-4))
