@@ -55,7 +55,7 @@ from jointid import io
 from jointid.errors import ModelError, NumericalWarning
 from jointid.fe.modal import TWO_PI, Modes
 
-__all__ = ["ROM", "load_rom", "full_modes"]
+__all__ = ["ROM", "load_rom", "full_modes", "frequency_error"]
 
 _FORMAT = "jointid-rom-1"
 
@@ -306,3 +306,11 @@ def full_modes(rom: ROM, k_coeffs: dict[str, float], m_coeffs: dict[str, float] 
     sign = np.sign(phi[idx, np.arange(phi.shape[1])])
     sign[sign == 0] = 1.0
     return Modes(freqs_Hz=freqs, phi=phi * sign)
+
+
+def frequency_error(f_rom: np.ndarray, f_full: np.ndarray, min_freq_Hz: float = 0.0) -> np.ndarray:
+    """Relative error ``|f_rom - f_full| / f_full`` mode by mode (NaN below ``min_freq_Hz``)."""
+    f_rom, f_full = np.asarray(f_rom, float), np.asarray(f_full, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        err = np.abs(f_rom - f_full) / f_full
+    return np.where(f_full >= max(min_freq_Hz, 1e-300), err, np.nan)

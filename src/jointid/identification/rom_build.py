@@ -21,17 +21,9 @@ from jointid.fe.modal import TWO_PI, factorize, free_dofs, restrict, solve_model
 from jointid.fe.model import base_coefficients, joint_terms
 from jointid.geometry.points import dof_labels
 from jointid.identification.doe import to_physical
-from jointid.identification.rom import ROM
+from jointid.identification.rom import ROM, frequency_error
 
-__all__ = ["build_rom", "training_points", "frequency_error", "residual_indicator"]
-
-
-def frequency_error(f_rom: np.ndarray, f_full: np.ndarray, min_freq_Hz: float = 0.0) -> np.ndarray:
-    """Relative error ``|f_rom - f_full| / f_full`` mode by mode (NaN below ``min_freq_Hz``)."""
-    f_rom, f_full = np.asarray(f_rom, float), np.asarray(f_full, float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        err = np.abs(f_rom - f_full) / f_full
-    return np.where(f_full >= max(min_freq_Hz, 1e-300), err, np.nan)
+__all__ = ["build_rom", "training_points", "residual_indicator"]
 
 
 def training_points(n_params: int, kind: str = "corners") -> np.ndarray:
