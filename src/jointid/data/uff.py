@@ -38,7 +38,8 @@ import numpy as np
 import pandas as pd
 
 from jointid.errors import DataError
-from jointid.data.dataset import DIRECTIONS, Dataset, read_dataset, write_dataset
+from jointid.data.dataset import Dataset, read_dataset, write_dataset
+from jointid.data.validate import DIRECTIONS
 
 _FRF_KIND = {8: "displacement", 11: "velocity", 12: "acceleration"}
 

@@ -21,10 +21,10 @@ Basis
 Error control (greedy)
     Random interior points of the box (candidates) are ranked by a cheap residual indicator
     (:func:`jointid.identification.rom_build.residual_indicator`, no factorisation); the worst few
-    are solved in full and compared with the ROM.  While the relative frequency error of a tracked mode (the lowest ``n_modes`` at or
-    above ``min_freq_Hz``) exceeds ``tol`` (default 1e-4), the full modes of the failing points are
-    added to the basis and the next round ranks the remaining candidates again.  The history is kept
-    in :attr:`ROM.report`.
+    are solved in full and compared with the ROM.  While the relative frequency error of a tracked
+    mode (the lowest ``n_modes`` at or above ``min_freq_Hz``) exceeds ``tol`` (default 1e-4), the
+    full modes of the failing points are added to the basis and the next round ranks the remaining
+    candidates again.  The history is kept in :attr:`ROM.report`.
 Accuracy
     Rayleigh-Ritz frequencies are upper bounds of the full ones, mode by mode.  The ROM is verified
     inside the coefficient ranges it was trained and checked on (:attr:`ROM.coeff_range`); outside
