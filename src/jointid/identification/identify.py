@@ -38,8 +38,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from jointid.identification.doe import _bounds as _check_bounds
-from jointid.identification.doe import _latin_hypercube
+from jointid.identification.doe import check_bounds, latin_hypercube
 from jointid.errors import ConfigError, NumericalWarning
 
 __all__ = ["IdentifyResult", "identify", "IDENTIFIABILITY_RATIO", "BOUND_TOL"]
@@ -288,7 +287,7 @@ def identify(
     if problems:
         raise ConfigError(problems)
     if lower is not None:
-        lo_p, hi_p = _check_bounds(lower, upper, k)
+        lo_p, hi_p = check_bounds(lower, upper, k)
         if lo_p.size != k:
             raise ConfigError(f"identify: lower/upper have {lo_p.size} entries for {k} parameters; "
                               f"give one physical (lower, upper) pair per parameter")
@@ -320,7 +319,7 @@ def identify(
     centre = 0.5 * (lo_b + hi_b)
     starts = [centre]
     if n_starts > 1:
-        u = _latin_hypercube(n_starts - 1, k, np.random.default_rng(seed))
+        u = latin_hypercube(n_starts - 1, k, np.random.default_rng(seed))
         starts += list(lo_b + u * (hi_b - lo_b))
 
     fits = []
