@@ -22,7 +22,8 @@ from jointid.config import load_config  # noqa: E402
 from jointid.identification.doe import to_physical  # noqa: E402
 from jointid.fe.modal import solve_model  # noqa: E402
 from jointid.fe.model import base_coefficients, build_model  # noqa: E402
-from jointid.fe.rom import build_rom, frequency_error  # noqa: E402
+from jointid.identification.rom import frequency_error  # noqa: E402
+from jointid.identification.rom_build import build_rom  # noqa: E402
 
 from .common import COARSE, ROOT  # noqa: E402
 

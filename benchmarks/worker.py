@@ -147,7 +147,8 @@ def task_rom(args: dict) -> dict:
     from jointid.identification.doe import to_physical
     from jointid.fe.modal import mac
     from jointid.fe.model import base_coefficients, build_model
-    from jointid.fe.rom import build_rom, frequency_error
+    from jointid.identification.rom import frequency_error
+    from jointid.identification.rom_build import build_rom
 
     cfg = _cfg(args)
     n = int(args.get("n_modes", 12))

@@ -7,7 +7,8 @@ import pytest
 
 from jointid.identification import doe
 from jointid.errors import ConfigError
-from jointid.identification.surface import Surface, diagnostics, fit_surface, quadratic_basis, verification_errors
+from jointid.identification.surface import Surface, fit_surface, quadratic_basis
+from jointid.identification.surface_checks import diagnostics, verification_errors
 
 
 def _known_quadratic(X):

@@ -1,3 +1,4 @@
+# over 400 lines: one importer (read, map nodes, modes, FRFs, merge) kept whole until the UFF rework
 """Import modal test data from Universal File Format (UFF/UNV) files into a dataset folder.
 
 Supported datasets (read with pyuff):
@@ -38,7 +39,8 @@ import numpy as np
 import pandas as pd
 
 from jointid.errors import DataError
-from jointid.data.dataset import DIRECTIONS, Dataset, read_dataset, write_dataset
+from jointid.data.dataset import Dataset, read_dataset, write_dataset
+from jointid.data.validate import DIRECTIONS
 
 _FRF_KIND = {8: "displacement", 11: "velocity", 12: "acceleration"}
 
@@ -264,6 +266,7 @@ def _frfs(sets, mapping, to_m, to_n, report):
 def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float = 0.005,
                out=None, length_scale: float | None = None, node_map: dict | None = None,
                em_force_N: float | None = None, merge: bool = False) -> tuple[Dataset, list[str]]:
+    # long by its numpydoc; the body is one pass (units, nodes, modes, FRFs, conditions, write)
     """Import one state's modal test data from a UFF file.
 
     Parameters

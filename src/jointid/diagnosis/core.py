@@ -46,7 +46,7 @@ from jointid.diagnosis.effects import (EFFECTS, Effect, StateInfo, System, apply
                       build_system, enabled_effects)
 from jointid.threads import limit_threads  # noqa: F401  (re-used by the command line)
 from jointid.errors import DataError, NumericalWarning
-from jointid.fe.reduced import ReducedSolver, Solution, _pad  # noqa: F401  (re-exported)
+from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis  # noqa: F401  (re-exported)
 
 TWO_PI = 2.0 * np.pi
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
@@ -287,7 +287,7 @@ class Diagnoser:
     def _track_model(self, ref: Solution, sol: Solution) -> np.ndarray:
         """Model mode of ``sol`` continuing each mode of ``ref`` (reduced-space MAC, -1 below 0.5)."""
         r = self.solver.V.shape[1]
-        A, B = _pad(ref.Y, r), _pad(sol.Y, r)
+        A, B = pad_to_basis(ref.Y, r), pad_to_basis(sol.Y, r)
         C = (A.T @ B) ** 2 / np.outer((A * A).sum(0), (B * B).sum(0))
         rr, cc = linear_sum_assignment(-C)
         out = -np.ones(A.shape[1], dtype=int)
@@ -333,8 +333,8 @@ class Diagnoser:
 
     def _follow(self, sol: Solution, ref_Y: np.ndarray, idx: np.ndarray) -> np.ndarray:
         r = self.solver.V.shape[1]
-        Yr = _pad(ref_Y, r)
-        Y = _pad(sol.Y, r)
+        Yr = pad_to_basis(ref_Y, r)
+        Y = pad_to_basis(sol.Y, r)
         # the basis is M_ref-orthonormal: the reduced Euclidean product approximates the mass product
         C = (Yr.T @ Y) ** 2 / np.outer((Yr * Yr).sum(0), (Y * Y).sum(0))
         out = idx.copy()

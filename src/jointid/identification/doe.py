@@ -41,6 +41,8 @@ __all__ = [
     "to_physical",
     "to_coded",
     "verification_points",
+    "latin_hypercube",
+    "check_bounds",
 ]
 
 KINDS = ("ccf", "box_behnken", "lhs")
@@ -49,7 +51,7 @@ KINDS = ("ccf", "box_behnken", "lhs")
 _VERIFICATION_STREAM = 0x7E51F1
 
 
-def _latin_hypercube(n: int, d: int, rng: np.random.Generator) -> np.ndarray:
+def latin_hypercube(n: int, d: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` LHS points in ``[0, 1)^d`` drawn from ``rng`` (works with old and new SciPy)."""
     from scipy.stats import qmc  # imported here: scipy.stats takes ~0.5 s to import
 
@@ -149,12 +151,14 @@ def design(kind: str, n_factors: int, *, n_center: int = 1, n_samples: int = 0,
                 rows.append(row)
         pts = np.vstack([np.array(rows), np.zeros((n_center, k))])
     else:  # lhs
-        u = _latin_hypercube(int(n_samples), k, np.random.default_rng(seed))
+        u = latin_hypercube(int(n_samples), k, np.random.default_rng(seed))
         pts = np.vstack([2.0 * u - 1.0, np.zeros((1, k))])
     return pts.astype(float)
 
 
-def _bounds(lower, upper, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def check_bounds(lower, upper, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Physical ``(lower, upper)`` bounds as float arrays (k,) (or one pair); raise one
+    :class:`ConfigError` unless each pair is finite, positive (log coding) and increasing."""
     lo = np.atleast_1d(np.asarray(lower, dtype=float))
     hi = np.atleast_1d(np.asarray(upper, dtype=float))
     problems = []
@@ -192,7 +196,7 @@ def to_physical(x, lower, upper) -> np.ndarray:
         Physical values, same shape as ``x``.
     """
     x = np.asarray(x, dtype=float)
-    lo, hi = _bounds(lower, upper, x.shape[-1] if x.ndim else None)
+    lo, hi = check_bounds(lower, upper, x.shape[-1] if x.ndim else None)
     a, b = np.log10(lo), np.log10(hi)
     return 10.0 ** (a + (x + 1.0) / 2.0 * (b - a))
 
@@ -213,7 +217,7 @@ def to_coded(theta, lower, upper) -> np.ndarray:
         Coded values, same shape as ``theta`` (``-1`` at ``lower``, ``+1`` at ``upper``).
     """
     theta = np.asarray(theta, dtype=float)
-    lo, hi = _bounds(lower, upper, theta.shape[-1] if theta.ndim else None)
+    lo, hi = check_bounds(lower, upper, theta.shape[-1] if theta.ndim else None)
     if np.any(~(theta > 0)):
         raise ConfigError("to_coded: parameter values must be > 0 (they are coded on a log10 scale)")
     a, b = np.log10(lo), np.log10(hi)
@@ -242,4 +246,4 @@ def verification_points(n: int, n_factors: int, seed: int = 0) -> np.ndarray:
     if n < 1 or n_factors < 1:
         raise ConfigError(f"verification_points: n = {n} and n_factors = {n_factors} must be >= 1")
     rng = np.random.default_rng([int(seed), _VERIFICATION_STREAM])
-    return 0.9 * (2.0 * _latin_hypercube(int(n), int(n_factors), rng) - 1.0)
+    return 0.9 * (2.0 * latin_hypercube(int(n), int(n_factors), rng) - 1.0)

@@ -3,7 +3,7 @@
 Generic over the model: ``model(x_coded) -> freq_Hz`` with ``x_coded`` of shape ``(k,)`` and the
 result of shape ``(m,)`` (usually a fitted :class:`jointid.identification.surface.Surface`, or the FE model itself).
 
-Objective (PHYSICS.md, "Response-surface updating")::
+Objective::
 
     r_i(x) = sqrt(w_i) * (f_i(x) - f_meas_i) / f_meas_i,     J(x) = sum_i r_i^2  (+ sum extra(x)^2)
 
@@ -11,45 +11,28 @@ minimised by bounded multi-start ``scipy.optimize.least_squares`` (starts: the c
 a seeded Latin hypercube).  Optional extra residuals, e.g. ``sqrt(w_mac) * (1 - MAC_ii)``, are
 appended through ``extra(x) -> (q,)``.
 
-Uncertainty (linearised at the optimum).  Each measured frequency has relative standard deviation
-``sigma_rel / sqrt(w_i)`` (the weights are relative precisions; unit weights mean every frequency
-has ``sigma_rel``), extra residuals are taken to carry the same ``sigma_rel``.  With ``J`` the
-Jacobian of the weighted relative residuals (``J^T J = J_rel^T W J_rel``)::
-
-    cov(x) = sigma_rel^2 * (J^T J)^+        (coded units, pseudo-inverse)
-
-95 % intervals are ``x +- 1.96 sd`` in coded units, i.e. symmetric in log10 of the parameter and
-asymmetric in the physical parameter.  Directions that the data do not determine (zero singular
-values of ``J``) get infinite variance rather than the pseudo-inverse's zero, so the parameters
-involved get unbounded intervals (``0 .. inf`` physically).
-
-Identifiability (PHYSICS.md, "Telling the user which effect is missing"): SVD of the
-column-normalised Jacobian; if ``s_min / s_max < 1e-3`` the right singular vector of ``s_min`` names
-the combination of parameters that the data cannot resolve.
+The uncertainty of the optimum (linearised covariance, 95 % intervals) and its identifiability
+(SVD of the column-normalised Jacobian) are computed in :mod:`jointid.identification.uncertainty`.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from jointid.identification.doe import _bounds as _check_bounds
-from jointid.identification.doe import _latin_hypercube
-from jointid.errors import ConfigError, NumericalWarning
+from jointid.identification.doe import check_bounds, latin_hypercube
+from jointid.errors import ConfigError
+from jointid.identification.uncertainty import (IDENTIFIABILITY_RATIO, bound_flags, covariance, identifiability,
+                                                physical_values, warn_undetermined)
 
-__all__ = ["IdentifyResult", "identify", "IDENTIFIABILITY_RATIO", "BOUND_TOL"]
+__all__ = ["IdentifyResult", "identify"]
 
-IDENTIFIABILITY_RATIO = 1e-3  # flag s_min/s_max below this
-BOUND_TOL = 1e-3  # coded distance to a bound counted as "on the bound"
 COST_AGREE_TOL = 1e-6  # starts agreeing with the best cost (absolute, in J units)
-Z95 = 1.959963984540054
 _FD_STEP = 1e-6  # coded units, central differences
-CONFIG_PREFIX = "joints.parameters"
 
 
 @dataclass
@@ -156,14 +139,6 @@ def _jsonable(val):
     return val
 
 
-def _fmt_num(v: float) -> str:
-    s = f"{v:.3g}"
-    if "e" in s:
-        mant, exp = s.split("e")
-        s = f"{mant}e{int(exp)}"
-    return s
-
-
 def _n_factors(n_factors, names, lower, bounds) -> int:
     for cand in (n_factors, None if names is None else len(names),
                  None if lower is None else np.size(lower)):
@@ -187,21 +162,6 @@ def _central_diff(fun: Callable, x: np.ndarray) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def _combination(v: np.ndarray, names: list[str], unit: str) -> str:
-    v = v / np.linalg.norm(v)
-    if v[np.argmax(np.abs(v))] < 0:
-        v = -v
-    order = [i for i in np.argsort(-np.abs(v)) if abs(v[i]) >= 0.05]
-    parts = []
-    for n_, i in enumerate(order):
-        c = v[i]
-        if n_ == 0:
-            parts.append(f"{c:.2f}*{names[i]}")
-        else:
-            parts.append(f"{'-' if c < 0 else '+'} {abs(c):.2f}*{names[i]}")
-    return " ".join(parts) + f" ({unit})"
-
-
 def identify(
     model: Callable[[np.ndarray], np.ndarray],
     f_meas,
@@ -218,6 +178,7 @@ def identify(
     extra: Callable[[np.ndarray], np.ndarray] | None = None,
     n_factors: int | None = None,
 ) -> IdentifyResult:
+    # long by its numpydoc and eleven options; the body is one call per step (checks, starts, statistics)
     """Identify coded parameters from measured frequencies.
 
     Parameters
@@ -265,156 +226,27 @@ def identify(
     w = np.ones(m) if weights is None else np.asarray(weights, dtype=float).reshape(-1)
     lo_b = np.broadcast_to(np.asarray(bounds[0], dtype=float), (k,)).copy()
     hi_b = np.broadcast_to(np.asarray(bounds[1], dtype=float), (k,)).copy()
-
-    problems = []
-    if m == 0:
-        problems.append("identify: no measured frequencies; give at least one matched mode")
-    if np.any(~np.isfinite(f_meas)) or np.any(f_meas <= 0):
-        problems.append("identify: measured frequencies must be finite and > 0 Hz")
-    if w.size != m:
-        problems.append(f"identify: {w.size} weights for {m} frequencies; give one weight per mode")
-    elif np.any(~np.isfinite(w)) or np.any(w < 0):
-        problems.append("identify: weights must be finite and >= 0")
-    if len(names) != k:
-        problems.append(f"identify: {len(names)} names for {k} parameters")
-    if np.any(~(hi_b > lo_b)):
-        problems.append("identify: every coded upper bound must exceed its lower bound")
-    if (lower is None) != (upper is None):
-        problems.append("identify: give both lower and upper physical bounds, or neither")
-    if not (sigma_rel > 0 and math.isfinite(sigma_rel)):
-        problems.append(f"identify: sigma_rel = {sigma_rel} must be a finite relative std > 0")
-    if n_starts < 1:
-        problems.append(f"identify: n_starts = {n_starts} must be >= 1")
-    if problems:
-        raise ConfigError(problems)
+    _check_inputs(f_meas, w, names, k, lo_b, hi_b, lower, upper, sigma_rel, n_starts)
+    lo_p = hi_p = None
     if lower is not None:
-        lo_p, hi_p = _check_bounds(lower, upper, k)
+        lo_p, hi_p = check_bounds(lower, upper, k)
         if lo_p.size != k:
             raise ConfigError(f"identify: lower/upper have {lo_p.size} entries for {k} parameters; "
                               f"give one physical (lower, upper) pair per parameter")
 
-    sw = np.sqrt(w)
-    scale = sw / f_meas  # d r_i / d f_i
-
-    def residual(x):
-        f = np.asarray(model(x), dtype=float).reshape(-1)
-        if f.size != m:
-            raise ConfigError(f"identify: the model returns {f.size} frequencies but {m} were "
-                              f"measured; match modes before identifying")
-        r = scale * (f - f_meas)
-        if extra is not None:
-            r = np.concatenate([r, np.asarray(extra(x), dtype=float).reshape(-1)])
-        return r
-
-    def residual_jac(x):
-        if jacobian is not None:
-            Jf = np.asarray(jacobian(x), dtype=float).reshape(m, k)
-        else:
-            Jf = _central_diff(lambda z: np.asarray(model(z), float).reshape(-1), x)
-        J = scale[:, None] * Jf
-        if extra is not None:
-            J = np.vstack([J, _central_diff(lambda z: np.asarray(extra(z), float).reshape(-1), x)])
-        return J
-
-    # Starts: centre of the box first, then a seeded LHS inside the box.
-    centre = 0.5 * (lo_b + hi_b)
-    starts = [centre]
-    if n_starts > 1:
-        u = _latin_hypercube(n_starts - 1, k, np.random.default_rng(seed))
-        starts += list(lo_b + u * (hi_b - lo_b))
-
-    fits = []
-    for x0 in starts:
-        sol = least_squares(residual, x0, jac=residual_jac, bounds=(lo_b, hi_b), method="trf",
-                            x_scale=1.0, ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=200 * k)
-        fits.append(sol)
-    costs = np.array([2.0 * sol.cost for sol in fits])  # scipy's cost is 0.5 * sum r^2
-    best = fits[int(np.argmin(costs))]
-    cost = float(2.0 * best.cost)
-    n_agree = int(np.sum(np.abs(costs - cost) <= COST_AGREE_TOL * max(1.0, cost)))
+    residual, residual_jac = _residual_functions(model, f_meas, w, jacobian, extra, k)
+    best, n_agree, n_run = _multistart(residual, residual_jac, lo_b, hi_b, n_starts, seed, k)
     x = np.clip(best.x, lo_b, hi_b)
 
     r = residual(x)
     J = residual_jac(x)
     f_model = np.asarray(model(x), dtype=float).reshape(-1)
-
-    # --- covariance (coded) through the SVD of J, undetermined directions -> infinite variance
-    _, sv, Vt = np.linalg.svd(J, full_matrices=True)
-    s_full = np.zeros(k)
-    s_full[: min(sv.size, k)] = sv[:k]
-    V = Vt.T
-    tol = max(J.shape) * np.finfo(float).eps * (s_full.max() if s_full.size else 0.0)
-    null = s_full <= tol
-    cov = sigma_rel**2 * (V[:, ~null] / s_full[~null] ** 2) @ V[:, ~null].T
-    var = np.diag(cov).copy()
-    cov_singular = bool(np.any(null))
-    if cov_singular:
-        involved = np.any(np.abs(V[:, null]) > 1e-6, axis=1)
-        var[involved] = np.inf
-    sd = np.sqrt(var)
-
-    # --- identifiability on the column-normalised Jacobian
-    norms = np.linalg.norm(J, axis=0)
-    Jn = J / np.where(norms > 0, norms, 1.0)
-    _, sn, Vnt = np.linalg.svd(Jn, full_matrices=True)
-    sn_full = np.zeros(k)
-    sn_full[: min(sn.size, k)] = sn[:k]
-    ratio = sn_full[-1] / sn_full[0] if sn_full[0] > 0 else 0.0
-    condition_number = float(np.inf if ratio == 0 else 1.0 / ratio)
-    v_weak = Vnt[-1] / np.where(norms > 0, norms, 1.0)  # back to coded coordinates
-    if lower is not None:
-        half = 0.5 * (np.log10(hi_p) - np.log10(lo_p))  # d log10(theta) / dx
-        weakest = _combination(v_weak * half, names, "in log10")
-    else:
-        half = None
-        weakest = _combination(v_weak, names, "in coded units")
+    cov, sd, cov_singular, involved = covariance(J, k, sigma_rel)
+    sn_full, ratio, condition_number, weakest, half = identifiability(J, k, names, lo_p, hi_p)
     identifiable = bool(ratio >= IDENTIFIABILITY_RATIO)
-    if not identifiable:
-        warnings.warn(
-            f"identify: {weakest} is not identifiable from these data (singular value ratio "
-            f"{ratio:.1e} < {IDENTIFIABILITY_RATIO:g}); fix one of these parameters, add modes or "
-            f"mode shapes, or reparameterise"
-            + (f"; J^T J is singular, so the intervals of "
-               f"{', '.join(n for n, b in zip(names, involved) if b)} are unbounded"
-               if cov_singular else ""),
-            NumericalWarning, stacklevel=2)
-    elif cov_singular:
-        warnings.warn(
-            f"identify: J^T J is numerically singular; the intervals of "
-            f"{', '.join(n for n, b in zip(names, involved) if b)} are unbounded",
-            NumericalWarning, stacklevel=2)
-
-    # --- physical values and intervals
-    if half is not None:
-        log10_theta = np.log10(lo_p) + (x + 1.0) * half
-        sd_log10 = sd * half
-        theta = 10.0**log10_theta
-        with np.errstate(over="ignore"):
-            ci_lower = 10.0 ** (log10_theta - Z95 * sd_log10)
-            ci_upper = 10.0 ** (log10_theta + Z95 * sd_log10)
-    else:
-        log10_theta = np.full(k, np.nan)
-        sd_log10 = np.full(k, np.nan)
-        theta = x.copy()
-        ci_lower = x - Z95 * sd
-        ci_upper = x + Z95 * sd
-
-    # --- bound flags
-    on_bound = []
-    for i, name in enumerate(names):
-        for side, b in (("lower", lo_b[i]), ("upper", hi_b[i])):
-            if abs(x[i] - b) <= BOUND_TOL:
-                on_bound.append(name)
-                if half is not None:
-                    bval = _fmt_num(10.0 ** (np.log10(lo_p[i]) + (b + 1.0) * half[i]))
-                else:
-                    bval = f"{b:g} (coded)"
-                warnings.warn(
-                    f"{name} sits on its {side} bound {bval}: the surface is extrapolating beyond "
-                    f"the DOE (the best fit lies at or past the edge of the parameter range); "
-                    f"widen {CONFIG_PREFIX}.{name} bounds",
-                    NumericalWarning, stacklevel=2)
-                break
+    warn_undetermined(identifiable, cov_singular, weakest, ratio, names, involved)
+    log10_theta, sd_log10, theta, ci_lower, ci_upper = physical_values(x, sd, half, lo_p, k)
+    on_bound = bound_flags(x, names, lo_b, hi_b, half, lo_p)
 
     return IdentifyResult(
         names=names,
@@ -439,8 +271,88 @@ def identify(
         weakest_direction=weakest,
         identifiable=identifiable,
         on_bound=on_bound,
-        n_starts=len(starts),
+        n_starts=n_run,
         n_starts_agreeing=n_agree,
         sigma_rel=float(sigma_rel),
         message=str(best.message),
     )
+
+
+def _check_inputs(f_meas, w, names, k, lo_b, hi_b, lower, upper, sigma_rel, n_starts) -> None:
+    """Raise one :class:`ConfigError` listing every problem of the arguments of :func:`identify`."""
+    m = f_meas.size
+    problems = []
+    if m == 0:
+        problems.append("identify: no measured frequencies; give at least one matched mode")
+    if np.any(~np.isfinite(f_meas)) or np.any(f_meas <= 0):
+        problems.append("identify: measured frequencies must be finite and > 0 Hz")
+    if w.size != m:
+        problems.append(f"identify: {w.size} weights for {m} frequencies; give one weight per mode")
+    elif np.any(~np.isfinite(w)) or np.any(w < 0):
+        problems.append("identify: weights must be finite and >= 0")
+    if len(names) != k:
+        problems.append(f"identify: {len(names)} names for {k} parameters")
+    if np.any(~(hi_b > lo_b)):
+        problems.append("identify: every coded upper bound must exceed its lower bound")
+    if (lower is None) != (upper is None):
+        problems.append("identify: give both lower and upper physical bounds, or neither")
+    if not (sigma_rel > 0 and math.isfinite(sigma_rel)):
+        problems.append(f"identify: sigma_rel = {sigma_rel} must be a finite relative std > 0")
+    if n_starts < 1:
+        problems.append(f"identify: n_starts = {n_starts} must be >= 1")
+    if problems:
+        raise ConfigError(problems)
+
+
+def _residual_functions(model, f_meas, w, jacobian, extra, k):
+    """``(residual, residual_jac)``: the weighted relative residuals ``sqrt(w) (f - f_meas) / f_meas``
+    (then ``extra(x)``) and their Jacobian (m + q, k) w.r.t. the coded parameters."""
+    m = f_meas.size
+    sw = np.sqrt(w)
+    scale = sw / f_meas  # d r_i / d f_i
+
+    def residual(x):
+        f = np.asarray(model(x), dtype=float).reshape(-1)
+        if f.size != m:
+            raise ConfigError(f"identify: the model returns {f.size} frequencies but {m} were "
+                              f"measured; match modes before identifying")
+        r = scale * (f - f_meas)
+        if extra is not None:
+            r = np.concatenate([r, np.asarray(extra(x), dtype=float).reshape(-1)])
+        return r
+
+    def residual_jac(x):
+        if jacobian is not None:
+            Jf = np.asarray(jacobian(x), dtype=float).reshape(m, k)
+        else:
+            Jf = _central_diff(lambda z: np.asarray(model(z), float).reshape(-1), x)
+        J = scale[:, None] * Jf
+        if extra is not None:
+            J = np.vstack([J, _central_diff(lambda z: np.asarray(extra(z), float).reshape(-1), x)])
+        return J
+
+    return residual, residual_jac
+
+
+def _multistart(residual, residual_jac, lo_b, hi_b, n_starts, seed, k):
+    """Bounded least squares from the centre of the box and ``n_starts - 1`` seeded LHS points.
+    Returns ``(best solution, starts agreeing with its cost J, number of starts)``."""
+    # Starts: centre of the box first, then a seeded LHS inside the box.
+    centre = 0.5 * (lo_b + hi_b)
+    starts = [centre]
+    if n_starts > 1:
+        u = latin_hypercube(n_starts - 1, k, np.random.default_rng(seed))
+        starts += list(lo_b + u * (hi_b - lo_b))
+
+    fits = []
+    for x0 in starts:
+        sol = least_squares(residual, x0, jac=residual_jac, bounds=(lo_b, hi_b), method="trf",
+                            x_scale=1.0, ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=200 * k)
+        fits.append(sol)
+    costs = np.array([2.0 * sol.cost for sol in fits])  # scipy's cost is 0.5 * sum r^2
+    best = fits[int(np.argmin(costs))]
+    cost = float(2.0 * best.cost)
+    n_agree = int(np.sum(np.abs(costs - cost) <= COST_AGREE_TOL * max(1.0, cost)))
+    return best, n_agree, len(starts)
+
+

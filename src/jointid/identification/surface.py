@@ -5,8 +5,8 @@ outputs, typically the natural frequencies of the tracked modes.  Two kinds:
 
 * ``"quadratic"``: full second-order polynomial per response, fitted by least squares, with terms
   in the order ``1, x_0..x_{k-1}, x_i x_j (i < j, row-major), x_0^2..x_{k-1}^2``
-  (``(k+1)(k+2)/2`` terms).  Diagnostics: R^2, adjusted R^2, predicted R^2 from PRESS through the
-  hat matrix, RMSE.
+  (``(k+1)(k+2)/2`` terms).  Diagnostics (:mod:`jointid.identification.surface_checks`): R^2,
+  adjusted R^2, predicted R^2 from PRESS through the hat matrix, RMSE.
 * ``"rbf"``: ``scipy.interpolate.RBFInterpolator`` with a thin-plate-spline kernel and a degree-1
   polynomial tail; it interpolates the training data exactly, so judge it by predicted R^2
   (leave-one-out) and verification points, not by R^2.
@@ -19,7 +19,8 @@ in ``x`` and a quadratic fits it much better.  The identification then needs the
     model = lambda x: np.exp(s(x))                            # (m,) in Hz
     jac = lambda x: np.exp(s(x))[:, None] * s.jacobian(x)     # (m, k) in Hz per coded unit
 
-Always check a surface at fresh points solved by the FE model (:func:`verification_errors`,
+Always check a surface at fresh points solved by the FE model
+(:func:`jointid.identification.surface_checks.verification_errors`,
 points from :func:`jointid.identification.doe.verification_points`); accept it only when the error is < 1 %.
 """
 
@@ -30,7 +31,6 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
 from scipy.interpolate import RBFInterpolator
 
 from jointid.identification.doe import n_quadratic_terms
@@ -42,8 +42,9 @@ __all__ = [
     "RBFSurface",
     "fit_surface",
     "quadratic_basis",
-    "diagnostics",
-    "verification_errors",
+    "as_points",
+    "check_data",
+    "rbf_interpolator",
 ]
 
 SURFACE_KINDS = ("quadratic", "rbf")
@@ -52,7 +53,8 @@ _RBF_DEGREE = 1
 _FD_STEP = 1e-6  # coded units, central differences for the RBF Jacobian
 
 
-def _as_points(X, k: int | None = None) -> np.ndarray:
+def as_points(X, k: int | None = None) -> np.ndarray:
+    """``X`` as a float array of shape ``(n_points, k)`` (one point may be 1-D); checks ``k``."""
     X = np.asarray(X, dtype=float)
     if X.ndim == 1:
         X = X[None, :]
@@ -81,7 +83,7 @@ def quadratic_basis(X) -> np.ndarray:
     numpy.ndarray, shape (n, (k+1)(k+2)/2)
         Columns ``1, x_i, x_i x_j (i<j), x_i^2``.
     """
-    X = _as_points(X)
+    X = as_points(X)
     n, k = X.shape
     cols = [np.ones(n)] + [X[:, i] for i in range(k)]
     cols += [X[:, i] * X[:, j] for i, j in _pairs(k)]
@@ -179,11 +181,11 @@ class QuadraticSurface(Surface):
         return n_quadratic_terms(self.n_factors)
 
     def predict(self, X) -> np.ndarray:
-        return quadratic_basis(_as_points(X, self.n_factors)) @ self.coef
+        return quadratic_basis(as_points(X, self.n_factors)) @ self.coef
 
     def jacobian(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=float).reshape(-1)
-        _as_points(x, self.n_factors)
+        as_points(x, self.n_factors)
         return (_quadratic_basis_gradient(x).T @ self.coef).T
 
     def to_dict(self) -> dict:
@@ -206,7 +208,7 @@ class RBFSurface(Surface):
     kind = "rbf"
 
     def __post_init__(self):
-        self._interp = _rbf(self.X_train, self.Y_train)
+        self._interp = rbf_interpolator(self.X_train, self.Y_train)
 
     @property
     def n_terms(self) -> int:
@@ -215,11 +217,11 @@ class RBFSurface(Surface):
         return int(self.X_train.shape[0])
 
     def predict(self, X) -> np.ndarray:
-        return self._interp(_as_points(X, self.n_factors))
+        return self._interp(as_points(X, self.n_factors))
 
     def jacobian(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=float).reshape(-1)
-        _as_points(x, self.n_factors)
+        as_points(x, self.n_factors)
         k = x.size
         P = np.vstack([x + _FD_STEP * e for e in np.eye(k)] + [x - _FD_STEP * e for e in np.eye(k)])
         V = self.predict(P)
@@ -242,12 +244,15 @@ def _term_names(k: int) -> list[str]:
             + [f"x{i}^2" for i in range(k)])
 
 
-def _rbf(X: np.ndarray, Y: np.ndarray) -> RBFInterpolator:
+def rbf_interpolator(X: np.ndarray, Y: np.ndarray) -> RBFInterpolator:
+    """The interpolator of an rbf surface through ``(X, Y)`` (thin-plate spline, degree-1 tail)."""
     return RBFInterpolator(X, Y, kernel=_RBF_KERNEL, degree=_RBF_DEGREE, smoothing=0.0)
 
 
-def _check_data(X, Y) -> tuple[np.ndarray, np.ndarray]:
-    X = _as_points(X)
+def check_data(X, Y) -> tuple[np.ndarray, np.ndarray]:
+    """Coded points ``X`` (n, k) and responses ``Y`` (n, n_responses) as float arrays; raise one
+    :class:`ConfigError` listing shape and non-finite problems."""
+    X = as_points(X)
     Y = np.asarray(Y, dtype=float)
     if Y.ndim == 1:
         Y = Y[:, None]
@@ -295,7 +300,7 @@ def fit_surface(X, Y, kind: str = "quadratic", *, response_names=None) -> Surfac
     NumericalWarning
         The quadratic design matrix is rank deficient (coefficients are then minimum-norm).
     """
-    X, Y = _check_data(X, Y)
+    X, Y = check_data(X, Y)
     n, k = X.shape
     names = ([f"y{i}" for i in range(Y.shape[1])] if response_names is None
              else [str(s) for s in response_names])
@@ -324,116 +329,3 @@ def fit_surface(X, Y, kind: str = "quadratic", *, response_names=None) -> Surfac
         return RBFSurface(n_factors=k, response_names=names, X_train=X.copy(), Y_train=Y.copy())
     raise ConfigError(f"surface.kind: unknown surface {kind!r}; use one of "
                       f"{', '.join(SURFACE_KINDS)}")
-
-
-def _r2(sse: np.ndarray, sst: np.ndarray) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(sst > 0, 1.0 - sse / np.where(sst > 0, sst, 1.0), np.nan)
-
-
-def diagnostics(surface: Surface, X, Y) -> pd.DataFrame:
-    """Goodness-of-fit table of a surface on its *training* data.
-
-    Parameters
-    ----------
-    surface : Surface
-        Surface fitted on ``(X, Y)``.
-    X : array_like, shape (n_points, k)
-        The coded training points.
-    Y : array_like, shape (n_points, n_responses)
-        The training responses.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Index ``response`` (the response names); columns
-
-        * ``r2``: ``1 - SSE/SST``;
-        * ``r2_adj``: ``1 - (1 - r2)(n - 1)/(n - p)``, NaN when ``n <= p`` (saturated fit);
-        * ``r2_pred``: ``1 - PRESS/SST``; quadratic: PRESS from the hat-matrix leverages
-          ``sum((e_i / (1 - h_ii))^2)``, NaN where a leverage is 1 (saturated design); rbf:
-          leave-one-out refits;
-        * ``rmse``: ``sqrt(SSE / n)`` in response units;
-        * ``n_points``, ``n_terms`` (``p``; for rbf ``p = n``).
-
-        R^2 values are NaN for a constant response (``SST = 0``).
-    """
-    X, Y = _check_data(X, Y)
-    X = _as_points(X, surface.n_factors)
-    if Y.shape[1] != surface.n_responses:
-        raise ConfigError(f"surface: Y has {Y.shape[1]} responses but the surface has "
-                          f"{surface.n_responses}; pass the surface's own training data")
-    n = X.shape[0]
-    p = surface.n_terms
-    E = Y - surface.predict(X)
-    sse = np.sum(E**2, axis=0)
-    sst = np.sum((Y - Y.mean(axis=0)) ** 2, axis=0)
-    r2 = _r2(sse, sst)
-    r2_adj = (1.0 - (1.0 - r2) * (n - 1) / (n - p)) if n > p else np.full_like(r2, np.nan)
-
-    if isinstance(surface, QuadraticSurface):
-        A = quadratic_basis(X)
-        h = np.einsum("ij,ji->i", A, np.linalg.pinv(A))  # leverages diag(A A^+)
-        tol = 1e-10
-        if np.any(h > 1.0 - tol):
-            press = np.full(Y.shape[1], np.nan)
-        else:
-            press = np.sum((E / (1.0 - h)[:, None]) ** 2, axis=0)
-    elif isinstance(surface, RBFSurface):
-        if n <= surface.n_factors + 1:
-            press = np.full(Y.shape[1], np.nan)
-        else:
-            loo = np.empty_like(Y)
-            for i in range(n):
-                keep = np.arange(n) != i
-                loo[i] = _rbf(X[keep], Y[keep])(X[i:i + 1])[0]
-            press = np.sum((Y - loo) ** 2, axis=0)
-    else:  # pragma: no cover
-        raise ConfigError(f"surface: diagnostics not available for kind {surface.kind!r}")
-    r2_pred = _r2(press, sst)
-
-    return pd.DataFrame(
-        {
-            "r2": r2,
-            "r2_adj": r2_adj,
-            "r2_pred": r2_pred,
-            "rmse": np.sqrt(sse / n),
-            "n_points": n,
-            "n_terms": p,
-        },
-        index=pd.Index(surface.response_names, name="response"),
-    )
-
-
-def verification_errors(surface: Surface, X, Y) -> pd.DataFrame:
-    """Surface-vs-reference errors at fresh points (e.g. FE solves at verification points).
-
-    Parameters
-    ----------
-    surface : Surface
-        Fitted surface.
-    X : array_like, shape (n, k)
-        Coded verification points (not used in the fit).
-    Y : array_like, shape (n, n_responses)
-        Reference responses at ``X`` in the surface's own response units (if the surface was fitted
-        on ``log(freq_Hz)``, pass ``log(freq_Hz)``: the error of a log is the relative error).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Index ``response``; columns ``max_abs_err``, ``rms_err`` (response units),
-        ``max_rel_err_pct`` (``100 * max |pred - ref| / |ref|``), ``n_points``.
-    """
-    X, Y = _check_data(X, Y)
-    E = surface.predict(_as_points(X, surface.n_factors)) - Y
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.abs(E) / np.abs(Y)
-    return pd.DataFrame(
-        {
-            "max_abs_err": np.max(np.abs(E), axis=0),
-            "rms_err": np.sqrt(np.mean(E**2, axis=0)),
-            "max_rel_err_pct": 100.0 * np.max(rel, axis=0),
-            "n_points": X.shape[0],
-        },
-        index=pd.Index(surface.response_names, name="response"),
-    )

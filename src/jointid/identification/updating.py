@@ -21,7 +21,8 @@ import pandas as pd
 from jointid.identification.doe import to_coded, to_physical
 from jointid.errors import DataError, NumericalWarning
 from jointid.identification.identify import identify
-from jointid.identification.surface import Surface, diagnostics, fit_surface
+from jointid.identification.surface import Surface, fit_surface
+from jointid.identification.surface_checks import diagnostics
 from jointid.fe.modal import mac
 from jointid.identification.tracking import pair_by_frequency, pair_by_shapes, track_doe
 

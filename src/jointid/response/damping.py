@@ -18,7 +18,7 @@ direct solve, :func:`damping_matrix`). The models:
 ``"measured"``
     ratios identified from the modal test, one per mode.
 
-Scaling note (PHYSICS.md): between two joint states, ``K_min`` scales as ``(f_on/f_off)^2`` with
+Scaling note: between two joint states, ``K_min`` scales as ``(f_on/f_off)^2`` with
 constant ``zeta`` and as ``(f_on/f_off)^3`` with joint damping.
 """
 

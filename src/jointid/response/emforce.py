@@ -3,7 +3,7 @@
 The coil primaries ride on the table above the magnet track, so the motor pulls the table (and the
 carriage blocks) onto the rails with a vertical force ``Fc`` that is typically 2-5 times the thrust.
 That force raises the contact pressure in the carriage/rail joints, which raises the joint stiffness
-(see ``PHYSICS.md``, "Linear-motor normal force").
+(see ``docs/effects.md``, effect ``em_preload``).
 
 References
 ----------
@@ -181,6 +181,38 @@ def force_from_indicator(powered_reading_um, calibration_force_N, calibration_re
         When the powered reading lies outside the calibrated reading range (extrapolation), or when
         only 2 calibration points are given (no uncertainty estimate).
     """
+    y0, force, read, u_y0 = _indicator_inputs(powered_reading_um, calibration_force_N, calibration_reading_um,
+                                              powered_reading_std_um)
+    y0 = float(y0.ravel()[0])
+    u_y0 = float(u_y0.ravel()[0])
+    n = force.size
+    f_mean = force.mean()
+    sxx = float(np.sum((force - f_mean) ** 2))
+    slope = float(np.sum((force - f_mean) * (read - read.mean())) / sxx)
+    intercept = float(read.mean() - slope * f_mean)
+    f0 = (y0 - intercept) / slope
+    if n > 2:
+        ssr = float(np.sum((read - intercept - slope * force) ** 2))
+        s = np.sqrt(ssr / (n - 2))
+        std = float(np.sqrt((s / slope) ** 2 * (1.0 / n + (f0 - f_mean) ** 2 / sxx) + (u_y0 / slope) ** 2))
+    else:
+        s = float("nan")
+        std = float("nan")
+        warnings.warn("force_from_indicator: only 2 calibration points, the force uncertainty cannot be "
+                      "estimated from residuals; add calibration points", NumericalWarning, stacklevel=2)
+    extrapolated = bool(y0 < read.min() or y0 > read.max())
+    if extrapolated:
+        warnings.warn(
+            f"force_from_indicator: powered reading {y0} um is outside the calibrated range "
+            f"[{read.min()}, {read.max()}] um; the force {f0:.4g} N is extrapolated, extend the "
+            "calibration loads to bracket it", NumericalWarning, stacklevel=2)
+    return IndicatorForce(force_N=float(f0), std_N=std, intercept_um=intercept, slope_um_per_N=slope,
+                          residual_std_um=float(s), n_points=int(n), extrapolated=extrapolated)
+
+
+def _indicator_inputs(powered_reading_um, calibration_force_N, calibration_reading_um, powered_reading_std_um):
+    """The arguments of :func:`force_from_indicator` as arrays ``(y0, force, read, u_y0)`` (um, N, um,
+    um; force and read flat); raise one :class:`DataError` listing every problem."""
     problems: list[str] = []
     y0 = _as_checked("powered_reading_um", powered_reading_um, problems, allow_negative=True,
                      fix="give the powered dial-indicator reading in um as one finite number")
@@ -212,32 +244,7 @@ def force_from_indicator(powered_reading_um, calibration_force_N, calibration_re
                                     "check the indicator zero, the load order and slipping of the indicator")
     if problems:
         raise DataError(problems)
-
-    y0 = float(y0.ravel()[0])
-    u_y0 = float(u_y0.ravel()[0])
-    n = force.size
-    f_mean = force.mean()
-    sxx = float(np.sum((force - f_mean) ** 2))
-    slope = float(np.sum((force - f_mean) * (read - read.mean())) / sxx)
-    intercept = float(read.mean() - slope * f_mean)
-    f0 = (y0 - intercept) / slope
-    if n > 2:
-        ssr = float(np.sum((read - intercept - slope * force) ** 2))
-        s = np.sqrt(ssr / (n - 2))
-        std = float(np.sqrt((s / slope) ** 2 * (1.0 / n + (f0 - f_mean) ** 2 / sxx) + (u_y0 / slope) ** 2))
-    else:
-        s = float("nan")
-        std = float("nan")
-        warnings.warn("force_from_indicator: only 2 calibration points, the force uncertainty cannot be "
-                      "estimated from residuals; add calibration points", NumericalWarning, stacklevel=2)
-    extrapolated = bool(y0 < read.min() or y0 > read.max())
-    if extrapolated:
-        warnings.warn(
-            f"force_from_indicator: powered reading {y0} um is outside the calibrated range "
-            f"[{read.min()}, {read.max()}] um; the force {f0:.4g} N is extrapolated, extend the "
-            "calibration loads to bracket it", NumericalWarning, stacklevel=2)
-    return IndicatorForce(force_N=float(f0), std_N=std, intercept_um=intercept, slope_um_per_N=slope,
-                          residual_std_um=float(s), n_points=int(n), extrapolated=extrapolated)
+    return y0, force, read, u_y0
 
 
 def carriage_loads_N(force_N, table_mass_kg, carriage_x_m, carriage_z_m, load_x_m=0.0, load_z_m=0.0,
@@ -279,6 +286,28 @@ def carriage_loads_N(force_N, table_mass_kg, carriage_x_m, carriage_z_m, load_x_
         If a block load is negative (the block would lift off; a preloaded block stays in contact,
         see ``contact_pressure_Pa``).
     """
+    fc, m, x, z, lx, lz, gg = _carriage_inputs(force_N, table_mass_kg, carriage_x_m, carriage_z_m, load_x_m,
+                                               load_z_m, g)
+    w = float(fc) + float(m) * float(gg)
+    lx, lz = float(lx), float(lz)
+    # Plane of settlement: F_i = c0 + cx * x_i + cz * z_i; solve force and two moment balances.
+    basis = np.column_stack([np.ones_like(x), x, z])          # (n, 3)
+    rhs = np.array([w, w * lx, w * lz])                        # sum F, sum F x, sum F z
+    coef = np.linalg.solve(basis.T @ basis, rhs)
+    loads = basis @ coef
+    if np.any(loads < 0):
+        bad = np.flatnonzero(loads < 0).tolist()
+        warnings.warn(
+            f"carriage_loads_N: block(s) {bad} would carry a negative load {loads[bad]} N (lift-off "
+            "without preload); the load offset is outside the blocks' middle region",
+            NumericalWarning, stacklevel=2)
+    return loads
+
+
+def _carriage_inputs(force_N, table_mass_kg, carriage_x_m, carriage_z_m, load_x_m, load_z_m, g):
+    """The arguments of :func:`carriage_loads_N` as arrays ``(fc, m, x, z, lx, lz, g)`` (N, kg, m, m, m,
+    m, m/s^2; x and z flat); raise one :class:`DataError` listing every problem (>= 3 blocks, not on
+    one line)."""
     problems: list[str] = []
     fc = _as_checked("force_N", force_N, problems, allow_negative=True,
                      fix="give the motor normal force in N as one finite number")
@@ -309,21 +338,7 @@ def carriage_loads_N(force_N, table_mass_kg, carriage_x_m, carriage_z_m, load_x_
                                 "tip, check the coordinates")
     if problems:
         raise DataError(problems)
-
-    w = float(fc) + float(m) * float(gg)
-    lx, lz = float(lx), float(lz)
-    # Plane of settlement: F_i = c0 + cx * x_i + cz * z_i; solve force and two moment balances.
-    basis = np.column_stack([np.ones_like(x), x, z])          # (n, 3)
-    rhs = np.array([w, w * lx, w * lz])                        # sum F, sum F x, sum F z
-    coef = np.linalg.solve(basis.T @ basis, rhs)
-    loads = basis @ coef
-    if np.any(loads < 0):
-        bad = np.flatnonzero(loads < 0).tolist()
-        warnings.warn(
-            f"carriage_loads_N: block(s) {bad} would carry a negative load {loads[bad]} N (lift-off "
-            "without preload); the load offset is outside the blocks' middle region",
-            NumericalWarning, stacklevel=2)
-    return loads
+    return fc, m, x, z, lx, lz, gg
 
 
 def contact_pressure_Pa(load_N, area_m2, preload_N=0.0):

@@ -206,7 +206,7 @@ def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, r
         from jointid.fe.describe import describe_modes
         from jointid.errors import ConfigError
         from jointid.fe.model import base_coefficients
-        from jointid.fe.rom import full_modes, load_rom
+        from jointid.identification.rom import full_modes, load_rom
 
         if not rom:
             raise ConfigError("solver.method: rom needs the reduced-order model (rule rom, "
@@ -249,7 +249,7 @@ def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: st
 
     from jointid.errors import ModelError, NumericalWarning
     from jointid.fe.model import load_model
-    from jointid.fe.rom import build_rom
+    from jointid.identification.rom_build import build_rom
 
     s = cfg["solver"]
     tol = float(s.get("rom_tolerance", 1e-4))
@@ -538,7 +538,7 @@ def _polish(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, low
 
     ref = np.asarray(doc["ref_shapes"])[:, pairing]
     if rom:
-        from jointid.fe.rom import load_rom
+        from jointid.identification.rom import load_rom
 
         model = load_rom(rom)
     else:
@@ -615,7 +615,7 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
     from jointid.fe.model import base_coefficients, joint_terms
     from jointid.identification.updating import fe_polish
 
-    from jointid.fe.rom import ROM
+    from jointid.identification.rom import ROM
 
     jt = joint_terms(cfg["joints"])
     terms = [{t: 1.0 for t in jt[n]} for n in names]

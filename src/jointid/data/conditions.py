@@ -1,0 +1,197 @@
+"""Checks of a dataset's conditions.yaml (source, uncertainty, per-state force, currents, drive point).
+
+Problems are collected in a :class:`jointid.data.validate.Problems` list, one line each, located by
+``<file>:<line>`` (YAML syntax, repeated keys) or ``<file>:<key path>``.  See
+``docs/measurement-format.md``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+
+import yaml
+
+from jointid.data.validate import DIRECTIONS, few
+from jointid.yamlio import number_from_text
+
+__all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "check_conditions"]
+
+TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "notes")
+STATE_KEYS = ("em_force_N", "currents", "motor_position_m", "frf_drive_point",
+              "frf_drive_direction", "notes")
+CURRENT_KEYS = ("exciting_current_A", "eddy_current_A")
+
+
+def _yaml_duplicates(node, path=""):
+    """Yield ``(key_path, line)`` for keys repeated in a YAML mapping (safe_load keeps the last)."""
+    if isinstance(node, yaml.MappingNode):
+        seen = set()
+        for key, value in node.value:
+            name = str(key.value)
+            sub = f"{path}.{name}" if path else name
+            if name in seen:
+                yield sub, key.start_mark.line + 1
+            seen.add(name)
+            yield from _yaml_duplicates(value, sub)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            yield from _yaml_duplicates(item, f"{path}[{i}]")
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _as_number(mapping, key) -> None:
+    """Numeric text at ``mapping[key]`` as float, in place: PyYAML (YAML 1.1) reads ``1e3`` or
+    ``2.0e8`` as strings.  The rule is config.yaml's (:func:`jointid.yamlio.number_from_text`);
+    text that is no finite number stays text and is reported by the caller."""
+    if isinstance(mapping, dict) and key in mapping:
+        value = number_from_text(mapping[key])
+        if value is not None and math.isfinite(value):
+            mapping[key] = value
+
+
+def _unknown_keys(problems, prefix, mapping, allowed):
+    """Report keys of ``mapping`` not in ``allowed``; the location is ``prefix + key``."""
+    for key in mapping:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
+            guess = f" (did you mean {close[0]!r}?)" if close else ""
+            problems.add(f"{prefix}{key}", f"unknown key {key!r}",
+                         f"allowed keys are {', '.join(allowed)}{guess}")
+
+
+def check_conditions(path, label, problems, points, has_frf_states):
+    """Check ``conditions.yaml`` at ``path`` (shown as ``label``); add each problem to ``problems``.
+
+    Parameters
+    ----------
+    path : Path
+    label : str
+        File name used in the problem lines.
+    problems : jointid.data.validate.Problems
+    points : set of str or None
+        Measuring-point names (``frf_drive_point`` must be one); None skips that check.
+    has_frf_states : set of str
+        States that have FRFs in frf.csv (they need a drive point).
+
+    Returns
+    -------
+    dict or None
+        The parsed mapping (numeric text read as numbers), or None if it is unreadable.
+    """
+    data = _read_yaml(path, label, problems)
+    if data is None:
+        return None
+    _unknown_keys(problems, f"{label}:", data, TOP_KEYS)
+    _as_number(data, "frequency_uncertainty_pct")
+    source = data.get("source")
+    if not isinstance(source, str) or not source.strip():
+        problems.add(f"{label}:source", "source is missing or empty",
+                     "add 'source: <where the data came from: rig, date, operator, paper>'")
+    if "frequency_uncertainty_pct" in data:
+        u = data["frequency_uncertainty_pct"]
+        if not _is_number(u) or not 0 < u < 100:
+            problems.add(f"{label}:frequency_uncertainty_pct",
+                         f"frequency_uncertainty_pct = {u!r} is not a number in (0, 100)",
+                         "give the 1-sigma frequency uncertainty in percent, e.g. 1.0")
+    states = data.get("states")
+    if not isinstance(states, dict) or not states:
+        problems.add(f"{label}:states", "states is missing or not a mapping",
+                     "add 'states:' with one entry per state, each with em_force_N")
+        return data
+    for name, cond in states.items():
+        _check_state(problems, f"{label}:states.{name}", name, cond, points, has_frf_states)
+    return data
+
+
+def _read_yaml(path, label, problems):
+    """The top-level mapping of the file, or None (problem added) if it is not UTF-8 YAML holding
+    a mapping; repeated keys are reported and the mapping is still returned."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+        node = yaml.compose(text)
+        data = yaml.safe_load(text)
+    except UnicodeDecodeError:
+        problems.add(f"{label}:1", "file is not UTF-8 text", "save it as UTF-8")
+        return None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else 1
+        what = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        problems.add(f"{label}:{line}", f"YAML syntax error: {what}",
+                     "fix the indentation, colon or quoting on that line")
+        return None
+    for key, line in _yaml_duplicates(node):
+        problems.add(f"{label}:{line}", f"key {key} appears twice", "keep one of them")
+    if data is None:
+        problems.add(f"{label}:1", "file is empty",
+                     "write 'source: ...' and 'states:' with em_force_N per state")
+        return None
+    if not isinstance(data, dict):
+        problems.add(f"{label}:1", f"top level is a {type(data).__name__}, not a mapping",
+                     "write 'source: ...' and 'states:' with em_force_N per state")
+        return None
+    return data
+
+
+def _check_state(problems, where, name, cond, points, has_frf_states) -> None:
+    """Check the entry ``cond`` of state ``name`` (located ``where``); numeric text becomes numbers."""
+    if not isinstance(cond, dict):
+        problems.add(where, "entry is not a mapping", "write 'em_force_N: <N>' under the state")
+        return
+    _unknown_keys(problems, f"{where}.", cond, STATE_KEYS)
+    for key in ("em_force_N", "motor_position_m"):
+        _as_number(cond, key)
+    if isinstance(cond.get("currents"), dict):
+        for key in CURRENT_KEYS:
+            _as_number(cond["currents"], key)
+    if "em_force_N" not in cond:
+        problems.add(where, "em_force_N is missing",
+                     "add em_force_N: <vertical motor attraction in N, 0 when powered off>")
+    else:
+        f = cond["em_force_N"]
+        if not _is_number(f):
+            problems.add(f"{where}.em_force_N", f"em_force_N = {f!r} is not a number",
+                         "write the force in N, e.g. 1000.0")
+        elif f < 0:
+            problems.add(f"{where}.em_force_N", f"em_force_N = {f} is negative",
+                         "give the attraction as a magnitude (>= 0 N)")
+    currents = cond.get("currents")
+    if currents is not None:
+        _check_currents(problems, where, currents)
+    if "motor_position_m" in cond and not _is_number(cond["motor_position_m"]):
+        problems.add(f"{where}.motor_position_m", f"motor_position_m = "
+                     f"{cond['motor_position_m']!r} is not a number",
+                     "give the table position along Z in m, e.g. 0.25")
+    drive = cond.get("frf_drive_point")
+    if drive is not None and points is not None and str(drive) not in points:
+        problems.add(f"{where}.frf_drive_point", f"frf_drive_point {drive!r} is not a measuring "
+                     "point", f"use a name from the measuring-point table ({few(points)})")
+    ddir = cond.get("frf_drive_direction")
+    if ddir is not None and ddir not in DIRECTIONS:
+        problems.add(f"{where}.frf_drive_direction", f"frf_drive_direction = {ddir!r} is not "
+                     "x, y or z", "use x, y or z")
+    if str(name) in has_frf_states and (drive is None or ddir is None):
+        problems.add(where, "frf.csv has FRFs for this state but the drive point is not given",
+                     "add frf_drive_point and frf_drive_direction")
+
+
+def _check_currents(problems, where, currents) -> None:
+    """Check the ``currents`` entry of a state (A, RMS magnitudes)."""
+    if not isinstance(currents, dict):
+        problems.add(f"{where}.currents", "currents is not a mapping",
+                     f"write {', '.join(CURRENT_KEYS)} under currents")
+        return
+    _unknown_keys(problems, f"{where}.currents.", currents, CURRENT_KEYS)
+    for key in CURRENT_KEYS:
+        if key in currents:
+            c = currents[key]
+            if not _is_number(c):
+                problems.add(f"{where}.currents.{key}", f"{key} = {c!r} is not a number",
+                             "write the current in A, e.g. 4.5")
+            elif c < 0:
+                problems.add(f"{where}.currents.{key}", f"{key} = {c} is negative",
+                             "give the RMS current magnitude (>= 0 A)")
