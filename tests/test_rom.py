@@ -15,7 +15,8 @@ from jointid import io
 from jointid.config.core import load_config
 from jointid.identification.doe import to_physical
 from jointid.errors import ConfigError, ModelError, NumericalWarning
-from jointid.fe.modal import mac, solve_modes
+from jointid.correlate.mac import mac
+from jointid.fe.modal import solve_modes
 from jointid.fe.model import base_coefficients, build_model, save_model
 from jointid.fe.rom import ROM, build_rom, frequency_error, load_rom, residual_indicator, training_points
 from jointid.stages.core import doe_sheet, polish_on_model, run_modal, run_rom
