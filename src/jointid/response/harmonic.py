@@ -140,6 +140,37 @@ def _static_by_shifted(shifted, Kf, b, max_iter: int = 50):
     return None
 
 
+def _static_solution(Kf, b, free, small: bool, backend: str, shifted):
+    """``K x = b`` on the free DOFs for :func:`static_residual`: refined on the modal solve's
+    factorisation ``shifted`` when it is given (and converges), else by a factorisation of ``K``
+    (SuperLU for a ``small`` model, else ``backend``).  Returns ``(x, "")``, or ``(None, note)`` when the
+    solve failed or is not accurate (``K`` singular or nearly so)."""
+    try:
+        x = None
+        if shifted is not None and np.array_equal(shifted.free, free):
+            x = _static_by_shifted(shifted, Kf, b)  # None if the refinement does not converge
+        if x is None and small:
+            x = np.asarray(static_solver(Kf)(b)).ravel()
+        elif x is None:
+            fac = factorize(Kf, backend)
+            try:
+                x = np.asarray(fac.solve(b)).ravel()
+            finally:
+                fac.free()
+    except (ModelError, RuntimeError, ValueError) as exc:
+        return None, f"no residual flexibility: static solve failed ({str(exc).splitlines()[0]})"
+    bad = ""
+    if not np.all(np.isfinite(x)):
+        bad = "the static solution is not finite"
+    else:
+        res = np.linalg.norm(Kf @ x - b) / max(np.linalg.norm(b), 1e-300)
+        if res > _RESIDUAL_RTOL:
+            bad = f"the static solve is inaccurate (relative residual {res:.1e})"
+    if bad:
+        return None, f"no residual flexibility: {bad}; K is (nearly) singular"
+    return x, ""
+
+
 def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto", shifted=None,
                     response=None):
     """Static residual flexibility of the modes not kept in ``phi``, or None if ``K`` is singular.
@@ -189,31 +220,10 @@ def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto"
     p = np.asarray(load, dtype=float).ravel()
     n = K.shape[0]
     free = free_dofs(n, fixed)
-    Kf = restrict(sp.csr_matrix(K), free)
     b = p[free]
-    try:
-        x = None
-        if shifted is not None and np.array_equal(shifted.free, free):
-            x = _static_by_shifted(shifted, Kf, b)  # None if the refinement does not converge
-        if x is None and n < 20000:
-            x = np.asarray(static_solver(Kf)(b)).ravel()
-        elif x is None:
-            fac = factorize(Kf, backend)
-            try:
-                x = np.asarray(fac.solve(b)).ravel()
-            finally:
-                fac.free()
-    except (ModelError, RuntimeError, ValueError) as exc:
-        return None, None, f"no residual flexibility: static solve failed ({str(exc).splitlines()[0]})"
-    bad = ""
-    if not np.all(np.isfinite(x)):
-        bad = "the static solution is not finite"
-    else:
-        res = np.linalg.norm(Kf @ x - b) / max(np.linalg.norm(b), 1e-300)
-        if res > _RESIDUAL_RTOL:
-            bad = f"the static solve is inaccurate (relative residual {res:.1e})"
-    if bad:
-        return None, None, f"no residual flexibility: {bad}; K is (nearly) singular"
+    x, failed = _static_solution(restrict(sp.csr_matrix(K), free), b, free, n < 20000, backend, shifted)
+    if failed:
+        return None, None, failed
     w2 = (2.0 * np.pi * fr) ** 2
     pphi = p @ np.asarray(phi)
     if response is not None:  # a transfer residual: either sign
