@@ -36,7 +36,8 @@ def _references(base: dict) -> list[tuple[str, dict]]:
 
 
 def _compare(a: dict, b: dict) -> list[dict]:
-    from jointid.fe.modal import mac, pair_by_mac
+    from jointid.correlate.mac import mac
+    from jointid.correlate.pairing import pair_by_mac
 
     m = mac(np.array(a["shapes"]), np.array(b["shapes"]))
     pairs = {r: (c, v) for r, c, v in pair_by_mac(m, 0.0)}

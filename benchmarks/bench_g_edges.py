@@ -105,9 +105,9 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
 def _change(f0, s0, track, f, s):
     """Modes of a refined mesh paired with the default mesh's by MAC: ``(index, macs, ok, change %,
     modes ordered by change)``."""
-    from jointid.identification.meshcheck import pair_meshes
+    from jointid.correlate.pairing import pair_by_shapes
 
-    index, macs = pair_meshes(s0, s)
+    index, macs = pair_by_shapes(s0, s, threshold=0.8)
     ok = track & (index >= 0)
     change = np.full(len(f0), np.nan)
     change[ok] = 100 * (f[index[ok]] / f0[ok] - 1)

@@ -145,7 +145,7 @@ def task_idiomatic(args: dict) -> dict:
 def task_rom(args: dict) -> dict:
     """Build a ROM, then compare it with full solves at random interior points (speed and error)."""
     from jointid.identification.doe import to_physical
-    from jointid.fe.modal import mac
+    from jointid.correlate.mac import mac
     from jointid.fe.model import base_coefficients, build_model
     from jointid.identification.rom import frequency_error
     from jointid.identification.rom_build import build_rom

@@ -170,7 +170,7 @@ def test_halved_grid_is_nested_and_halves_the_chosen_cells():
 
 def test_nested_refinement_lowers_every_frequency():
     """Min-max principle: on a nested (richer) mesh no eigenfrequency can rise."""
-    from jointid.identification.meshcheck import pair_meshes
+    from jointid.correlate.pairing import pair_by_shapes
     from jointid.fe.model import base_coefficients, build_model
 
     from conftest import coarse_config_dict
@@ -187,6 +187,6 @@ def test_nested_refinement_lowers_every_frequency():
     # sorted eigenvalues of a nested space interlace from below: the k-th can only fall
     assert np.all(ff <= fc * (1 + 1e-8))
     assert np.any(ff < fc * (1 - 1e-4))  # and the refinement does change something
-    index, macs = pair_meshes(sc, sf)
+    index, macs = pair_by_shapes(sc, sf, threshold=0.8)
     # every mode but the top of the window (its partner may lie above it) is followed onto the fine mesh
     assert (index[:8] >= 0).all() and (macs[:8] > 0.9).all()

@@ -57,10 +57,10 @@ def test_one_factorisation_serves_the_modes_and_the_static_solve(rig):
     try:
         np.testing.assert_allclose(m2.freqs_Hz, modes.freqs_Hz, rtol=1e-9)
         assert shifted.sigma < 0 and len(shifted.free) == model.n_dofs - len(model.fixed)
-        R, H0, note = frf.static_residual(K, p, m2.phi, m2.freqs_Hz, fixed=model.fixed, shifted=shifted)
+        R, H0, note = hm.static_residual(K, p, m2.phi, m2.freqs_Hz, fixed=model.fixed, shifted=shifted)
     finally:
         shifted.free_memory()
-    R0, H00, _ = frf.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
+    R0, H00, _ = hm.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
     assert H0 == pytest.approx(H00, rel=1e-9)
     assert R == pytest.approx(R0, rel=1e-6, abs=1e-9 * H00)
     assert "residual" in note
@@ -85,7 +85,7 @@ def test_modal_superposition_with_residual_matches_direct_solve(rig):
     alpha, beta = rayleigh_for(in_band[0], in_band[-1], 0.03)
     zeta, source = frf.modal_damping_ratios({"model": "rayleigh", "alpha_per_s": alpha, "beta_s": beta}, fr)
     assert set(source) == {"rayleigh"}
-    R, H0, note = frf.static_residual(K, p, modes.phi, fr, fixed=model.fixed)
+    R, H0, note = hm.static_residual(K, p, modes.phi, fr, fixed=model.fixed)
     assert R is not None and R > 0 and "residual" in note
     res = frf.harmonic_response(modes, p, zeta, BAND, n_freq=120, residual=R, static_receptance=H0)
     # 16 frequencies away from every resonance (outside 2 half-power half-widths) and one near each peak
@@ -98,7 +98,7 @@ def test_modal_superposition_with_residual_matches_direct_solve(rig):
     f = np.concatenate([f_away, f_peak])
     away = np.arange(f.size) < f_away.size
     C = dm.damping_matrix("rayleigh", K, M, alpha_per_s=alpha, beta_s=beta)
-    h_direct = frf.direct_frf(K, M, C, p, f, fixed=model.fixed)
+    h_direct = hm.direct_frf(K, M, C, p, f, fixed=model.fixed)
     pphi = p @ modes.phi
     h_modal = hm.frf_modal(f, fr, zeta, pphi, pphi, residual_flexibility=R)
     err = np.abs(h_modal - h_direct) / np.abs(h_direct)
@@ -110,14 +110,14 @@ def test_modal_superposition_with_residual_matches_direct_solve(rig):
     assert err0[away].max() > 2 * err[away].max()
     # the band minimum agrees with the direct solve at the same frequency
     fmin = res.dynamic["f_at_min_Hz"]
-    kd_direct = 1 / abs(frf.direct_frf(K, M, C, p, [fmin], fixed=model.fixed)[0])
+    kd_direct = 1 / abs(hm.direct_frf(K, M, C, p, [fmin], fixed=model.fixed)[0])
     assert res.dynamic["k_dyn_min_N_per_m"] == pytest.approx(kd_direct, rel=0.01)
 
 
 def test_static_stiffness_is_exact(rig):
     cfg, model, K, M, modes, p = rig
-    R, H0, _ = frf.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
-    h_direct0 = frf.direct_frf(K, M, None, p, [0.0], fixed=model.fixed)[0]
+    R, H0, _ = hm.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
+    h_direct0 = hm.direct_frf(K, M, None, p, [0.0], fixed=model.fixed)[0]
     assert H0 == pytest.approx(h_direct0.real, rel=1e-9)
     res = frf.harmonic_response(modes, p, 0.02, BAND, n_freq=50, residual=R, static_receptance=H0)
     assert res.dynamic["k_static_N_per_m"] == pytest.approx(1 / h_direct0.real, rel=1e-9)
@@ -134,7 +134,7 @@ def test_free_model_falls_back_to_no_residual():
     modes = frf.solve_band_modes(K, M, 1000.0, fixed=model.fixed, n_start=14, factor=2.0)
     assert np.sum(modes.freqs_Hz < frf.RIGID_HZ) == 6
     p = frf.drive_vector(model, "T05", "y")
-    R, H0, note = frf.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
+    R, H0, note = hm.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
     assert R is None and H0 is None and "rigid-body" in note
     zeta, source = frf.modal_damping_ratios({"model": "modal", "damping_ratio": 0.03}, modes.freqs_Hz)
     assert source.count("rigid") == 6 and np.all(zeta[:6] == 0) and np.all(zeta[6:] == 0.03)

@@ -15,7 +15,8 @@ from jointid import io
 from jointid.config import load_config
 from jointid.identification.doe import to_physical
 from jointid.errors import ConfigError, ModelError, NumericalWarning
-from jointid.fe.modal import mac, solve_modes
+from jointid.correlate.mac import mac
+from jointid.fe.modal import solve_modes
 from jointid.fe.model import base_coefficients, build_model, save_model
 from jointid.identification.rom import ROM, frequency_error, load_rom
 from jointid.identification.rom_build import build_rom, residual_indicator, training_points

@@ -1,9 +1,16 @@
-"""Test/analysis correlation: frequency errors, MAC matrix, MAC pairing, shape residuals per point.
+"""Mode pairing and test/analysis correlation tables: frequency errors, MAC pairing, shape residuals.
 
+* :func:`pair_by_mac` is the best one-to-one (Hungarian) assignment on a MAC matrix
+  (:func:`jointid.correlate.mac.mac`); :func:`pair_by_shapes` pairs two shape sets by it (measured with
+  model modes, a mode with its continuation on a refined mesh or at another parameter point).
+* :func:`pair_by_frequency` pairs by an order-preserving assignment that minimises the summed squared
+  log-frequency distance (:func:`ordered_assignment`, dynamic programming), when the measurement has
+  frequencies only (no shapes).
 * :func:`pair_modes` pairs measured with model modes: by MAC (one-to-one, Hungarian) when shapes are
-  measured, else by an order-preserving log-frequency assignment.  Measured modes without a partner
+  measured, else by the order-preserving log-frequency assignment.  Measured modes without a partner
   (MAC below the threshold) and model modes inside the measured band that no measured mode took are
-  *listed*, never silently dropped.
+  *listed*, never silently dropped.  :func:`pair_states_by_frequency` does the frequency pairing of
+  several states with one mode identity across them.
 * :func:`frequency_errors` tabulates the per-mode relative error ``(f_model - f_meas) / f_meas``.
 * :func:`shape_residuals` scales each paired model shape onto the measured one (modal scale factor,
   least squares) and gives the residual at every measured point DOF; :func:`point_residuals`
@@ -16,12 +23,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import linear_sum_assignment
 
-from jointid.fe.modal import mac, pair_by_mac
-from jointid.identification.tracking import ordered_assignment, pair_by_frequency  # noqa: F401 (re-exported)
+from jointid.correlate.mac import mac
 
-__all__ = ["Pairing", "mac_matrix", "pair_modes", "pair_states_by_frequency", "ordered_assignment",
-           "frequency_errors", "shape_residuals", "point_residuals", "error_summary"]
+__all__ = ["Pairing", "below_band", "pair_by_mac", "pair_by_shapes", "pair_by_frequency", "ordered_assignment",
+           "pair_modes", "pair_states_by_frequency", "frequency_errors", "shape_residuals", "point_residuals",
+           "error_summary"]
 
 
 @dataclass
@@ -64,15 +72,85 @@ def below_band(dataset: str, freqs_by_state: dict, min_freq_Hz: float) -> list[s
             for state, freqs in freqs_by_state.items() for i, f in enumerate(freqs) if f < min_freq_Hz]
 
 
-def mac_matrix(meas_shapes: np.ndarray, model_shapes: np.ndarray) -> np.ndarray:
-    """MAC between measured ``(n_labels, m)`` and model ``(n_labels, n)`` shapes: ``(m, n)``.
+def pair_by_mac(macs: np.ndarray, threshold: float = 0.5) -> list[tuple[int, int, float]]:
+    """Best one-to-one pairing (Hungarian) of rows (e.g. measured) to columns (model) by MAC.
 
-    Labels with NaN in the measured set are ignored.
+    Pairs with MAC below ``threshold`` are dropped (reported as unpaired by the caller).
+    Returns ``[(row, col, mac), ...]`` sorted by row.
     """
-    meas = np.asarray(meas_shapes, float)
-    model = np.asarray(model_shapes, float)
-    ok = ~np.isnan(meas).any(axis=1)
-    return mac(meas[ok], model[ok])
+    rows, cols = linear_sum_assignment(-macs)
+    return [(int(r), int(c), float(macs[r, c])) for r, c in zip(rows, cols)
+            if macs[r, c] >= threshold]
+
+
+def pair_by_shapes(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = 0.5):
+    """Mode of set b paired with each mode of set a by MAC (one-to-one, :func:`pair_by_mac`).
+
+    Parameters
+    ----------
+    shapes_a, shapes_b : ndarray, shape (n_labels, m) and (n_labels, n)
+        Shapes at the same labels (e.g. measured and model shapes at the measuring-point DOFs, or one
+        model's shapes on two meshes); labels NaN in either set are ignored.
+    threshold : float
+        Smallest MAC accepted for a pair.
+
+    Returns
+    -------
+    index : ndarray of int, shape (m,)
+        Mode of set b paired with each mode of set a, -1 where none reaches ``threshold``.
+    mac : ndarray, shape (m,)
+        MAC of each pair (0 where unpaired).
+    """
+    m = mac(shapes_a, shapes_b)
+    index = -np.ones(m.shape[0], dtype=int)
+    value = np.zeros(m.shape[0])
+    for r, c, v in pair_by_mac(m, threshold):
+        index[r], value[r] = c, v
+    return index, value
+
+
+def pair_by_frequency(f_meas: np.ndarray, f_model: np.ndarray) -> np.ndarray:
+    """Order-preserving assignment of measured modes to model modes by log-frequency distance.
+
+    ``f_meas`` (m,) and ``f_model`` (n,), n >= m, in Hz.  Returns the model index for each measured
+    mode (strictly increasing in the model's frequency order).
+    """
+    fm = np.log(np.asarray(f_meas, float))
+    order = np.argsort(f_model)
+    fc = np.log(np.asarray(f_model, float)[order])
+    if len(fc) < len(fm):
+        raise ValueError(f"{len(fm)} measured modes but only {len(fc)} model modes to pair with")
+    return order[ordered_assignment((fm[:, None] - fc[None, :]) ** 2)]
+
+
+def ordered_assignment(cost: np.ndarray) -> np.ndarray:
+    """Order-preserving assignment of rows to columns minimising the summed cost.
+
+    ``cost`` is ``(m, n)`` with ``n >= m``; returns the column of each row, strictly increasing
+    (dynamic programming, O(m n)).
+    """
+    m, n = cost.shape
+    if n < m:
+        raise ValueError(f"{m} rows but only {n} columns to assign")
+    D = np.full((m + 1, n + 1), np.inf)
+    D[0, :] = 0.0
+    take = np.zeros((m + 1, n + 1), bool)
+    for i in range(1, m + 1):
+        for j in range(i, n + 1):
+            skip = D[i, j - 1]
+            use = D[i - 1, j - 1] + cost[i - 1, j - 1]
+            if use <= skip:
+                D[i, j], take[i, j] = use, True
+            else:
+                D[i, j] = skip
+    out = np.empty(m, dtype=int)
+    i, j = m, n
+    while i > 0:
+        if take[i, j]:
+            out[i - 1] = j - 1
+            i -= 1
+        j -= 1
+    return out
 
 
 def pair_modes(f_meas, f_model, meas_shapes=None, model_shapes=None, *, threshold: float = 0.5,
@@ -101,7 +179,7 @@ def pair_modes(f_meas, f_model, meas_shapes=None, model_shapes=None, *, threshol
     index = -np.ones(m, dtype=int)
     macs = np.full(m, np.nan)
     if meas_shapes is not None and model_shapes is not None and np.isfinite(meas_shapes).any():
-        M = mac_matrix(meas_shapes, np.asarray(model_shapes)[:, usable])
+        M = mac(np.asarray(meas_shapes, float), np.asarray(model_shapes, float)[:, usable])
         for r, c, v in pair_by_mac(M, threshold):
             index[r], macs[r] = usable[c], v
         method = "mac"

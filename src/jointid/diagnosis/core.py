@@ -42,6 +42,7 @@ from scipy.optimize import least_squares, linear_sum_assignment
 from scipy.stats import chi2 as chi2_dist
 
 from jointid.correlate import pairing as correlate
+from jointid.correlate.mac import mac
 from jointid.diagnosis.effects import (EFFECTS, Effect, StateInfo, System, apply_effects, baseline_coefficients,
                       build_system, enabled_effects)
 from jointid.threads import limit_threads  # noqa: F401  (re-used by the command line)
@@ -917,7 +918,7 @@ def _compare_tables(diag: Diagnoser, variant: Variant, x):
         desc = _descriptions(diag, s)
         frames.append(correlate.frequency_errors(d.name, d.f_meas, s.freqs_Hz, p, desc))
         if d.shapes is not None:
-            macs[d.name] = correlate.mac_matrix(d.shapes, s.shapes)
+            macs[d.name] = mac(d.shapes, s.shapes)
             shapes.append(correlate.shape_residuals(d.name, d.shapes, s.shapes, p, diag.system.labels))
     sh = pd.concat(shapes, ignore_index=True) if shapes else correlate.shape_residuals("", None, None, None, [])
     return pd.concat(frames, ignore_index=True), macs, sh

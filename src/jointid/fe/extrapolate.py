@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from jointid.identification.meshcheck import pair_meshes
+from jointid.correlate.pairing import pair_by_shapes
 
 N_LEVELS = 2  # meshes beyond the base: Aitken needs three members of the sequence
 CONVERGED_REL = 1e-6  # a mode moving less than this (relative) between the finest two meshes is converged
@@ -79,7 +79,7 @@ def level_config(cfg: dict, extra: int) -> dict:
 
 def follow(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = MAC_FOLLOW) -> np.ndarray:
     """Mode of set b continuing each mode of set a (MAC at the measuring points, one-to-one; -1: none)."""
-    return pair_meshes(shapes_a, shapes_b, threshold)[0]
+    return pair_by_shapes(shapes_a, shapes_b, threshold)[0]
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Modal solutions: shift-invert Lanczos with a sparse Cholesky backend, MAC and MAC-based pairing.
+"""Modal solutions: shift-invert Lanczos with a sparse Cholesky backend, Sturm counts (MAC: jointid.correlate).
 
 Backends for the factorisation of ``K - sigma M`` (symmetric positive definite for sigma < 0):
 
@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.optimize import linear_sum_assignment
 
 from jointid.errors import ModelError, NumericalWarning
 
@@ -399,36 +398,3 @@ def shift_invert_lanczos(Kf, Mf, fac, n_modes: int, sigma: float, tol: float = 0
     idx = np.argmax(np.abs(vec), axis=0)
     vec = vec * np.sign(vec[idx, np.arange(vec.shape[1])])
     return vec, np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
-
-
-# ------------------------------------------------------------------ MAC and pairing
-def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion between shape sets ``(n_locations, n_a)`` and ``(n_locations, n_b)``.
-
-    Complex shapes allowed; locations that are NaN in either set are ignored.  Returns ``(n_a, n_b)``
-    in [0, 1].
-    """
-    a = np.asarray(phi_a)
-    b = np.asarray(phi_b)
-    if a.ndim == 1:
-        a = a[:, None]
-    if b.ndim == 1:
-        b = b[:, None]
-    ok = ~(np.isnan(a).any(axis=1) | np.isnan(b).any(axis=1))
-    a, b = a[ok], b[ok]
-    num = np.abs(a.conj().T @ b) ** 2
-    den = np.outer(np.einsum("ij,ij->j", a.conj(), a).real, np.einsum("ij,ij->j", b.conj(), b).real)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(den > 0, num / den, 0.0)
-    return out
-
-
-def pair_by_mac(mac_matrix: np.ndarray, threshold: float = 0.5) -> list[tuple[int, int, float]]:
-    """Best one-to-one pairing (Hungarian) of rows (e.g. measured) to columns (model) by MAC.
-
-    Pairs with MAC below ``threshold`` are dropped (reported as unpaired by the caller).
-    Returns ``[(row, col, mac), ...]`` sorted by row.
-    """
-    rows, cols = linear_sum_assignment(-mac_matrix)
-    return [(int(r), int(c), float(mac_matrix[r, c])) for r, c in zip(rows, cols)
-            if mac_matrix[r, c] >= threshold]

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointid.errors import ModelError
-from jointid.fe.modal import mac, pair_by_mac
+from jointid.correlate.pairing import pair_by_shapes
 from jointid.identification.updating import log_jacobian
 
 
@@ -38,18 +38,6 @@ def first_order_shift(J: np.ndarray, dlnf: np.ndarray, weights: np.ndarray | Non
     w = np.ones(J.shape[0]) if weights is None else np.asarray(weights, float)
     A = J.T @ (w[:, None] * J)
     return -np.linalg.pinv(A) @ (J.T @ (w * np.asarray(dlnf, float)))
-
-
-def pair_meshes(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
-    """Mode of mesh b continuing each mode of mesh a (MAC at the measuring points, one-to-one).
-
-    Returns ``(index, mac)``; ``index`` is -1 where no partner reaches ``threshold``.
-    """
-    index = -np.ones(shapes_a.shape[1], dtype=int)
-    macs = np.zeros(shapes_a.shape[1])
-    for i, j, m in pair_by_mac(mac(shapes_a, shapes_b), threshold):
-        index[i], macs[i] = j, m
-    return index, macs
 
 
 def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
@@ -101,7 +89,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
         f_f = f_f_mesh = modes_f.freqs_Hz
         n_dofs_f = fine.n_dofs
         del fine
-    index, macs = pair_meshes(shapes_c, shapes_f)
+    index, macs = pair_by_shapes(shapes_c, shapes_f, threshold=0.8)
     fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
     use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
     if not use.any():

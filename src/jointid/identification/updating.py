@@ -23,12 +23,9 @@ from jointid.errors import DataError, NumericalWarning
 from jointid.identification.identify import identify
 from jointid.identification.surface import Surface, fit_surface
 from jointid.identification.surface_checks import diagnostics
-from jointid.fe.modal import mac
-from jointid.identification.tracking import pair_by_frequency, pair_by_shapes, track_doe
-
-
-def mac_one(a: np.ndarray, b: np.ndarray) -> float:
-    return float(mac(a, b)[0, 0])
+from jointid.correlate.mac import mac
+from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
+from jointid.identification.tracking import track_doe
 
 
 class LogFrequencyModel:
@@ -259,7 +256,7 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
         if repair_min_Hz is not None:
             cand = np.flatnonzero(freqs >= repair_min_Hz)
             index = cand[pair_by_frequency(f_meas, freqs[cand])]
-            macs = np.array([mac_one(shapes_now[:, i], shapes[:, j]) for i, j in enumerate(index)])
+            macs = np.array([float(mac(shapes_now[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
         else:
             index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
         if np.any(index < 0):

@@ -1,18 +1,20 @@
-"""Harmonic stage: drive-point FRF of the identified model and its dynamic stiffness (paper, Table 1).
+"""Drive-point model: the modes of the band, the drive vector of a measuring point, and the harmonic
+response there with its dynamic stiffness (paper, Table 1).  The FRF maths it uses (modal and direct
+FRF, residual flexibility, dynamic stiffness) is :mod:`jointid.response.harmonic`.
 
 Per operating state, at the identified joint parameters:
 
-1. modal solve with enough modes: every mode up to :data:`MODE_FACTOR` x the band top (2-2.5 x is
-   what :func:`jointid.response.harmonic.residual_flexibility` asks for, because the dynamic amplification
+1. band solve (:func:`solve_band_modes`): every mode up to :data:`MODE_FACTOR` x the band top (2-2.5 x
+   is what :func:`jointid.response.harmonic.static_residual` asks for, because the dynamic amplification
    of the truncated modes is not corrected by the static residual);
 2. damping ratios from the configured model (:mod:`jointid.response.damping`); measured ratios replace them
    for the modes paired with measured ones, when the dataset has them;
 3. drive-point receptance ``H = p^T x`` for the load ``F = p``, where ``p`` is the measuring point's
    row of ``model.probe`` (its interpolation weights: the force is a point load at the measuring
    point, and the response is the displacement there, in the drive direction);
-4. modal superposition (:func:`jointid.response.harmonic.frf_modal`) plus the static residual flexibility of
-   the truncated modes, which needs ``K`` nonsingular; a free model (rigid-body modes) falls back
-   to no residual, and says so;
+4. modal superposition (:func:`jointid.response.harmonic.frf_modal`) plus the static residual flexibility
+   of the truncated modes (:func:`jointid.response.harmonic.static_residual`), which needs ``K``
+   nonsingular; a free model (rigid-body modes) falls back to no residual, and says so;
 5. dynamic stiffness: the minimum of ``|F/X| = 1/|H|`` over the band on a grid refined at every
    resonance (:func:`jointid.response.harmonic.resonance_grid`), the mode that sets it, and the static
    stiffness ``1/H(0)``.
@@ -27,19 +29,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from jointid.config.datasets import dataset_folder
 from jointid.response import damping as dm
 from jointid.response import harmonic as hm
+from jointid.response.harmonic import RIGID_HZ, static_residual
 from jointid.errors import ConfigError, DataError, ModelError, NumericalWarning
-from jointid.fe.modal import Modes, factorize, free_dofs, restrict, solve_modes
+from jointid.fe.modal import (Modes, count_modes_below, factorize_shifted, free_dofs, restrict, shift_sigma,
+                              solve_modes)
 from jointid.geometry.points import dof_labels
 
 __all__ = [
     "MODE_FACTOR",
     "HarmonicResult",
-    "direct_frf",
     "drive_vector",
     "frf_frame",
     "harmonic_response",
@@ -47,16 +49,12 @@ __all__ = [
     "modal_damping_ratios",
     "run_harmonic",
     "solve_band_modes",
-    "static_residual",
 ]
 
 MODE_FACTOR = 2.5
 """Modes are solved up to this multiple of the band top (at least 2 x, else a warning)."""
 MIN_MODE_FACTOR = 2.0
-RIGID_HZ = 1.0
-"""Modes below this frequency (Hz) count as rigid-body modes: ``K`` is singular."""
 MAX_MODES = 800
-_RESIDUAL_RTOL = 1e-6  # relative residual |K x - F| / |F| accepted for the static solve
 
 
 # ------------------------------------------------------------------ building blocks
@@ -136,7 +134,7 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
         Cached fill-reducing ordering of the free DOFs (``model.ordering``, :func:`jointid.fe.modal.factorize`).
     keep_factor : bool
         Also return the factorisation of ``K - sigma M`` (a :class:`ShiftedFactor`, for
-        :func:`static_residual`); the caller frees it with ``free_memory()``.
+        :func:`jointid.response.harmonic.static_residual`); the caller frees it with ``free_memory()``.
 
     Returns
     -------
@@ -148,8 +146,6 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
     NumericalWarning
         If the limit of modes (or of DOFs) stops the solve below ``2 x f_top_Hz``.
     """
-    from jointid.fe.modal import count_modes_below, factorize_shifted, shift_sigma
-
     say = progress or (lambda msg: None)
     n_all = K.shape[0]
     free = free_dofs(n_all, fixed)
@@ -199,95 +195,6 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
         return modes, shifted
     shifted.free_memory()
     return modes
-
-
-def _static_by_shifted(shifted: ShiftedFactor, Kf, b, max_iter: int = 50):
-    """``K x = b`` from the factorisation of ``A = K - sigma M`` by iterative refinement,
-    ``x <- x + A^-1 (b - K x)``: each step shrinks the error by about ``|sigma| / w_1^2`` (1e-3 for a
-    -10 Hz shift under a 300 Hz first mode).  None if it does not reach the residual tolerance."""
-    x = np.asarray(shifted.solve(b)).ravel()
-    nb = max(np.linalg.norm(b), 1e-300)
-    for _ in range(max_iter):
-        r = b - Kf @ x
-        if np.linalg.norm(r) <= 0.01 * _RESIDUAL_RTOL * nb:
-            return x
-        x = x + np.asarray(shifted.solve(r)).ravel()
-    return None
-
-
-def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto", shifted=None):
-    """Static residual flexibility of the truncated modes at the drive point, or None if ``K`` is singular.
-
-    ``R = p^T K^-1 p - sum_r (p^T phi_r)^2 / w_r^2`` (m/N for a unit load ``p``), the drive-point form
-    of :func:`jointid.response.harmonic.residual_flexibility`.
-
-    Parameters
-    ----------
-    K : sparse matrix, shape (n_dofs, n_dofs)
-        Stiffness (N/m), before removing ``fixed``.
-    load : array_like, shape (n_dofs,)
-        Load / response vector ``p`` (see :func:`drive_vector`).
-    phi : ndarray, shape (n_dofs, n_modes)
-        Kept mass-normalised modes.
-    freqs_Hz : array_like, shape (n_modes,)
-        Their frequencies (Hz).
-    fixed : array_like of int, optional
-        Clamped DOFs (removed from ``K``).
-    backend : str
-        Factorisation backend (:func:`jointid.fe.modal.factorize`).
-    shifted : ShiftedFactor, optional
-        The modal solve's factorisation of ``K - sigma M`` (``solve_band_modes(keep_factor=True)``):
-        the static solve then refines on it instead of factorising ``K`` again.
-
-    Returns
-    -------
-    (R, H0, note) : (float or None, float or None, str)
-        Residual flexibility (m/N), static receptance ``p^T K^-1 p`` (m/N) and a one-line note on what
-        was done; ``R`` and ``H0`` are None when ``K`` is singular (rigid-body modes, a failed or
-        inaccurate static solve).
-    """
-    fr = np.asarray(freqs_Hz, dtype=float)
-    n_rigid = int(np.sum(fr < RIGID_HZ))
-    if n_rigid:
-        return None, None, (f"no residual flexibility: {n_rigid} rigid-body mode(s) below {RIGID_HZ:g} Hz, so K "
-                            "is singular (support.kind free?); FRF from the kept modes only, static stiffness 0")
-    p = np.asarray(load, dtype=float).ravel()
-    n = K.shape[0]
-    free = free_dofs(n, fixed)
-    Kf = restrict(sp.csr_matrix(K), free)
-    b = p[free]
-    try:
-        x = None
-        if shifted is not None and np.array_equal(shifted.free, free):
-            x = _static_by_shifted(shifted, Kf, b)  # None if the refinement does not converge
-        if x is None and n < 20000:
-            x = np.asarray(hm.static_solver(Kf)(b)).ravel()
-        elif x is None:
-            fac = factorize(Kf, backend)
-            try:
-                x = np.asarray(fac.solve(b)).ravel()
-            finally:
-                fac.free()
-    except (ModelError, RuntimeError, ValueError) as exc:
-        return None, None, f"no residual flexibility: static solve failed ({str(exc).splitlines()[0]})"
-    bad = ""
-    if not np.all(np.isfinite(x)):
-        bad = "the static solution is not finite"
-    else:
-        res = np.linalg.norm(Kf @ x - b) / max(np.linalg.norm(b), 1e-300)
-        if res > _RESIDUAL_RTOL:
-            bad = f"the static solve is inaccurate (relative residual {res:.1e})"
-    if bad:
-        return None, None, f"no residual flexibility: {bad}; K is (nearly) singular"
-    h0 = float(b @ x)
-    w2 = (2.0 * np.pi * fr) ** 2
-    pphi = p @ np.asarray(phi)
-    r = h0 - float(np.sum(pphi**2 / w2))
-    if r < -1e-6 * abs(h0):
-        return None, None, (f"no residual flexibility: it came out negative ({r:.3e} m/N); K is ill-conditioned "
-                            "or the modes are inaccurate")
-    return max(r, 0.0), h0, (f"static residual flexibility of the modes above {fr.max():.0f} Hz: {max(r, 0.0):.4g} "
-                             f"m/N ({100 * max(r, 0.0) / h0:.2f} % of the static receptance)")
 
 
 def joint_stiffness(model, k_coeffs: dict) -> sp.csr_matrix:
@@ -360,40 +267,6 @@ def modal_damping_ratios(damping_cfg: dict, freqs_Hz, *, joint_share=None, measu
     return zeta, list(source)
 
 
-def direct_frf(K, M, C, load, f_Hz, *, fixed=None) -> np.ndarray:
-    """Drive-point receptance by a direct solve of ``(K - w^2 M + i w C) x = p`` (for validation).
-
-    Parameters
-    ----------
-    K, M, C : sparse matrix, shape (n_dofs, n_dofs)
-        Stiffness (N/m), mass (kg), viscous damping (N*s/m; None = undamped).
-    load : array_like, shape (n_dofs,)
-        Load / response vector ``p``.
-    f_Hz : array_like, shape (n_f,)
-        Frequencies (Hz).
-    fixed : array_like of int, optional
-        Clamped DOFs.
-
-    Returns
-    -------
-    ndarray of complex, shape (n_f,)
-        ``p^T x`` in m/N.
-    """
-    n = K.shape[0]
-    free = free_dofs(n, fixed)
-    sub = lambda A: sp.csr_matrix(A)[free][:, free].tocsc()  # noqa: E731
-    Kf, Mf = sub(K), sub(M)
-    Cf = sp.csc_matrix(Kf.shape) if C is None else sub(C)
-    p = np.asarray(load, dtype=float).ravel()[free]
-    out = np.empty(np.size(f_Hz), dtype=complex)
-    for k, f in enumerate(np.atleast_1d(f_Hz)):
-        w = 2.0 * np.pi * float(f)
-        A = (Kf - w**2 * Mf + 1j * w * Cf).tocsc()
-        x = spla.splu(A, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}).solve(p.astype(complex))
-        out[k] = p @ x
-    return out
-
-
 # ------------------------------------------------------------------ the drive-point response
 @dataclass
 class HarmonicResult:
@@ -452,7 +325,8 @@ def harmonic_response(modes: Modes, load, zeta, band_Hz, *, n_freq: int = 1601, 
     n_freq : int
         Lines of the linear base grid; points around every resonance in the band are added.
     residual : float, optional
-        Static residual flexibility (m/N) of the truncated modes (:func:`static_residual`).
+        Static residual flexibility (m/N) of the truncated modes
+        (:func:`jointid.response.harmonic.static_residual`).
     static_receptance : float, optional
         ``p^T K^-1 p`` (m/N) for the static stiffness; None = unknown (singular ``K``).
 

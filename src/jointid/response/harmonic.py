@@ -1,15 +1,18 @@
-"""Frequency response functions and dynamic stiffness.
+"""FRF maths: receptances by modal superposition and by direct solve, the static residual flexibility
+of truncated modes, and the dynamic stiffness of a band.
 
 Steady-state response to ``F e^{i w t}`` of ``M x'' + C x' + K x = F`` (paper eq. 4, harmonic response
 analysis, band 300-3500 Hz). Two ways:
 
 * :func:`frf_modal` - modal superposition of mass-normalised modes with modal damping ratios
   (:mod:`jointid.response.damping`), plus an optional static residual flexibility for the truncated modes
-  (:func:`residual_flexibility`);
-* :func:`frf_direct` - direct sparse complex solve at each frequency, for validation on small models.
+  (:func:`static_residual`, on a factorisation of ``K`` from :func:`static_solver` or the modal solve's);
+* :func:`direct_frf` - direct sparse complex solve at each frequency, for validation.
 
 :func:`dynamic_stiffness` reduces a drive-point receptance to the paper's Table 1 quantity: the
-minimum of ``|F/X|`` over the band, which sits at a resonance, ``K_min ~ 2 zeta_r k_r``.
+minimum of ``|F/X|`` over the band, which sits at a resonance, ``K_min ~ 2 zeta_r k_r``, on a grid
+refined at every resonance (:func:`resonance_grid`); :func:`governing_mode` names the mode there.
+The drive-point model that uses them is :mod:`jointid.response.drive_point`.
 """
 
 from __future__ import annotations
@@ -21,17 +24,22 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from jointid.errors import DataError, ModelError, NumericalWarning
+from jointid.fe.modal import factorize, free_dofs, restrict
 
 __all__ = [
+    "RIGID_HZ",
+    "direct_frf",
     "dynamic_stiffness",
-    "frf_direct",
     "frf_modal",
     "governing_mode",
     "resonance_grid",
-    "residual_flexibility",
+    "static_residual",
     "static_solver",
 ]
 
+RIGID_HZ = 1.0
+"""Modes below this frequency (Hz) count as rigid-body modes: ``K`` is singular."""
+_RESIDUAL_RTOL = 1e-6  # relative residual |K x - F| / |F| accepted for the static solve
 _SINGULAR_PIVOT_RATIO = 1e-10  # free 3-D solids give ~1e-16..1e-13; constrained ones >= ~1e-7
 
 
@@ -54,7 +62,7 @@ def frf_modal(f_Hz, freqs_Hz, zeta, phi_drive, phi_resp, *, residual_flexibility
     phi_resp : array_like, shape (n_modes,) or (n_resp, n_modes)
         Mass-normalised mode shapes at the response DOF(s).
     residual_flexibility : float or array_like, shape (n_resp,)
-        Static residual ``R`` (m/N) of the modes left out (:func:`residual_flexibility`).
+        Static residual ``R`` (m/N) of the modes left out (:func:`static_residual`).
 
     Returns
     -------
@@ -118,104 +126,166 @@ def static_solver(K):
     return lu.solve
 
 
-def residual_flexibility(K_solve, F, phi, freqs_Hz, resp_dof):
-    """Static residual flexibility of the modes not kept in ``phi``.
+def _static_by_shifted(shifted, Kf, b, max_iter: int = 50):
+    """``K x = b`` from the factorisation of ``A = K - sigma M`` by iterative refinement,
+    ``x <- x + A^-1 (b - K x)``: each step shrinks the error by about ``|sigma| / w_1^2`` (1e-3 for a
+    -10 Hz shift under a 300 Hz first mode).  None if it does not reach the residual tolerance."""
+    x = np.asarray(shifted.solve(b)).ravel()
+    nb = max(np.linalg.norm(b), 1e-300)
+    for _ in range(max_iter):
+        r = b - Kf @ x
+        if np.linalg.norm(r) <= 0.01 * _RESIDUAL_RTOL * nb:
+            return x
+        x = x + np.asarray(shifted.solve(r)).ravel()
+    return None
 
-    ``R = x_static[resp] - sum_r phi_resp_r (phi_r^T F) / w_r^2`` with ``x_static = K^-1 F``.
-    Added to :func:`frf_modal` it restores the static contribution of the truncated (higher) modes
-    exactly at 0 Hz. Their dynamic amplification, ``(f/f_t)^2 / (1 - (f/f_t)^2)`` times their static
-    share, is not corrected: keep modes up to about 2-2.5 times the top of the band (in the tests, a
-    40-DOF chain keeping 6 modes is within 1 % up to 0.4 f_7 and not near f_7).
 
-    Requires ``K`` nonsingular: a model with rigid-body modes has no static solution. Constrain the
-    model, or use modal superposition without the residual.
+def _static_solution(Kf, b, free, small: bool, backend: str, shifted):
+    """``K x = b`` on the free DOFs for :func:`static_residual`: refined on the modal solve's
+    factorisation ``shifted`` when it is given (and converges), else by a factorisation of ``K``
+    (SuperLU for a ``small`` model, else ``backend``).  Returns ``(x, "")``, or ``(None, note)`` when the
+    solve failed or is not accurate (``K`` singular or nearly so)."""
+    try:
+        x = None
+        if shifted is not None and np.array_equal(shifted.free, free):
+            x = _static_by_shifted(shifted, Kf, b)  # None if the refinement does not converge
+        if x is None and small:
+            x = np.asarray(static_solver(Kf)(b)).ravel()
+        elif x is None:
+            fac = factorize(Kf, backend)
+            try:
+                x = np.asarray(fac.solve(b)).ravel()
+            finally:
+                fac.free()
+    except (ModelError, RuntimeError, ValueError) as exc:
+        return None, f"no residual flexibility: static solve failed ({str(exc).splitlines()[0]})"
+    bad = ""
+    if not np.all(np.isfinite(x)):
+        bad = "the static solution is not finite"
+    else:
+        res = np.linalg.norm(Kf @ x - b) / max(np.linalg.norm(b), 1e-300)
+        if res > _RESIDUAL_RTOL:
+            bad = f"the static solve is inaccurate (relative residual {res:.1e})"
+    if bad:
+        return None, f"no residual flexibility: {bad}; K is (nearly) singular"
+    return x, ""
+
+
+def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto", shifted=None,
+                    response=None):
+    """Static residual flexibility of the modes not kept in ``phi``, or None if ``K`` is singular.
+
+    ``R = q^T K^-1 p - sum_r (q^T phi_r)(p^T phi_r) / w_r^2`` (m/N for a unit load ``p``) with the
+    response vector ``q``; at the drive point (``q = p``, the default) ``R = p^T K^-1 p - sum_r
+    (p^T phi_r)^2 / w_r^2 >= 0``.  Added to :func:`frf_modal` it restores the static contribution of the
+    truncated (higher) modes exactly at 0 Hz.  Their dynamic amplification, ``(f/f_t)^2 / (1 -
+    (f/f_t)^2)`` times their static share, is not corrected: keep modes up to about 2-2.5 times the top
+    of the band (in the tests, a 40-DOF chain keeping 6 modes is within 1 % up to 0.4 f_7 and not near
+    f_7).  ``K`` must be nonsingular: a model with rigid-body modes has no static solution.
 
     Parameters
     ----------
-    K_solve : callable or sparse matrix
-        ``K_solve(b)`` returns ``K^-1 b`` (see :func:`static_solver`); a matrix is factorised here.
-    F : array_like, shape (n_dofs,)
-        Load vector of the drive (e.g. a unit force at the drive DOF), in N.
+    K : sparse matrix, shape (n_dofs, n_dofs)
+        Stiffness (N/m), before removing ``fixed``.
+    load : array_like, shape (n_dofs,)
+        Load vector ``p`` (N per unit load; the drive point's :func:`jointid.response.drive_point.drive_vector`).
     phi : ndarray, shape (n_dofs, n_modes)
         Kept mass-normalised modes.
     freqs_Hz : array_like, shape (n_modes,)
-        Their natural frequencies (Hz), all > 0.
-    resp_dof : int or array_like of int
-        Response DOF(s).
+        Their frequencies (Hz).
+    fixed : array_like of int, optional
+        Clamped DOFs (removed from ``K``).
+    backend : str
+        Factorisation backend (:func:`jointid.fe.modal.factorize`).
+    shifted : object with ``solve(b)`` and ``free``, optional
+        The modal solve's factorisation of ``K - sigma M`` on the DOFs ``free``
+        (:class:`jointid.response.drive_point.ShiftedFactor` of ``solve_band_modes(keep_factor=True)``):
+        the static solve then refines on it instead of factorising ``K`` again.
+    response : array_like, shape (n_dofs,), optional
+        Response vector ``q`` (e.g. a unit vector at a response DOF) for a transfer residual, which
+        may have either sign; default the load (drive point).
 
     Returns
     -------
-    float or ndarray, shape (n_resp,)
-        ``R`` in m per unit load.
-
-    Raises
-    ------
-    ModelError
-        Rigid-body modes among ``freqs_Hz``, a singular ``K``, or a non-finite static solution.
+    (R, H0, note) : (float or None, float or None, str)
+        Residual flexibility (m/N), static receptance ``q^T K^-1 p`` (m/N) and a one-line note on what
+        was done; ``R`` and ``H0`` are None when ``K`` is singular (rigid-body modes, a failed or
+        inaccurate static solve).
     """
-    fr = np.atleast_1d(np.asarray(freqs_Hz, dtype=float))
-    rigid = np.flatnonzero(~(fr > 1e-6 * max(fr.max(initial=0.0), 1e-300)))
-    if rigid.size:
-        raise ModelError(f"residual_flexibility: mode(s) {rigid.tolist()} have ~0 Hz (rigid-body modes), so K "
-                         "is singular; constrain the model or use modal superposition without residual")
-    if not callable(K_solve):
-        K_solve = static_solver(K_solve)
-    F = np.asarray(F, dtype=float).ravel()
-    phi = np.asarray(phi, dtype=float)
-    if phi.ndim != 2 or phi.shape != (F.size, fr.size):
-        raise ModelError(f"phi has shape {phi.shape}; expected ({F.size}, {fr.size}) = (n_dofs, n_modes)")
-    x = np.asarray(K_solve(F)).ravel()
-    if not np.all(np.isfinite(x)):
-        raise ModelError("residual_flexibility: the static solution is not finite (singular K); constrain "
-                         "the model or use modal superposition without residual")
+    fr = np.asarray(freqs_Hz, dtype=float)
+    n_rigid = int(np.sum(fr < RIGID_HZ))
+    if n_rigid:
+        return None, None, (f"no residual flexibility: {n_rigid} rigid-body mode(s) below {RIGID_HZ:g} Hz, so K "
+                            "is singular (support.kind free?); FRF from the kept modes only, static stiffness 0")
+    p = np.asarray(load, dtype=float).ravel()
+    n = K.shape[0]
+    free = free_dofs(n, fixed)
+    b = p[free]
+    x, failed = _static_solution(restrict(sp.csr_matrix(K), free), b, free, n < 20000, backend, shifted)
+    if failed:
+        return None, None, failed
     w2 = (2.0 * np.pi * fr) ** 2
-    resp = np.asarray(resp_dof)
-    r = x[resp] - phi[resp] @ ((phi.T @ F) / w2)
-    return float(r) if np.ndim(r) == 0 else r
+    pphi = p @ np.asarray(phi)
+    if response is not None:  # a transfer residual: either sign
+        q = np.asarray(response, dtype=float).ravel()
+        h0 = float(q[free] @ x)
+        r = h0 - float(np.sum((q @ np.asarray(phi)) * pphi / w2))
+        return r, h0, f"static transfer residual flexibility of the modes above {fr.max():.0f} Hz: {r:.4g} m/N"
+    h0 = float(b @ x)
+    r = h0 - float(np.sum(pphi**2 / w2))
+    if r < -1e-6 * abs(h0):
+        return None, None, (f"no residual flexibility: it came out negative ({r:.3e} m/N); K is ill-conditioned "
+                            "or the modes are inaccurate")
+    return max(r, 0.0), h0, (f"static residual flexibility of the modes above {fr.max():.0f} Hz: {max(r, 0.0):.4g} "
+                             f"m/N ({100 * max(r, 0.0) / h0:.2f} % of the static receptance)")
 
 
-def frf_direct(K, M, C, drive_dof: int, resp_dof, f_Hz) -> np.ndarray:
-    """Receptance by direct solution of ``(K - w^2 M + i w C) x = e_drive`` at each frequency.
+def direct_frf(K, M, C, load, f_Hz, *, fixed=None, response=None) -> np.ndarray:
+    """Receptance by a direct solve of ``(K - w^2 M + i w C) x = p`` at each frequency (for validation).
 
-    Sparse complex LU per frequency; meant for validating modal superposition on small models.
+    One sparse complex LU per frequency; the response is ``q^T x``, at the drive point (``q = p``)
+    unless ``response`` is given.
 
     Parameters
     ----------
-    K, M : sparse matrix or ndarray, shape (n, n)
-        Stiffness (N/m) and mass (kg).
-    C : sparse matrix, ndarray or None
-        Viscous damping (N*s/m), e.g. from :func:`jointid.response.damping.damping_matrix`; None = undamped.
-    drive_dof : int
-        DOF of the unit force.
-    resp_dof : int or array_like of int
-        Response DOF(s).
+    K, M, C : sparse matrix, shape (n_dofs, n_dofs)
+        Stiffness (N/m), mass (kg), viscous damping (N*s/m; None = undamped).
+    load : array_like, shape (n_dofs,)
+        Load vector ``p`` (N per unit load), e.g. a unit vector at the drive DOF.
     f_Hz : array_like, shape (n_f,)
         Frequencies (Hz).
+    fixed : array_like of int, optional
+        Clamped DOFs.
+    response : array_like, shape (n_dofs,) or (n_resp, n_dofs), optional
+        Response vector(s) ``q``, e.g. unit vectors at response DOFs; default the load (drive point).
 
     Returns
     -------
     ndarray of complex, shape (n_f,) or (n_f, n_resp)
-        Receptance in m/N.
+        ``q^T x`` in m/N.
+
+    Raises
+    ------
+    ModelError
+        If the dynamic stiffness is singular at a frequency (undamped resonance, rigid-body mode at 0 Hz).
     """
-    K = sp.csc_matrix(K, dtype=float)
-    M = sp.csc_matrix(M, dtype=float)
-    C = sp.csc_matrix(K.shape, dtype=float) if C is None else sp.csc_matrix(C, dtype=float)
     n = K.shape[0]
-    if M.shape != K.shape or C.shape != K.shape:
-        raise ModelError(f"K {K.shape}, M {M.shape} and C {C.shape} must have the same square shape")
-    b = np.zeros(n, dtype=complex)
-    b[int(drive_dof)] = 1.0
-    resp = np.asarray(resp_dof)
-    f = np.atleast_1d(np.asarray(f_Hz, dtype=float))
-    out = np.empty((f.size,) + resp.shape, dtype=complex)
-    for k, fk in enumerate(f):
-        w = 2.0 * np.pi * fk
+    free = free_dofs(n, fixed)
+    sub = lambda A: sp.csr_matrix(A)[free][:, free].tocsc()  # noqa: E731
+    Kf, Mf = sub(K), sub(M)
+    Cf = sp.csc_matrix(Kf.shape) if C is None else sub(C)
+    p = np.asarray(load, dtype=float).ravel()[free]
+    q = p if response is None else np.asarray(response, dtype=float)[..., free]
+    out = np.empty((np.size(f_Hz),) + q.shape[:-1], dtype=complex)
+    for k, f in enumerate(np.atleast_1d(f_Hz)):
+        w = 2.0 * np.pi * float(f)
+        A = (Kf - w**2 * Mf + 1j * w * Cf).tocsc()
         try:
-            x = spla.splu((K - w**2 * M + 1j * w * C).tocsc()).solve(b)
+            x = spla.splu(A, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}).solve(p.astype(complex))
         except RuntimeError as exc:
-            raise ModelError(f"frf_direct: dynamic stiffness singular at {fk} Hz (undamped resonance or "
+            raise ModelError(f"direct_frf: dynamic stiffness singular at {f} Hz (undamped resonance or "
                              "rigid-body mode at 0 Hz); add damping or move the frequency grid") from exc
-        out[k] = x[resp]
+        out[k] = q @ x
     return out
 
 

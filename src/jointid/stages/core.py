@@ -727,13 +727,13 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
                             log=lambda m: _log(f"verify[{state}]: {m}"), base=(freqs, shapes))
         f_all = lim.limit_Hz
     if par.get("paired_by") == "frequency":  # the polish's rule: re-paired by frequency at its optimum
-        from jointid.identification.tracking import pair_by_frequency
-        from jointid.identification.updating import mac_one
+        from jointid.correlate.mac import mac
+        from jointid.correlate.pairing import pair_by_frequency
 
         cand = np.flatnonzero(f_all >= cfg["solver"]["min_freq_Hz"])
         index = cand[pair_by_frequency(f_meas, f_all[cand])]
         ref = np.asarray(doc["ref_shapes"])[:, np.asarray(par["pairing_columns"])]
-        macs = np.array([mac_one(ref[:, i], shapes[:, j]) for i, j in enumerate(index)])
+        macs = np.array([float(mac(ref[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
     else:
         index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
     paired = np.clip(index, 0, None)
