@@ -14,8 +14,11 @@ import yaml
 
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis import effects as E
-from jointid.diagnosis.core import (ReducedSolver, Variant, EffectSpec, append_history, identifiability,
-                              score_test)
+from jointid.diagnosis.history import append_history
+from jointid.diagnosis.statistics import identifiability, score_test
+from jointid.diagnosis.variants import EffectSpec, Variant
+from jointid.fe.reduced import ReducedSolver
+from jointid.threads import limit_threads
 from conftest import coarse_config_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -269,7 +272,7 @@ def test_workflow_diagnoses_registered_datasets_only(tmp_path):
     (["--history", "."], "--history .: is a folder"),
 ])
 def test_command_line_mistakes_are_reported_before_any_work(tmp_path, capsys, extra, expected):
-    from jointid.diagnosis.core import main
+    from jointid.diagnosis.__main__ import main
 
     rc = main(["--dataset", str(ROOT / "data" / "paper"), "--out", str(tmp_path / "out"),
                "--config", str(ROOT / "config.yaml"), *extra])
@@ -279,7 +282,7 @@ def test_command_line_mistakes_are_reported_before_any_work(tmp_path, capsys, ex
 
 
 def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
-    from jointid.diagnosis.core import main
+    from jointid.diagnosis.__main__ import main
     from jointid.errors import ModelError
     from jointid.fe.model import load_model
 
@@ -295,7 +298,7 @@ def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
 
 
 def test_measured_modes_below_the_tracked_band_are_refused(coarse):
-    from jointid.diagnosis.core import dataset_states
+    from jointid.diagnosis.variants import dataset_states
     from jointid.errors import DataError
     from jointid.data.dataset import read_dataset
 
@@ -308,7 +311,8 @@ def test_measured_modes_below_the_tracked_band_are_refused(coarse):
 
 
 def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
-    from jointid.diagnosis.core import StateData, diagnose
+    from jointid.diagnosis.loop import diagnose
+    from jointid.diagnosis.variants import StateData
     from jointid.errors import DataError
 
     cfg, system = coarse

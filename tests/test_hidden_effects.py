@@ -13,9 +13,12 @@ import pandas as pd
 import pytest
 
 from jointid.diagnosis import effects as E
-from jointid.data import synth
+from jointid.diagnosis import synth
 from jointid.config.core import load_config
-from jointid.diagnosis.core import diagnose, dataset_states, history_row, write_outputs
+from jointid.diagnosis.history import history_row
+from jointid.diagnosis.loop import diagnose
+from jointid.diagnosis.outputs import write_outputs
+from jointid.diagnosis.variants import dataset_states
 from jointid.threads import limit_threads
 from jointid.data.dataset import read_dataset
 from conftest import coarse_config_dict

@@ -1,6 +1,6 @@
 """Library of candidate physical effects: named, parameterised modifications of the affine FE model.
 
-The diagnosis (``jointid.diagnosis.core``) asks which of these effects the calibrated model lacks.  Each
+The diagnosis (``jointid.diagnosis.loop``) asks which of these effects the calibrated model lacks.  Each
 effect changes only the *coefficients* of existing terms of :class:`jointid.fe.fem.Model` (or, for the
 base support, replaces the clamped bottom by springs), so every variant stays affine:
 

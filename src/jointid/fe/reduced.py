@@ -45,7 +45,7 @@ class Solution:
     error: float = float("nan")  # estimated relative eigenvalue error after refinement (nan: not refined)
 
 
-def _pad(Y: np.ndarray, r: int) -> np.ndarray:
+def pad(Y: np.ndarray, r: int) -> np.ndarray:
     """Reduced vectors of an earlier (smaller) basis expressed in the current one."""
     return Y if Y.shape[0] == r else np.vstack([Y, np.zeros((r - Y.shape[0], Y.shape[1]))])
 
@@ -300,7 +300,7 @@ class ReducedSolver:
 
     def sensitivity(self, sol: Solution, dkc: dict, dmc: dict) -> np.ndarray:
         """``dlambda / dx`` of the ``n`` modes of ``sol`` for one coefficient direction, ``(n,)``."""
-        Y = _pad(sol.Y, self.V.shape[1])
+        Y = pad(sol.Y, self.V.shape[1])
         out = np.zeros(Y.shape[1])
         for name, c in dkc.items():
             if c != 0.0:

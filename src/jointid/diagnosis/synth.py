@@ -1,12 +1,12 @@
 """Synthetic measured datasets with hidden effects (for proving the diagnosis).
 
-``python -m jointid.data.synth --truth TRUTH.yaml --out DIR [--config config.yaml ...]``
+``python -m jointid.diagnosis.synth --truth TRUTH.yaml --out DIR [--config config.yaml ...]``
 
 A truth file describes the "real" rig: true joint stiffnesses, library effects at given magnitudes
 (``jointid.diagnosis.effects``), optional perturbations *outside* the library (decoys), optionally a finer mesh,
 the operating states, what is measured and the noise.  The synthesiser solves the full FE model and
-writes a dataset in the measurement format (``measured.write_dataset``): natural frequencies, damping
-ratios, mode shapes at the measuring points and optionally a drive-point FRF.  Nothing of the truth
+writes a dataset in the measurement format (``jointid.data.dataset.write_dataset``): natural
+frequencies, damping ratios, mode shapes at the measuring points and optionally a drive-point FRF.  Nothing of the truth
 except the measured inputs (motor force per state, frequency uncertainty) reaches the dataset; the
 diagnosis never reads the truth file.
 
@@ -56,7 +56,8 @@ def load_truth(path) -> dict:
     path = Path(path)
     truth = read_yaml(path, str(path)) or {}
     if not isinstance(truth, dict):
-        raise ConfigError(f"{path}: the truth file is not a mapping of keys — see the example in jointid.data.synth")
+        raise ConfigError(f"{path}: the truth file is not a mapping of keys — see the example in "
+                          "jointid.diagnosis.synth")
     check_truth(truth, str(path))
     return truth
 
@@ -179,7 +180,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
                                  "re": float(h.real), "im": float(h.imag)})
             cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
         conds[sname] = cond
-    conditions = {"source": f"synthetic dataset (jointid.data.synth), noise seed {int(noise['seed'])}",
+    conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
                   "frequency_uncertainty_pct": float(noise["frequency_pct"]), "states": conds}
     return {"modes": pd.DataFrame(modes_rows),
             "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
@@ -188,7 +189,8 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
 
 
 def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
-    """Synthesise and write the dataset folder ``out_dir``; returns the :class:`measured.Dataset`."""
+    """Synthesise and write the dataset folder ``out_dir``; returns the
+    :class:`jointid.data.dataset.Dataset`."""
     from jointid.data.dataset import write_dataset
 
     out = synthesise(truth, base_cfg, model=model)
@@ -197,7 +199,8 @@ def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m jointid.data.synth", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m jointid.diagnosis.synth",
+                                 description=__doc__.split("\n\n")[0])
     ap.add_argument("--truth", required=True, help="truth YAML file")
     ap.add_argument("--out", required=True, help="dataset folder to write")
     ap.add_argument("--config", nargs="*", default=None,
