@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from jointid.diagnosis import effects as E
+from jointid.diagnosis import terms as T
 from jointid.diagnosis import synth
 from jointid.config.core import load_config
 from jointid.diagnosis.history import history_row
@@ -42,7 +43,7 @@ def rig():
     cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
     cfg = load_config(cfg)
     model = build_model(cfg)
-    return {"cfg": cfg, "model": model, "system": E.build_system(model, cfg), "solver": None}
+    return {"cfg": cfg, "model": model, "system": T.build_system(model, cfg), "solver": None}
 
 
 def _true_effect(truth: dict):

@@ -6,6 +6,23 @@
   :meth:`Diagnoser.fit` is the bounded least-squares fit (trust region), pairing re-done until stable.
 * :class:`Fit` — a fitted variant: chi-square, p-value, AICc, covariance, per-state errors.
 * :func:`refit` — a fitted variant plus one candidate effect, fitted from several starts.
+
+Numerics
+--------
+* Every model variant is affine in its term coefficients (``jointid.diagnosis.effects``).  Eigen-solutions
+  come from :class:`ReducedSolver`, a Rayleigh-Ritz solver on a growing subspace of the full FE space:
+  the exact modes at a reference point plus the first-order responses ``A^-1 (dK - lambda dM) phi`` to
+  every parameter direction; at each new point the residuals ``K phi - lambda M phi`` of the Ritz pairs
+  are checked in the full space and, where the estimated eigenvalue error exceeds ``tol``, the
+  preconditioned residuals are added to the subspace.  The answers are therefore full-FE answers to
+  ``tol`` (1e-6 relative eigenvalue error by default); each fitted variant is finally checked against
+  the full model (:meth:`ReducedSolver.verify`).
+* Sensitivities are exact for the (converged) subspace: ``dlambda_i/dx = y_i^T (dK - lambda_i dM) y_i``.
+* Residual of mode i: ``r_i = ln(f_model / f_meas) / sigma`` (= relative error / sigma to first order),
+  sigma the relative frequency uncertainty (dataset ``frequency_uncertainty_pct``, else
+  ``identify.frequency_uncertainty_pct``); log residuals make the sensitivities of one model identical
+  in every state, so between-state contrasts of a state-independent model vanish exactly.
+* Refits by bounded least squares (trust region) with several starts.
 """
 
 from __future__ import annotations
@@ -18,8 +35,8 @@ import numpy as np
 from scipy.optimize import least_squares, linear_sum_assignment
 
 from jointid.correlate import pairing as correlate
-from jointid.diagnosis.effects import System
 from jointid.diagnosis.statistics import aicc, chi2_p_value
+from jointid.diagnosis.terms import System
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad
 
@@ -48,7 +65,8 @@ class Diagnoser:
     """Evaluates and fits variants of one system on one set of measured states."""
 
     def __init__(self, system: System, cfg: dict, data: list[StateData], *, n_modes: int | None = None,
-                 tol: float = 1e-6, mac_threshold: float = 0.5, solver: ReducedSolver | None = None, log=print_log):
+                 tol: float = 1e-6, mac_threshold: float = 0.5, solver: ReducedSolver | None = None,
+                 log=print_log):
         self.system, self.cfg, self.data = system, cfg, data
         s = cfg.get("solver", {})
         self.min_freq = float(s.get("min_freq_Hz", 100.0))

@@ -20,11 +20,12 @@ import numpy as np
 import pandas as pd
 
 from jointid.correlate import pairing as correlate
-from jointid.diagnosis.effects import EFFECTS, Enabled, System, enabled_effects
+from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log, refit
 from jointid.diagnosis.statistics import extra_jacobian, identifiability, score_test, state_contrasts
 from jointid.diagnosis.tables import (compare_tables, drift_table, parameter_table, ranking_frame,
                                       state_errors_table)
+from jointid.diagnosis.terms import System
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.errors import DataError
 from jointid.fe.reduced import ReducedSolver

@@ -16,6 +16,8 @@ from jointid.correlate import pairing as correlate
 from jointid.diagnosis.fitting import Diagnoser, Fit
 from jointid.diagnosis.variants import EffectSpec, Variant
 from jointid.errors import NumericalWarning
+from jointid.fe.describe import describe_modes
+from jointid.fe.fem import Model
 from jointid.fe.reduced import Solution
 
 DRIFT_COLUMNS = ["parameter", "state", "value", "ci95_low", "ci95_high", "drift_pct", "z"]
@@ -72,9 +74,6 @@ def parameter_table(fits: dict) -> pd.DataFrame:
 
 def mode_descriptions(diag: Diagnoser, sol: Solution) -> list[str] | None:
     """Plain-language description of each mode of ``sol`` (``jointid.fe.describe``)."""
-    from jointid.fe.describe import describe_modes
-    from jointid.fe.fem import Model
-
     sysm = diag.system
     m = sysm.model
     pseudo = Model(stiffness=sysm.stiffness, mass=sysm.mass, fixed=sysm.fixed, probe=sysm.probe,

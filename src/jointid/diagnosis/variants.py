@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointid.correlate import pairing as correlate
-from jointid.diagnosis.effects import Effect, StateInfo, System, apply_effects, baseline_coefficients
+from jointid.diagnosis.effects import Effect, apply_effects
+from jointid.diagnosis.terms import StateInfo, System, baseline_coefficients
 from jointid.errors import DataError
 
 

@@ -10,11 +10,11 @@ import time
 
 from jointid.config.core import config_hash
 from jointid.data.dataset import read_dataset
-from jointid.diagnosis.effects import build_system
 from jointid.diagnosis.fitting import print_log
 from jointid.diagnosis.history import append_history, history_row
 from jointid.diagnosis.loop import Diagnosis, diagnose
 from jointid.diagnosis.outputs import write_outputs
+from jointid.diagnosis.terms import build_system
 from jointid.diagnosis.variants import dataset_states
 from jointid.fe.model import load_model
 from jointid.threads import limit_threads
