@@ -89,6 +89,7 @@ class Param:
     description: str
 
     def to_t(self, value: float) -> float:
+        """Test variable ``t`` of the physical ``value``."""
         if self.kind == "compliance":
             return 0.0 if math.isinf(value) else self.nominal / value
         return (value - self.null) / self.nominal
@@ -109,6 +110,7 @@ class Param:
 
     @property
     def t_bounds(self) -> tuple[float, float]:
+        """Bounds of ``t`` (from the physical range), low first."""
         a, b = self.to_t(self.lower), self.to_t(self.upper)
         return (min(a, b), max(a, b))
 
@@ -131,9 +133,11 @@ class Effect:
     requires: Callable | None = None
 
     def param(self, name: str) -> Param:
+        """The parameter called ``name``."""
         return next(p for p in self.params if p.name == name)
 
     def null_values(self) -> dict:
+        """Parameter values at which the effect is absent."""
         return {p.name: p.null for p in self.params}
 
 

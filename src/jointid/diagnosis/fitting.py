@@ -84,6 +84,7 @@ class Diagnoser:
 
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):
+        """Set up the reduced solver at ``x`` of ``variant`` (first state's coefficients) unless there is one."""
         if self.solver is not None:
             return
         t0 = time.time()
@@ -249,22 +250,27 @@ class Fit:
 
     @property
     def x(self):
+        """The fitted parameter vector."""
         return self.ev.x
 
     @property
     def chi2(self) -> float:
+        """Chi-square ``r^T r`` of the sigma-normalised residuals."""
         return float(self.ev.r @ self.ev.r)
 
     @property
     def n(self) -> int:
+        """Number of residuals."""
         return len(self.ev.r)
 
     @property
     def k(self) -> int:
+        """Number of fitted parameters."""
         return self.variant.n_params
 
     @property
     def dof(self) -> int:
+        """Degrees of freedom ``n - k`` (at least 1)."""
         return max(self.n - self.k, 1)
 
     @property
@@ -278,13 +284,16 @@ class Fit:
         return aicc(self.chi2, self.n, self.k)
 
     def covariance(self) -> np.ndarray:
+        """Covariance of ``x``: ``(J^T J)^+`` (residuals in units of sigma)."""
         J = self.ev.J
         return np.linalg.pinv(J.T @ J)
 
     def errors_pct(self, data: list[StateData]) -> list[np.ndarray]:
+        """Frequency error (%) per measured mode and state (NaN unpaired)."""
         return [100 * (fm - d.f_meas) / d.f_meas for fm, d in zip(self.ev.f_model, data)]
 
     def state_summary(self, data: list[StateData]) -> list[dict]:
+        """Per state: number of paired modes, max and RMS error (%)."""
         out = []
         for d, e in zip(data, self.errors_pct(data)):
             e = e[np.isfinite(e)]

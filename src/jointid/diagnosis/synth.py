@@ -68,6 +68,7 @@ def load_truth(path) -> dict:
 
 
 def check_truth(truth: dict, where: str = "truth") -> None:
+    """Raise :class:`ConfigError` listing every unknown key, missing state list or unknown perturbation."""
     problems = []
     for k in truth:
         if k not in TRUTH_KEYS:
@@ -210,6 +211,7 @@ def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Command line: write the synthetic dataset of ``--truth`` to ``--out``; returns the exit status."""
     ap = argparse.ArgumentParser(prog="python -m jointid.diagnosis.synth",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--truth", required=True, help="truth YAML file")

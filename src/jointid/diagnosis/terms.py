@@ -81,10 +81,12 @@ class System:
 
     @property
     def n_dofs(self) -> int:
+        """Number of DOFs of the model."""
         return self.stiffness["K0"].shape[0]
 
     @property
     def n_carriages(self) -> int:
+        """Number of carriages."""
         return len(self.carriage_xz_m)
 
     @property
@@ -102,6 +104,7 @@ class System:
         return out.tocsr()
 
     def M(self, mc: dict) -> sp.csr_matrix:
+        """``M0 + sum mc[name] * mass[name]`` (CSR)."""
         out = self.mass["M0"].copy()
         for name, c in mc.items():
             if c != 0.0:

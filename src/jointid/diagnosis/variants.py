@@ -71,6 +71,7 @@ class EffectSpec:
 
     @classmethod
     def candidate(cls, effect: Effect, options: dict | None = None) -> "EffectSpec":
+        """The effect as a candidate: at its null, options over its defaults, every parameter fitted."""
         return cls(effect, effect.null_values(), {**effect.options, **(options or {})},
                    [p.name for p in effect.params])
 
@@ -79,7 +80,8 @@ class Variant:
     """A model variant: the joint parameters (log, shared by all states) plus effects.
 
     The parameter vector is ``x = [ln theta_1 .. ln theta_p, t_1 .. t_q]`` with ``t`` the
-    dimensionless test variables of the free effect parameters (``effects.Param``).
+    dimensionless test variables of the free effect parameters (``effects.Param``); ``slots`` lists
+    ``(effect number, Param)`` for each of them, in the order of ``x``.
     """
 
     def __init__(self, system: System, cfg: dict, effects: list[EffectSpec] = (), name: str | None = None,
@@ -108,6 +110,7 @@ class Variant:
 
     @property
     def n_params(self) -> int:
+        """Length of the parameter vector ``x``."""
         return len(self.labels)
 
     def x_start(self, theta: dict | None = None) -> np.ndarray:
@@ -121,6 +124,7 @@ class Variant:
         return np.clip(x, self.lower, self.upper)
 
     def unpack(self, x) -> tuple[dict, list[dict]]:
+        """Joint parameters (N/m^3, fixed ones included) and each effect's physical values at ``x``."""
         theta = {n: math.exp(float(v)) for n, v in zip(self.joint_names, x[: self.p])}
         theta.update(self.theta_fixed)
         vals = [dict(s.values) for s in self.effects]
@@ -137,6 +141,7 @@ class Variant:
         return out
 
     def coefficients(self, x, state: StateInfo) -> tuple[dict, dict]:
+        """Term coefficients ``(kc, mc)`` at ``x`` in ``state`` (baseline, then the effects in order)."""
         theta, vals = self.unpack(x)
         kc, mc = baseline_coefficients(self.system, self.cfg, theta)
         active = [(s.effect, v, s.options) for s, v in zip(self.effects, vals)]
