@@ -14,8 +14,12 @@ import yaml
 
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis import effects as E
-from jointid.diagnosis.core import (ReducedSolver, Variant, EffectSpec, append_history, identifiability,
-                              score_test)
+from jointid.diagnosis import terms as T
+from jointid.diagnosis.history import append_history
+from jointid.diagnosis.statistics import identifiability, score_test
+from jointid.diagnosis.variants import EffectSpec, Variant
+from jointid.fe.reduced import ReducedSolver
+from jointid.threads import limit_threads
 from conftest import coarse_config_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -150,13 +154,13 @@ def coarse():
     cfg = coarse_config_dict()
     cfg = load_config(cfg)
     model = build_model(cfg)
-    return cfg, E.build_system(model, cfg)
+    return cfg, T.build_system(model, cfg)
 
 
 def _solver_at_reference(cfg, system) -> ReducedSolver:
     """A reduced solver of the coarse rig seeded at k_normal = k_lateral = 1e12, k_feed = 1e10 N/m^3."""
     theta = {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
-    kc, mc = E.baseline_coefficients(system, cfg, theta)
+    kc, mc = T.baseline_coefficients(system, cfg, theta)
     return ReducedSolver(system, kc, mc, 10, [({f"K_top_y@{c}": 1.0 for c in range(4)}, {})], n_seed=6)
 
 
@@ -166,7 +170,7 @@ def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
     cfg, system = coarse
     solver = _solver_at_reference(cfg, system)
     far = {"k_normal_N_per_m3": 3e11, "k_lateral_N_per_m3": 3e12, "k_feed_N_per_m3": 2e10}
-    kc2, mc2 = E.baseline_coefficients(system, cfg, far)
+    kc2, mc2 = T.baseline_coefficients(system, cfg, far)
     kc2["K_railfix"] = 2e12
     mc2["M_table_edge"] = 2.0
     red = solver.solve(kc2, mc2, 10)
@@ -188,7 +192,7 @@ def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos
     cfg, system = coarse
     solver = _solver_at_reference(cfg, system)
     near = {"k_normal_N_per_m3": 1.2e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
-    kc2, mc2 = E.baseline_coefficients(system, cfg, near)
+    kc2, mc2 = T.baseline_coefficients(system, cfg, near)
     full = solve_modes(system.K(kc2), system.M(mc2), 10, fixed=system.fixed)
     lanczos_runs = solver.n_full_solves
     err = solver.verify(kc2, mc2, 10)
@@ -269,7 +273,7 @@ def test_workflow_diagnoses_registered_datasets_only(tmp_path):
     (["--history", "."], "--history .: is a folder"),
 ])
 def test_command_line_mistakes_are_reported_before_any_work(tmp_path, capsys, extra, expected):
-    from jointid.diagnosis.core import main
+    from jointid.diagnosis.__main__ import main
 
     rc = main(["--dataset", str(ROOT / "data" / "paper"), "--out", str(tmp_path / "out"),
                "--config", str(ROOT / "config.yaml"), *extra])
@@ -279,7 +283,7 @@ def test_command_line_mistakes_are_reported_before_any_work(tmp_path, capsys, ex
 
 
 def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
-    from jointid.diagnosis.core import main
+    from jointid.diagnosis.__main__ import main
     from jointid.errors import ModelError
     from jointid.fe.model import load_model
 
@@ -295,7 +299,7 @@ def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
 
 
 def test_measured_modes_below_the_tracked_band_are_refused(coarse):
-    from jointid.diagnosis.core import dataset_states
+    from jointid.diagnosis.variants import dataset_states
     from jointid.errors import DataError
     from jointid.data.dataset import read_dataset
 
@@ -308,7 +312,8 @@ def test_measured_modes_below_the_tracked_band_are_refused(coarse):
 
 
 def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
-    from jointid.diagnosis.core import StateData, diagnose
+    from jointid.diagnosis.loop import diagnose
+    from jointid.diagnosis.variants import StateData
     from jointid.errors import DataError
 
     cfg, system = coarse

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from jointid.diagnosis import effects as E
+from jointid.diagnosis import terms as T
 from jointid.config import load_config
 from jointid.response.emforce import carriage_loads_N
 from jointid.errors import ConfigError
@@ -22,7 +23,7 @@ def setup():
     cfg = coarse_config_dict()
     cfg = load_config(cfg)
     model = build_model(cfg)
-    return cfg, model, E.build_system(model, cfg)
+    return cfg, model, T.build_system(model, cfg)
 
 
 THETA = {"k_normal_N_per_m3": 8e11, "k_lateral_N_per_m3": 6e11, "k_feed_N_per_m3": 1e10}
@@ -45,7 +46,7 @@ def test_joint_layers_split_per_carriage_sum_to_the_layer(setup):
 def test_bonded_foundation_reproduces_the_clamped_base(setup):
     cfg, model, system = setup
     assert system.support == "clamped" and len(system.fixed) == 0
-    kc, mc = E.baseline_coefficients(system, cfg, THETA)
+    kc, mc = T.baseline_coefficients(system, cfg, THETA)
     assert kc["K_foundation"] == E.BONDED_N_PER_M3
     kc0, mc0 = base_coefficients(cfg, model, THETA)
     a = solve_modes(model.K(kc0), model.M(mc0), 8, fixed=model.fixed).freqs_Hz
@@ -69,7 +70,7 @@ def test_carried_mass_is_table_carriages_and_motors(setup):
 
 def test_em_preload_scales_each_carriage_by_its_pressure_ratio(setup):
     cfg, model, system = setup
-    kc, mc = E.baseline_coefficients(system, cfg, THETA)
+    kc, mc = T.baseline_coefficients(system, cfg, THETA)
     eff = E.EFFECTS["em_preload"]
     off = E.StateInfo("off", 0.0)
     on = E.StateInfo("on", 1000.0)
@@ -101,7 +102,7 @@ def test_em_preload_scales_each_carriage_by_its_pressure_ratio(setup):
 
 def test_mass_compliance_and_feed_effects(setup):
     cfg, model, system = setup
-    kc, mc = E.baseline_coefficients(system, cfg, THETA)
+    kc, mc = T.baseline_coefficients(system, cfg, THETA)
     s = E.StateInfo("s", 0.0)
     _, m2 = E.apply_effects(system, kc, mc, s, [(E.EFFECTS["added_mass_table"], {"mass_kg": 3.0}, {})])
     assert m2["M_table_top"] == 3.0 and m2["M_motor"] == mc["M_motor"]

@@ -13,9 +13,13 @@ import pandas as pd
 import pytest
 
 from jointid.diagnosis import effects as E
-from jointid.data import synth
+from jointid.diagnosis import terms as T
+from jointid.diagnosis import synth
 from jointid.config import load_config
-from jointid.diagnosis.core import diagnose, dataset_states, history_row, write_outputs
+from jointid.diagnosis.history import history_row
+from jointid.diagnosis.loop import diagnose
+from jointid.diagnosis.outputs import write_outputs
+from jointid.diagnosis.variants import dataset_states
 from jointid.threads import limit_threads
 from jointid.data.dataset import read_dataset
 from conftest import coarse_config_dict
@@ -39,7 +43,7 @@ def rig():
     cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
     cfg = load_config(cfg)
     model = build_model(cfg)
-    return {"cfg": cfg, "model": model, "system": E.build_system(model, cfg), "solver": None}
+    return {"cfg": cfg, "model": model, "system": T.build_system(model, cfg), "solver": None}
 
 
 def _true_effect(truth: dict):

@@ -19,10 +19,10 @@ import sys
 from jointid.errors import JointidError
 
 MODULES = {
-    "diagnose": "jointid.diagnosis.core",
+    "diagnose": "jointid.diagnosis.__main__",
     "config": "jointid.config.__main__",
     "checks": "jointid.reporting.checks",
-    "synth": "jointid.data.synth",
+    "synth": "jointid.diagnosis.synth",
     "uff": "jointid.data.uff",
 }
 COMMANDS = {

@@ -1,9 +1,9 @@
 """Snakemake adapter: diagnose one registered dataset (which listed physical effect is missing)."""
 import os
 
+from jointid.stages.diagnosis import run_diagnosis
 from jointid.stages.runner import run_script
-from jointid.diagnosis import core as diagnose
 
-run_script(snakemake, lambda cfg, inp, out: diagnose.run_diagnosis(
+run_script(snakemake, lambda cfg, inp, out: run_diagnosis(
     cfg, snakemake.wildcards.dataset, cfg["dataset"]["path"], inp.matrices, os.path.dirname(out.ranking),
     history_csv=snakemake.params.history))

@@ -1,12 +1,12 @@
 """Synthetic measured datasets with hidden effects (for proving the diagnosis).
 
-``python -m jointid.data.synth --truth TRUTH.yaml --out DIR [--config config.yaml ...]``
+``python -m jointid.diagnosis.synth --truth TRUTH.yaml --out DIR [--config config.yaml ...]``
 
 A truth file describes the "real" rig: true joint stiffnesses, library effects at given magnitudes
 (``jointid.diagnosis.effects``), optional perturbations *outside* the library (decoys), optionally a finer mesh,
 the operating states, what is measured and the noise.  The synthesiser solves the full FE model and
-writes a dataset in the measurement format (``measured.write_dataset``): natural frequencies, damping
-ratios, mode shapes at the measuring points and optionally a drive-point FRF.  Nothing of the truth
+writes a dataset in the measurement format (``jointid.data.dataset.write_dataset``): natural
+frequencies, damping ratios, mode shapes at the measuring points and optionally a drive-point FRF.  Nothing of the truth
 except the measured inputs (motor force per state, frequency uncertainty) reaches the dataset; the
 diagnosis never reads the truth file.
 
@@ -35,11 +35,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from jointid.diagnosis.effects import StateInfo, apply_effects, baseline_coefficients, build_system, enabled_effects
+from jointid.config import load_config
+from jointid.data.dataset import write_dataset
+from jointid.diagnosis.effects import apply_effects, enabled_effects
+from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system
 from jointid.errors import ConfigError, JointidError
+from jointid.fe.modal import solve_model
+from jointid.fe.model import build_model
+from jointid.response.harmonic import frf_modal
 from jointid.threads import limit_threads
 from jointid.yamlio import deep_merge, read_merged, read_yaml
-from jointid.fe.modal import solve_model
 
 __all__ = ["synthesise", "write_synthetic", "load_truth", "main"]
 
@@ -56,12 +61,14 @@ def load_truth(path) -> dict:
     path = Path(path)
     truth = read_yaml(path, str(path)) or {}
     if not isinstance(truth, dict):
-        raise ConfigError(f"{path}: the truth file is not a mapping of keys — see the example in jointid.data.synth")
+        raise ConfigError(f"{path}: the truth file is not a mapping of keys — see the example in "
+                          "jointid.diagnosis.synth")
     check_truth(truth, str(path))
     return truth
 
 
 def check_truth(truth: dict, where: str = "truth") -> None:
+    """Raise :class:`ConfigError` listing every unknown key, missing state list or unknown perturbation."""
     problems = []
     for k in truth:
         if k not in TRUTH_KEYS:
@@ -78,8 +85,6 @@ def check_truth(truth: dict, where: str = "truth") -> None:
 
 def truth_config(truth: dict, base_cfg: dict) -> dict:
     """Validated configuration of the truth model (base config + the truth's overrides)."""
-    from jointid.config import load_config
-
     cfg = deep_merge(base_cfg, truth.get("overrides") or {})
     return load_config(cfg)
 
@@ -121,8 +126,6 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         ``modes``, ``shapes`` (or None), ``frf`` (or None) DataFrames and ``conditions`` dict, ready
         for :func:`jointid.data.dataset.write_dataset`; plus ``truth_freqs_Hz`` per state (noise-free).
     """
-    from jointid.fe.model import build_model
-
     check_truth(truth)
     cfg = truth_config(truth, base_cfg)
     model = model or build_model(cfg)
@@ -166,20 +169,10 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
                                        "direction": direction, "value": float(val)})
         cond = {"em_force_N": state.em_force_N}
         if meas["frf"]:
-            from jointid.response.harmonic import frf_modal
-
-            lab = f"{meas['drive_point']}:{meas['drive_direction']}"
-            row = labels.index(lab)
-            drive = np.asarray(system.probe[row] @ modes.phi).ravel()
-            f_axis = np.linspace(lo, hi, int(meas["n_freq"]))
-            H = frf_modal(f_axis, modes.freqs_Hz, noise["damping_ratio"], drive, drive)
-            for fq, h in zip(f_axis, H):
-                frf_rows.append({"state": sname, "point": meas["drive_point"],
-                                 "direction": meas["drive_direction"], "freq_Hz": float(fq),
-                                 "re": float(h.real), "im": float(h.imag)})
+            frf_rows += drive_point_frf(system, modes, sname, meas, noise["damping_ratio"])
             cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
         conds[sname] = cond
-    conditions = {"source": f"synthetic dataset (jointid.data.synth), noise seed {int(noise['seed'])}",
+    conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
                   "frequency_uncertainty_pct": float(noise["frequency_pct"]), "states": conds}
     return {"modes": pd.DataFrame(modes_rows),
             "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
@@ -187,17 +180,40 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
             "conditions": conditions, "truth_freqs_Hz": clean, "points": pts}
 
 
-def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
-    """Synthesise and write the dataset folder ``out_dir``; returns the :class:`measured.Dataset`."""
-    from jointid.data.dataset import write_dataset
+def drive_point_frf(system, modes, state: str, meas: dict, damping_ratio: float) -> list[dict]:
+    """Rows of the noise-free drive-point FRF of one state over the measured band.
 
+    Parameters
+    ----------
+    system : jointid.diagnosis.terms.System
+    modes : modal solution of the state (``freqs_Hz``, ``phi``)
+    state : str
+    meas : dict
+        The truth's ``measurement`` section (``drive_point``, ``drive_direction``, ``band_Hz``, ``n_freq``).
+    damping_ratio : float
+        Modal damping ratio of every mode.
+    """
+    lo, hi = map(float, meas["band_Hz"])
+    row = system.labels.index(f"{meas['drive_point']}:{meas['drive_direction']}")
+    drive = np.asarray(system.probe[row] @ modes.phi).ravel()
+    f_axis = np.linspace(lo, hi, int(meas["n_freq"]))
+    H = frf_modal(f_axis, modes.freqs_Hz, damping_ratio, drive, drive)
+    return [{"state": state, "point": meas["drive_point"], "direction": meas["drive_direction"],
+             "freq_Hz": float(fq), "re": float(h.real), "im": float(h.imag)} for fq, h in zip(f_axis, H)]
+
+
+def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
+    """Synthesise and write the dataset folder ``out_dir``; returns the
+    :class:`jointid.data.dataset.Dataset`."""
     out = synthesise(truth, base_cfg, model=model)
     return write_dataset(out_dir, out["modes"], out["shapes"], out["frf"], conditions=out["conditions"],
                          measuring_points=out["points"])
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m jointid.data.synth", description=__doc__.split("\n\n")[0])
+    """Command line: write the synthetic dataset of ``--truth`` to ``--out``; returns the exit status."""
+    ap = argparse.ArgumentParser(prog="python -m jointid.diagnosis.synth",
+                                 description=__doc__.split("\n\n")[0])
     ap.add_argument("--truth", required=True, help="truth YAML file")
     ap.add_argument("--out", required=True, help="dataset folder to write")
     ap.add_argument("--config", nargs="*", default=None,

@@ -1,0 +1,356 @@
+"""Evaluating and fitting model variants on measured states (docs/effects.md).
+
+* :class:`Diagnoser` — solves every state of a :class:`~jointid.diagnosis.variants.Variant` with the
+  reduced solver (:class:`jointid.fe.reduced.ReducedSolver`), pairs measured and model modes, and
+  returns residuals ``r_i = ln(f_model / f_meas) / sigma`` with their Jacobian (:class:`Evaluation`);
+  :meth:`Diagnoser.fit` is the bounded least-squares fit (trust region), pairing re-done until stable.
+* :class:`Fit` — a fitted variant: chi-square, p-value, AICc, covariance, per-state errors.
+* :func:`refit` — a fitted variant plus one candidate effect, fitted from several starts.
+
+Numerics
+--------
+* Every model variant is affine in its term coefficients (``jointid.diagnosis.effects``).  Eigen-solutions
+  come from :class:`ReducedSolver`, a Rayleigh-Ritz solver on a growing subspace of the full FE space:
+  the exact modes at a reference point plus the first-order responses ``A^-1 (dK - lambda dM) phi`` to
+  every parameter direction; at each new point the residuals ``K phi - lambda M phi`` of the Ritz pairs
+  are checked in the full space and, where the estimated eigenvalue error exceeds ``tol``, the
+  preconditioned residuals are added to the subspace.  The answers are therefore full-FE answers to
+  ``tol`` (1e-6 relative eigenvalue error by default); each fitted variant is finally checked against
+  the full model (:meth:`ReducedSolver.verify`).
+* Sensitivities are exact for the (converged) subspace: ``dlambda_i/dx = y_i^T (dK - lambda_i dM) y_i``.
+* Residual of mode i: ``r_i = ln(f_model / f_meas) / sigma`` (= relative error / sigma to first order),
+  sigma the relative frequency uncertainty (dataset ``frequency_uncertainty_pct``, else
+  ``identify.frequency_uncertainty_pct``); log residuals make the sensitivities of one model identical
+  in every state, so between-state contrasts of a state-independent model vanish exactly.
+* Refits by bounded least squares (trust region) with several starts.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares, linear_sum_assignment
+
+from jointid.correlate import pairing as correlate
+from jointid.diagnosis.statistics import aicc, chi2_p_value
+from jointid.diagnosis.terms import System
+from jointid.diagnosis.variants import EffectSpec, StateData, Variant
+from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
+
+UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
+
+
+def print_log(msg: str) -> None:
+    """Default progress log of the diagnosis: print and flush."""
+    print(msg, flush=True)
+
+
+@dataclass
+class Evaluation:
+    """Residuals and Jacobian of a variant at ``x`` over all states."""
+
+    x: np.ndarray
+    r: np.ndarray
+    J: np.ndarray
+    solutions: list
+    index: list  # per state: model mode index per measured mode (-1 unpaired)
+    rows: list  # per residual: (state number, measured mode number)
+    f_model: list  # per state: model frequency per measured mode (NaN unpaired)
+
+
+class Diagnoser:
+    """Evaluates and fits variants of one system on one set of measured states."""
+
+    def __init__(self, system: System, cfg: dict, data: list[StateData], *, n_modes: int | None = None,
+                 tol: float = 1e-6, mac_threshold: float = 0.5, solver: ReducedSolver | None = None,
+                 log=print_log):
+        self.system, self.cfg, self.data = system, cfg, data
+        s = cfg.get("solver", {})
+        self.min_freq = float(s.get("min_freq_Hz", 100.0))
+        m = max(len(d.f_meas) for d in data)
+        self.n_modes = n_modes or m + 8
+        self.mac_threshold = mac_threshold
+        self.log = log
+        self.solver: ReducedSolver | None = solver
+        if solver is not None:
+            if solver.system is not system:
+                raise ValueError("the reduced solver belongs to another system")
+        self._tol = tol
+        self._shift = float(s.get("shift_Hz", -10.0))
+        self._backend = s.get("backend", "auto")
+
+    # ------------------------------------------------------------ engine
+    def ensure_solver(self, variant: Variant, x):
+        """Set up the reduced solver at ``x`` of ``variant`` (first state's coefficients) unless there is one."""
+        if self.solver is not None:
+            return
+        t0 = time.time()
+        ref = self.data[0].info
+        kc, mc = variant.coefficients(x, ref)
+        directions = []
+        for dkc, dmc in term_directions(self.system):
+            directions.append((dkc, dmc))
+        m = max(len(d.f_meas) for d in self.data)
+        self.solver = ReducedSolver(self.system, kc, mc, self.n_modes, directions, shift_Hz=self._shift,
+                                    backend=self._backend, tol=self._tol, n_seed=m + 2)
+        self.log(f"diagnosis: reduced solver with {self.solver.V.shape[1]} vectors "
+                 f"({self.system.n_dofs} DOFs) in {time.time() - t0:.1f} s")
+
+    def solve_states(self, variant: Variant, x, refine: bool = True) -> list[Solution]:
+        """Modes of every state at ``x`` (refined to the solver tolerance unless ``refine`` is False)."""
+        self.ensure_solver(variant, x)
+        for _ in range(3):
+            gen = self.solver.generation
+            sols = [self.solver.solve(*variant.coefficients(x, d.info), self.n_modes, refine=refine)
+                    for d in self.data]
+            if self.solver.generation == gen:
+                return sols
+        return sols
+
+    def pair(self, sols: list[Solution]) -> list[correlate.Pairing]:
+        """Pair measured and model modes per state: by MAC where shapes are measured; frequency-only
+        states with equal mode counts are paired jointly with one mode identity across states."""
+        freq_only = [k for k, d in enumerate(self.data) if d.shapes is None]
+        out: list = [None] * len(self.data)
+        if len(freq_only) >= 2 and len({len(self.data[k].f_meas) for k in freq_only}) == 1:
+            ref = sols[freq_only[0]]
+            tracks = [self._track_model(ref, sols[k]) for k in freq_only]
+            pairs = correlate.pair_states_by_frequency([self.data[k].f_meas for k in freq_only],
+                                                       [sols[k].freqs_Hz for k in freq_only], tracks,
+                                                       min_freq_Hz=self.min_freq)
+            for k, p in zip(freq_only, pairs):
+                out[k] = p
+        for k, (d, s) in enumerate(zip(self.data, sols)):
+            if out[k] is None:
+                out[k] = correlate.pair_modes(d.f_meas, s.freqs_Hz, d.shapes,
+                                              s.shapes if d.shapes is not None else None,
+                                              threshold=self.mac_threshold, min_freq_Hz=self.min_freq)
+        return out
+
+    def _track_model(self, ref: Solution, sol: Solution) -> np.ndarray:
+        """Model mode of ``sol`` continuing each mode of ``ref`` (reduced-space MAC, -1 below 0.5)."""
+        r = self.solver.V.shape[1]
+        A, B = pad_to_basis(ref.Y, r), pad_to_basis(sol.Y, r)
+        C = (A.T @ B) ** 2 / np.outer((A * A).sum(0), (B * B).sum(0))
+        rr, cc = linear_sum_assignment(-C)
+        out = -np.ones(A.shape[1], dtype=int)
+        good = C[rr, cc] >= 0.5
+        out[rr[good]] = cc[good]
+        return out
+
+    def evaluate(self, variant: Variant, x, index: list, track: list | None = None, *,
+                 refine: bool = True) -> Evaluation:
+        """Residuals ``ln(f_model / f_meas) / sigma`` and Jacobian at ``x``.
+
+        ``index`` gives the model mode of each measured mode; with ``track`` (reference reduced
+        vectors per state, columns = measured modes) each measured mode follows the model mode of
+        largest mass-weighted MAC instead (mode crossings during a fit).
+        """
+        x = np.asarray(x, float)
+        sols = self.solve_states(variant, x, refine=refine)
+        r, J, rows, new_index, fmod = [], [], [], [], []
+        for si, (d, sol) in enumerate(zip(self.data, sols)):
+            idx = np.array(index[si])
+            if track is not None and track[si] is not None:
+                idx = self._follow(sol, track[si], idx)
+            new_index.append(idx)
+            ok = np.flatnonzero(idx >= 0)
+            bad = np.flatnonzero(idx < 0)
+            f = sol.freqs_Hz[idx[ok]]
+            fm = d.f_meas[ok]
+            r.append(np.log(f / fm) / d.sigma_rel)
+            r.append(np.full(len(bad), np.log1p(UNPAIRED_ERROR) / d.sigma_rel))
+            fm_all = np.full(len(d.f_meas), np.nan)
+            fm_all[ok] = f
+            fmod.append(fm_all)
+            dc = variant.dcoefficients(x, d.info)
+            Jb = np.zeros((len(ok) + len(bad), variant.n_params))
+            sub = Solution(sol.freqs_Hz[idx[ok]], sol.lam[idx[ok]], sol.Y[:, idx[ok]], sol.lam_all, sol.Y_all,
+                           sol.kc, sol.mc, sol.shapes[:, idx[ok]], sol.generation)
+            for j, (dkc, dmc) in enumerate(dc):
+                dlam = self.solver.sensitivity(sub, dkc, dmc)
+                Jb[: len(ok), j] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
+            J.append(Jb)
+            rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad]
+        return Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod)
+
+    def _follow(self, sol: Solution, ref_Y: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        r = self.solver.V.shape[1]
+        Yr = pad_to_basis(ref_Y, r)
+        Y = pad_to_basis(sol.Y, r)
+        # the basis is M_ref-orthonormal: the reduced Euclidean product approximates the mass product
+        C = (Yr.T @ Y) ** 2 / np.outer((Yr * Yr).sum(0), (Y * Y).sum(0))
+        out = idx.copy()
+        rows = np.flatnonzero(idx >= 0)
+        if len(rows):
+            rr, cc = linear_sum_assignment(-C[rows])
+            out[rows[rr]] = cc
+        return out
+
+    def fit(self, variant: Variant, x0, *, index=None, max_loops: int = 4, verify: bool = False) -> "Fit":
+        """Bounded least squares of ``variant`` from ``x0``; pairing re-done until stable."""
+        x0 = np.clip(np.asarray(x0, float), variant.lower, variant.upper)
+        if index is None:
+            index = [p.model_index for p in self.pair(self.solve_states(variant, x0))]
+        ev = None
+        for loop in range(max_loops + 3):
+            sols = self.solve_states(variant, x0)
+            track = [s.Y[:, np.clip(ix, 0, None)] for s, ix in zip(sols, index)]
+            cache = {}
+
+            def ev_at(x):
+                key = np.asarray(x, float).tobytes()
+                if key not in cache:
+                    cache.clear()
+                    cache[key] = self.evaluate(variant, x, index, track, refine=False)
+                return cache[key]
+
+            if variant.n_params:
+                # least squares on the current subspace, then refinement at the optimum; repeated
+                # while the refinement changes the subspace (the optimum was not yet exact)
+                res = least_squares(lambda x: ev_at(x).r, x0, jac=lambda x: ev_at(x).J,
+                                    bounds=(variant.lower, variant.upper), method="trf", x_scale=1.0,
+                                    xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=40)
+                x_opt = res.x
+            else:
+                x_opt = x0
+            size = (self.solver.generation, self.solver.V.shape[1])
+            ev = self.evaluate(variant, x_opt, index, track, refine=True)
+            changed_space = (self.solver.generation, self.solver.V.shape[1]) != size
+            new = [p.model_index for p in self.pair(ev.solutions)]
+            same_pairs = all(np.array_equal(a, b) for a, b in zip(new, ev.index))
+            if not same_pairs:
+                index = new
+            x0 = x_opt
+            if same_pairs and (not changed_space or not variant.n_params):
+                break
+        if verify:
+            coeffs = []
+            for d in self.data:  # states with identical coefficients need one check only
+                c = variant.coefficients(ev.x, d.info)
+                if c not in coeffs:
+                    coeffs.append(c)
+            worst = max(self.solver.verify(kc, mc, self.n_modes) for kc, mc in coeffs)
+            if worst > 1e-5:
+                self.log(f"diagnosis: reduced vs full FE {worst:.2e} at the optimum of {variant.name}; refitting")
+                return self.fit(variant, ev.x, index=ev.index, max_loops=2, verify=False)
+        return Fit(variant, ev, self.pair(ev.solutions))
+
+
+@dataclass
+class Fit:
+    """A fitted variant: parameters, residuals, chi-square, AICc, covariance, per-state errors."""
+
+    variant: Variant
+    ev: Evaluation
+    pairings: list
+
+    @property
+    def x(self):
+        """The fitted parameter vector."""
+        return self.ev.x
+
+    @property
+    def chi2(self) -> float:
+        """Chi-square ``r^T r`` of the sigma-normalised residuals."""
+        return float(self.ev.r @ self.ev.r)
+
+    @property
+    def n(self) -> int:
+        """Number of residuals."""
+        return len(self.ev.r)
+
+    @property
+    def k(self) -> int:
+        """Number of fitted parameters."""
+        return self.variant.n_params
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom ``n - k`` (at least 1)."""
+        return max(self.n - self.k, 1)
+
+    @property
+    def p_value(self) -> float:
+        """Probability of a chi-square at least this large if the variant were true (noise only)."""
+        return chi2_p_value(self.chi2, self.dof)
+
+    @property
+    def aicc(self) -> float:
+        """Corrected Akaike criterion of the fit (sigma known), :func:`statistics.aicc`."""
+        return aicc(self.chi2, self.n, self.k)
+
+    def covariance(self) -> np.ndarray:
+        """Covariance of ``x``: ``(J^T J)^+`` (residuals in units of sigma)."""
+        J = self.ev.J
+        return np.linalg.pinv(J.T @ J)
+
+    def errors_pct(self, data: list[StateData]) -> list[np.ndarray]:
+        """Frequency error (%) per measured mode and state (NaN unpaired)."""
+        return [100 * (fm - d.f_meas) / d.f_meas for fm, d in zip(self.ev.f_model, data)]
+
+    def state_summary(self, data: list[StateData]) -> list[dict]:
+        """Per state: number of paired modes, max and RMS error (%)."""
+        out = []
+        for d, e in zip(data, self.errors_pct(data)):
+            e = e[np.isfinite(e)]
+            out.append({"state": d.name, "n_paired": len(e),
+                        "max_abs_error_pct": float(np.abs(e).max()) if len(e) else np.nan,
+                        "rms_error_pct": float(np.sqrt(np.mean(e ** 2))) if len(e) else np.nan})
+        return out
+
+
+def term_directions(system: System) -> list[tuple[dict, dict]]:
+    """Seed directions of the reduced solver: the joint layers of all carriages per direction, the
+    rail fixing, the foundation, the mounts and each added-mass layer (per-carriage detail is
+    added by the refinement when a point needs it)."""
+    groups = {}
+    for name in system.stiffness:
+        if "@" in name:
+            d = name.split("@")[0].split("_")[2]
+            groups.setdefault(d, {})[name] = 1.0
+    out = [(g, {}) for g in groups.values()]
+    for name in ("K_railfix", "K_foundation", "K_mount"):
+        if name in system.stiffness:
+            out.append(({name: 1.0}, {}))
+    for name in system.mass:
+        if name != "M0":
+            out.append(({}, {name: 1.0}))
+    return out
+
+
+def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
+    """Start values of a one-parameter candidate: its linearised estimate and a bracket above it
+    (effects saturate, so the linearised estimate tends to be low), inside the bounds."""
+    p = spec.effect.params[0]
+    lo, hi = p.t_bounds
+    hi = hi if math.isfinite(hi) else 1e6
+    span = hi - lo
+    base = float(np.clip(t_hat, lo + 1e-3 * span, hi))
+    out = [base]
+    for s in (3.0 * base, lo + 0.3 * span):
+        s = float(np.clip(s, lo + 1e-3 * span, hi))
+        if all(abs(s - o) > 0.05 * max(abs(o), 1e-3 * span) for o in out):
+            out.append(s)
+        if len(out) == 2:
+            break
+    return out
+
+
+def refit(diag: Diagnoser, fit: Fit, spec: EffectSpec, t_hat: np.ndarray, *, verify: bool = True) -> Fit:
+    """Fit ``fit.variant + spec`` from several starts of the new parameters; best by chi-square."""
+    var = fit.variant.extended(spec)
+    q = var.n_params - fit.variant.n_params
+    best = None
+    starts = refit_starts(spec, float(t_hat[0])) if q == 1 else [list(np.clip(t_hat, 0, None))]
+    for s in starts:
+        x0 = np.concatenate([fit.x, np.atleast_1d(s)])
+        f = diag.fit(var, x0, index=fit.ev.index)
+        if best is None or f.chi2 < best.chi2 - 1e-9:
+            best = f
+    if verify:
+        best = diag.fit(var, best.x, index=best.ev.index, verify=True)
+    return best

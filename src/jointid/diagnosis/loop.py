@@ -1,0 +1,326 @@
+"""The diagnosis loop: compare, calibrate, score, refit, rank, verdict, drift (docs/effects.md).
+
+:func:`diagnose` is the driver; each step is a function of its own, called in this order (the
+reduced solver's subspace grows with every solve, so the order is part of the result):
+
+1. :func:`compare_reference` — the baseline calibrated on the reference state;
+2. the baseline on all states, then :func:`calibrate_ladder` — the configured effects one by one;
+3. :func:`score_candidates` — a score test of every library effect not in the model;
+4. :func:`refit_candidates` — the leading candidates refitted, AICc and noise-level check;
+5. :func:`verdict_text` — the verdict in words;
+6. :func:`drift_table` and :func:`model_notes` — per-state drift, identifiability, unpaired modes.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from jointid.correlate import pairing as correlate
+from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
+from jointid.diagnosis.fitting import Diagnoser, Fit, print_log, refit
+from jointid.diagnosis.statistics import extra_jacobian, identifiability, score_test, state_contrasts
+from jointid.diagnosis.tables import (compare_tables, drift_table, parameter_table, ranking_frame,
+                                      state_errors_table)
+from jointid.diagnosis.terms import System
+from jointid.diagnosis.variants import EffectSpec, StateData, Variant
+from jointid.errors import DataError
+from jointid.fe.reduced import ReducedSolver
+
+
+@dataclass
+class Diagnosis:
+    """Everything the diagnosis of one dataset found (tables are DataFrames)."""
+
+    ranking: pd.DataFrame
+    ladder: pd.DataFrame
+    compare: pd.DataFrame
+    compare_summary: pd.DataFrame
+    current: pd.DataFrame
+    drift: pd.DataFrame
+    shape_residuals: pd.DataFrame
+    point_residuals: pd.DataFrame
+    mac: dict
+    verdict: str
+    explained_by: str
+    fits: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+    parameters: pd.DataFrame | None = None
+    timing_s: float = 0.0
+    solver: ReducedSolver | None = None
+
+
+def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: dict | None = None,
+             candidates: list[str] | None = None, n_refit: int = 5, alpha: float = 0.01,
+             reference_state: str | None = None, solver: ReducedSolver | None = None,
+             compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
+    """Run the whole loop on measured states: compare, calibrate, score, refit, rank, ladder, drift.
+
+    Parameters
+    ----------
+    system : System
+    cfg : dict
+        Validated configuration (joints, solver, identify ...).
+    data : list of StateData
+    effects_cfg : dict, optional
+        Effects enabled in the model (the ``effects`` config section); default ``cfg['effects']``.
+    candidates : list of str, optional
+        Library effects to test (default: all not enabled).
+    n_refit : int
+        Number of leading candidates refitted.
+    alpha : float
+        Significance level: a variant explains the data when its chi-square p-value >= alpha.
+    reference_state : str, optional
+        State the baseline is calibrated on for the comparison step (default: the state with the
+        smallest motor force, first in order).
+    solver : ReducedSolver, optional
+        A reduced solver of the same system to reuse (its subspace only grows; saves the set-up when
+        several datasets of one rig are diagnosed).
+    compare, drift : bool
+        Run the comparison step (baseline calibrated on the reference state) and the per-state drift
+        fits (both on by default).
+
+    Returns
+    -------
+    Diagnosis
+    """
+    t_start = time.time()
+    enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
+    diag = Diagnoser(system, cfg, data, solver=solver, log=log)
+    notes = []
+    base = Variant(system, cfg, [])
+    check_enough_data(data, base)
+    x0, tables = compare_reference(diag, base, reference_state, compare, notes, log)
+    log("diagnosis: calibrating the baseline on all states")
+    fit_base = diag.fit(base, x0, verify=not enabled)
+    compare_tab, mac_mats, shape_res = tables or compare_tables(diag, base, fit_base.x)
+    fits, current, ladder_rows = calibrate_ladder(diag, fit_base, enabled, log)
+    current_table = compare_tables(diag, current.variant, current.x)[0]
+    current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects_cfg)
+    refit_candidates(diag, current, rows, fits, n_refit, alpha, log)
+    ranking = ranking_frame([r[0] for r in rows])
+    verdict, explained_by = verdict_text(current, ranking, diag.data, alpha, between_share)
+    if explained_by not in ("none needed", "unexplained"):
+        ladder_rows += state_errors_table(diag, fits["+" + explained_by], f"+{explained_by} (suggested)")
+    drift_tab = drift_table(diag, current, log, skip=not drift)
+    notes += model_notes(current, data)
+    return Diagnosis(ranking=ranking, ladder=pd.DataFrame(ladder_rows), compare=compare_tab,
+                     compare_summary=correlate.error_summary(compare_tab), current=current_table,
+                     drift=drift_tab, shape_residuals=shape_res,
+                     point_residuals=correlate.point_residuals(shape_res), mac=mac_mats, verdict=verdict,
+                     explained_by=explained_by, fits=fits, notes=notes, parameters=parameter_table(fits),
+                     timing_s=time.time() - t_start, solver=diag.solver)
+
+
+def check_enough_data(data: list[StateData], base: Variant) -> None:
+    """Raise :class:`DataError` unless the measured frequencies outnumber the fitted parameters."""
+    n_obs = sum(len(d.f_meas) for d in data)
+    if n_obs <= base.n_params:
+        raise DataError(f"diagnosis: {n_obs} measured frequencies for {base.n_params} fitted parameters "
+                        f"({', '.join(base.labels)}): a fit leaves no residual to test an effect with — "
+                        "measure more modes or states, or fix parameters (joints.fixed)")
+
+
+def compare_reference(diag: Diagnoser, base: Variant, reference_state: str | None, compare: bool,
+                      notes: list, log) -> tuple[np.ndarray, tuple | None]:
+    """Step 1: the baseline calibrated on the reference state alone, and its comparison tables.
+
+    Returns the start vector of the all-states calibration and ``(compare table, MAC matrices,
+    shape residuals)``, or None when the comparison is off or the reference state alone cannot
+    determine the parameters (then a note says so and the caller compares the all-states baseline).
+    """
+    data = diag.data
+    ref = reference_state or min(data, key=lambda d: d.info.em_force_N).name
+    if compare and sum(len(d.f_meas) for d in data if d.name == ref) <= base.n_params:
+        compare = False  # the reference state alone cannot determine the parameters
+        notes.append(f"the comparison uses the baseline calibrated on all states: {ref} alone has no more "
+                     f"measured modes than the {base.n_params} fitted parameters")
+    x0 = base.x_start()
+    diag.ensure_solver(base, x0)
+    if not compare:
+        return x0, None
+    sub = Diagnoser(diag.system, diag.cfg, [d for d in data if d.name == ref], n_modes=diag.n_modes,
+                    solver=diag.solver, log=log)
+    log(f"diagnosis: calibrating the baseline on {ref}")
+    fit_ref = sub.fit(base, x0)
+    return fit_ref.x, compare_tables(diag, base, fit_ref.x)
+
+
+def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log) -> tuple[dict, Fit, list]:
+    """Step 2: the configured effects added to the calibrated baseline one by one, each refitted.
+
+    Returns the fits by ladder label (``baseline``, ``+<effect>`` ...), the last fit (the current
+    model) and the ladder rows (:func:`state_errors_table`).
+    """
+    ladder_rows = state_errors_table(diag, fit_base, "baseline")
+    fits = {"baseline": fit_base}
+    current = fit_base
+    for en in enabled:
+        spec = EffectSpec(en.effect, dict(en.values), dict(en.options),
+                          [p.name for p in en.effect.params] if en.fit else [])
+        var = current.variant.extended(spec)
+        x0 = np.concatenate([current.x, [en.effect.param(n).to_t(en.values[n]) for n in spec.free]])
+        log(f"diagnosis: calibrating {var.name}")
+        current = diag.fit(var, x0, index=current.ev.index, verify=en is enabled[-1])
+        label = "+" + en.effect.name
+        fits[label] = current
+        ladder_rows += state_errors_table(diag, current, label)
+    return fits, current, ladder_rows
+
+
+def score_candidates(diag: Diagnoser, current: Fit, enabled: list[Enabled], candidates: list[str] | None,
+                     effects_cfg: dict | None) -> tuple[Fit, list, float]:
+    """Step 3: score test of every candidate effect at the current model (all states and between states).
+
+    Returns the current fit re-evaluated at its optimum, the rows ``(ranking row, EffectSpec or None,
+    score-test dict or None)`` per candidate and the between-state share of ``r^T r``.
+    """
+    cfg, data = diag.cfg, diag.data
+    ev = diag.evaluate(current.variant, current.x, current.ev.index)
+    current = Fit(current.variant, ev, current.pairings)
+    in_model = {e.effect.name for e in enabled}
+    names = [n for n in (list(EFFECTS) if candidates is None else candidates) if n not in in_model]
+    C = state_contrasts(ev, len(data))
+    rc = C @ ev.r if len(C) else np.zeros(0)
+    between_share = float(rc @ rc / (ev.r @ ev.r)) if len(C) and ev.r @ ev.r > 0 else 0.0
+    rows = []
+    for name in names:
+        eff = EFFECTS[name]
+        spec = EffectSpec.candidate(eff, (effects_cfg or cfg.get("effects") or {}).get(name))
+        why = eff.requires(diag.system, cfg, [d.info for d in data], spec.options) if eff.requires else None
+        row = {"effect": name, "title": eff.title, "parameter": eff.params[0].name, "unit": eff.params[0].unit}
+        if why:
+            row.update({"explained_fraction": 0.0, "score": 0.0, "p_value": 1.0, "note": f"not applicable: {why}"})
+            rows.append((row, None, None))
+            continue
+        st = score_candidate(diag, current, spec, C, row)
+        rows.append((row, spec, st))
+    return current, rows, between_share
+
+
+def score_candidate(diag: Diagnoser, current: Fit, spec: EffectSpec, C: np.ndarray, row: dict) -> dict:
+    """Score tests of one applicable candidate; fills ``row`` and returns the all-states test."""
+    ev = current.ev
+    var = current.variant.extended(spec)
+    x_ext = np.concatenate([current.x, np.zeros(var.n_params - current.variant.n_params)])
+    cols = list(range(current.variant.n_params, var.n_params))
+    Jt = extra_jacobian(diag, var, x_ext, ev, cols)
+    lower = np.array([var.lower[c] for c in cols])
+    st = score_test(ev.r, ev.J, Jt, lower)
+    p0 = spec.effect.params[0]
+    row.update({"explained_fraction": st["explained_fraction"], "score": st["score"],
+                "p_value": st["p_value"], "linear_estimate": p0.from_t(float(st["t_hat"][0])),
+                "collinearity": st["collinearity"], "note": ""})
+    if len(C):
+        sd = score_test(C @ ev.r, C @ ev.J, C @ Jt, lower, scale_x=np.linalg.norm(ev.J, axis=0),
+                        scale_t=np.linalg.norm(Jt, axis=0))
+        row.update({"between_states_fraction": sd["explained_fraction"],
+                    "between_states_p_value": sd["p_value"]})
+    if st["collinearity"] < 1e-3:
+        row["note"] = "collinear with the fitted parameters (cannot be told apart from them)"
+    elif not st["sign_ok"]:
+        row["note"] = "would need a value outside its physical range (wrong sign)"
+    return st
+
+
+def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_refit: int, alpha: float,
+                     log) -> None:
+    """Step 4: refit the ``n_refit`` leading candidates (by score); fills their ranking rows and ``fits``."""
+    order = sorted([r for r in rows if r[1] is not None and r[2]["sign_ok"] and r[0]["score"] > 0
+                    and r[2]["collinearity"] >= 1e-3 and r[0]["explained_fraction"] >= 0.01],
+                   key=lambda r: -r[0]["score"])
+    for i, (row, spec, st) in enumerate(order[:n_refit]):
+        log(f"diagnosis: refitting {current.variant.name} + {row['effect']}")
+        f = refit(diag, current, spec, st["t_hat"], verify=i == 0)
+        cov = f.covariance()
+        j = f.variant.n_params - 1
+        t, sd = float(f.x[j]), float(np.sqrt(max(cov[j, j], 0.0)))
+        p0 = spec.effect.params[0]
+        lo_t, hi_t = max(t - 1.96 * sd, p0.t_bounds[0]), t + 1.96 * sd
+        vals = sorted([p0.from_t(lo_t) if lo_t != 0 else p0.null, p0.from_t(hi_t)])
+        summ = f.state_summary(diag.data)
+        row.update({"delta_aicc": f.aicc - current.aicc, "fit_chi2": f.chi2, "fit_p_value": f.p_value,
+                    "explains": bool(f.p_value >= alpha), "estimate": p0.from_t(t), "ci95_low": vals[0],
+                    "ci95_high": vals[1],
+                    "max_abs_error_pct_after": max(s["max_abs_error_pct"] for s in summ),
+                    "rms_error_pct_after": float(np.sqrt(np.mean([s["rms_error_pct"] ** 2 for s in summ])))})
+        fits["+" + row["effect"]] = f
+
+
+def verdict_text(current: Fit, ranking: pd.DataFrame, data: list[StateData], alpha: float,
+                 between_share: float) -> tuple[str, str]:
+    """Step 5: the verdict in words and its short form (``none needed``, the effect, ``unexplained``)."""
+    summ_cur = current.state_summary(data)
+    cur_txt = ", ".join(f"{s['state']} max {s['max_abs_error_pct']:.2f} % rms {s['rms_error_pct']:.2f} %"
+                        for s in summ_cur)
+    explaining = ranking[ranking["explains"]]
+    if current.p_value >= alpha:
+        verdict = (f"The current model ({current.variant.name}) explains the data within the noise "
+                   f"(chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, p = {current.p_value:.2g}; "
+                   f"{cur_txt}); no effect is missing.")
+        return verdict, "none needed"
+    if len(explaining):
+        best = explaining.iloc[0]
+        verdict = missing_effect_text(best, max(s["max_abs_error_pct"] for s in summ_cur))
+        explained_by = str(best["effect"])
+    else:
+        verdict = unexplained_text(current, ranking, cur_txt)
+        explained_by = "unexplained"
+    return verdict + between_states_text(ranking, between_share), explained_by
+
+
+def missing_effect_text(best: pd.Series, max_error_pct: float) -> str:
+    """The verdict naming the missing effect ``best`` (a ranking row) and what enabling it achieves."""
+    return (f"Missing effect: {best['effect']} ({best['title']}), {best['parameter']} = "
+            f"{best['estimate']:.4g} {best['unit']} (95 % CI {best['ci95_low']:.3g} .. {best['ci95_high']:.3g}). "
+            f"It explains {100 * best['explained_fraction']:.0f} % of the residual to first order; refitted, "
+            f"the error falls from max {max_error_pct:.2f} % to "
+            f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
+            f"(p = {best['fit_p_value']:.2g}, delta AICc = {best['delta_aicc']:.1f}). Enable it with "
+            f"effects: {{{best['effect']}: {{}}}} in config.yaml.")
+
+
+def unexplained_text(current: Fit, ranking: pd.DataFrame, cur_txt: str) -> str:
+    """The verdict when no listed effect explains the residual (with the closest candidate)."""
+    lead = ranking.iloc[0] if len(ranking) else None
+    part = ""
+    if lead is not None and lead.get("score", 0) > 0:
+        part = (f" The closest candidate, {lead['effect']}, explains {100 * lead['explained_fraction']:.0f} % "
+                f"of the residual to first order")
+        if isinstance(lead.get("fit_p_value"), float) and np.isfinite(lead.get("fit_p_value", np.nan)):
+            part += (f" but leaves max {lead['max_abs_error_pct_after']:.2f} % error "
+                     f"(refit p = {lead['fit_p_value']:.2g})")
+        part += "."
+    return ("No listed effect explains the residual: the current model misses something outside the "
+            f"library ({cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
+            f"p = {current.p_value:.2g})." + part)
+
+
+def between_states_text(ranking: pd.DataFrame, between_share: float) -> str:
+    """The sentence on the between-state part of the residual ("" when it is 5 % or less)."""
+    if not (between_share > 0.05 and ranking["between_states_fraction"].notna().any()):
+        return ""
+    b = ranking.sort_values("between_states_fraction", ascending=False, kind="stable").iloc[0]
+    if b["between_states_fraction"] > 0.5:
+        return (f" Of the residual, {100 * between_share:.0f} % differs between the states; "
+                f"{b['effect']} explains {100 * b['between_states_fraction']:.0f} % of that "
+                f"between-state part (p = {b['between_states_p_value']:.2g}).")
+    return (f" Of the residual, {100 * between_share:.0f} % differs between the states; no listed "
+            "effect explains that between-state part.")
+
+
+def model_notes(current: Fit, data: list[StateData]) -> list[str]:
+    """Step 6: notes on the current model: a weakly identifiable combination, unpaired measured modes."""
+    notes = []
+    ident = identifiability(current.ev.J, current.variant.labels)
+    if ident["flag"]:
+        notes.append(f"weakly identifiable combination of the fitted parameters (sigma_min/sigma_max = "
+                     f"{ident['ratio']:.1e}): {ident['weak']}")
+    for d, p in zip(data, current.pairings):
+        if p.unpaired_measured:
+            notes.append(f"{d.name}: measured mode(s) {', '.join(str(i + 1) for i in p.unpaired_measured)} "
+                         "have no model partner (listed in compare.csv)")
+    return notes

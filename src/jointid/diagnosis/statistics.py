@@ -1,0 +1,167 @@
+"""Test statistics of the diagnosis: score tests, between-state contrasts, identifiability, AICc.
+
+See docs/effects.md.  Residuals are sigma-normalised (``r_i = ln(f_model / f_meas) / sigma``), so the
+chi-square of a fit is ``r^T r`` and sigma is known:
+
+* score (Lagrange-multiplier) test of a candidate with parameters t at t = 0 (effect absent):
+  ``P = I - J_x J_x^+``, ``LM = r^T P J_t (J_t^T P J_t)^+ J_t^T P r`` ~ chi2(q); one-sided for a
+  parameter whose null sits on its bound (mass >= 0, compliance >= 0, beta >= 0): p = 0.5 chi2_1 sf,
+  and a linearised estimate of the wrong sign explains nothing.  Explained fraction ``LM / r^T r``;
+* ``AICc = chi2 + 2k + 2k(k+1)/(n-k-1)``; a variant "explains" the data when its chi2 is consistent
+  with the noise (p >= ``alpha``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from jointid.fe.reduced import Solution
+
+if TYPE_CHECKING:
+    from jointid.diagnosis.fitting import Diagnoser, Evaluation
+    from jointid.diagnosis.variants import Variant
+
+# a Jacobian column that a projection shrinks below this fraction of its norm is round-off (the
+# reduced solver's eigenvalues are accurate to 1e-6; a real between-state sensitivity is O(1))
+NEGLIGIBLE = 1e-4
+
+
+def chi2_p_value(chi2: float, dof: int) -> float:
+    """Probability of a chi-square at least ``chi2`` with ``dof`` degrees of freedom (noise only)."""
+    return float(chi2_dist.sf(chi2, dof))
+
+
+def aicc(chi2: float, n: int, k: int) -> float:
+    """Corrected Akaike criterion ``chi2 + 2k + 2k(k+1)/(n-k-1)`` (sigma known; inf for n <= k + 1).
+
+    Parameters
+    ----------
+    chi2 : float
+        Sum of squared sigma-normalised residuals.
+    n, k : int
+        Number of residuals and of fitted parameters.
+    """
+    corr = 2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else math.inf
+    return chi2 + 2 * k + corr
+
+
+def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -> np.ndarray:
+    """Jacobian columns ``cols`` of ``variant`` at ``x`` using the solutions and pairing of ``ev``."""
+    out = []
+    for si, (d, sol) in enumerate(zip(diag.data, ev.solutions)):
+        idx = np.asarray(ev.index[si])
+        ok = np.flatnonzero(idx >= 0)
+        sub = Solution(sol.freqs_Hz[idx[ok]], sol.lam[idx[ok]], sol.Y[:, idx[ok]], sol.lam_all, sol.Y_all,
+                       sol.kc, sol.mc, sol.shapes[:, idx[ok]], sol.generation)
+        dc = variant.dcoefficients(x, d.info)
+        Jb = np.zeros((len(idx), len(cols)))
+        for k, j in enumerate(cols):
+            dlam = diag.solver.sensitivity(sub, *dc[j])
+            Jb[: len(ok), k] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
+        out.append(Jb)
+    return np.vstack(out)
+
+
+def score_test(r: np.ndarray, Jx: np.ndarray, Jt: np.ndarray, t_lower: np.ndarray, *,
+               scale_x: np.ndarray | None = None, scale_t: np.ndarray | None = None) -> dict:
+    """Lagrange-multiplier (score) test of extra parameters ``t`` at ``t = 0``.
+
+    Parameters
+    ----------
+    r : (n,) sigma-normalised residuals of the fitted (restricted) model.
+    Jx : (n, p) Jacobian of the fitted parameters.
+    Jt : (n, q) Jacobian of the candidate's parameters at their null.
+    t_lower : (q,) lower bounds of ``t`` (0 when the null is on the bound).
+    scale_x, scale_t : (p,), (q,) optional
+        Column norms of the Jacobians before a projection (e.g. onto between-state contrasts).  A
+        column that the projection shrinks below ``NEGLIGIBLE`` of its norm is round-off (a
+        parameter acting alike in every state has no between-state sensitivity) and is dropped:
+        its direction would otherwise be arbitrary.
+
+    Returns
+    -------
+    dict
+        ``score`` (LM statistic), ``p_value``, ``explained_fraction``, ``t_hat`` (linearised estimate),
+        ``sign_ok``, ``collinearity`` (norm of the projected over the raw sensitivity, 0 = fully
+        explained by the fitted parameters).
+    """
+    n, q = Jt.shape
+    if scale_x is not None:
+        Jx = Jx[:, np.linalg.norm(Jx, axis=0) > NEGLIGIBLE * np.asarray(scale_x)]
+    if scale_t is not None:
+        Jt = np.where(np.linalg.norm(Jt, axis=0) > NEGLIGIBLE * np.asarray(scale_t), Jt, 0.0)
+    if Jx.shape[1]:
+        U, sv, _ = np.linalg.svd(Jx, full_matrices=False)
+        Q = U[:, sv > 1e-10 * sv.max()] if sv.max() > 0 else U[:, :0]  # range of Jx (rank-revealing)
+        PJ = Jt - Q @ (Q.T @ Jt)
+    else:
+        PJ = Jt
+    raw = np.linalg.norm(Jt, axis=0)
+    proj = np.linalg.norm(PJ, axis=0)
+    coll = float(np.min(np.where(raw > 0, proj / np.where(raw > 0, raw, 1), 0.0))) if q else 0.0
+    g = PJ.T @ r
+    H = PJ.T @ PJ
+    Hinv = np.linalg.pinv(H, rcond=1e-10)
+    lm = float(g @ Hinv @ g)
+    t_hat = -Hinv @ g
+    rr = float(r @ r)
+    sign_ok = bool(np.all(t_hat >= t_lower - 1e-12))
+    if raw.max() == 0 or coll < 1e-6:
+        lm = 0.0
+    if q == 1 and t_lower[0] == 0.0:
+        p = 0.5 * float(chi2_dist.sf(lm, 1)) if sign_ok else 1.0
+    else:
+        p = float(chi2_dist.sf(lm, q))
+    explained = (lm / rr if rr > 0 else 0.0) if sign_ok else 0.0
+    return {"score": lm if sign_ok else 0.0, "score_two_sided": lm, "p_value": p if lm > 0 else 1.0,
+            "explained_fraction": float(min(explained, 1.0)), "t_hat": t_hat, "sign_ok": sign_ok,
+            "collinearity": coll}
+
+
+def state_contrasts(ev: Evaluation, n_states: int) -> np.ndarray:
+    """Orthonormal between-state contrasts ``C`` of the residual vector ``(n_c, n)``.
+
+    For every measured mode number paired in all states, the residuals across the states are
+    projected onto the complement of the all-ones vector (Helmert basis), so ``C r`` is the part of
+    the residual that differs between states (unit variance per component, like ``r``).  Effects
+    acting alike in every state (masses, supports) have no sensitivity there; only state-dependent
+    effects can explain it.
+    """
+    if n_states < 2:
+        return np.zeros((0, len(ev.r)))
+    paired = {}
+    for k, (si, mode) in enumerate(ev.rows):
+        if ev.index[si][mode - 1] >= 0:
+            paired.setdefault(mode, {})[si] = k
+    H = np.zeros((n_states - 1, n_states))
+    for j in range(1, n_states):
+        H[j - 1, :j] = 1.0
+        H[j - 1, j] = -j
+        H[j - 1] /= np.linalg.norm(H[j - 1])
+    rows = []
+    for mode, by_state in sorted(paired.items()):
+        if len(by_state) != n_states:
+            continue
+        for h in H:
+            c = np.zeros(len(ev.r))
+            for si, k in by_state.items():
+                c[k] = h[si]
+            rows.append(c)
+    return np.array(rows) if rows else np.zeros((0, len(ev.r)))
+
+
+def identifiability(J: np.ndarray, labels: list[str], threshold: float = 1e-3) -> dict:
+    """SVD of the column-normalised Jacobian: condition and the weakest parameter combination."""
+    if J.size == 0:
+        return {"ratio": 1.0, "weak": "", "flag": False}
+    norms = np.linalg.norm(J, axis=0)
+    Jn = J / np.where(norms > 0, norms, 1.0)
+    s, V = np.linalg.svd(Jn, full_matrices=False)[1:]
+    ratio = float(s[-1] / s[0]) if s[0] > 0 else 0.0
+    v = V[-1]
+    parts = [f"{c:+.2f} {lab}" for c, lab in sorted(zip(v, labels), key=lambda t: -abs(t[0])) if abs(c) > 0.1]
+    return {"ratio": ratio, "weak": " ".join(parts), "flag": bool(ratio < threshold or np.any(norms == 0))}

@@ -1,0 +1,195 @@
+"""The system of terms of the diagnosis model: the affine FE terms the effects act on.
+
+The system of terms (:class:`System`)
+------------------------------------
+``build_system(model, cfg)`` derives from a built model:
+
+* the joint layers split per carriage: ``K_top_y@0 .. K_top_y@3`` (carriage numbers follow
+  ``model.meta['carriage_centres_m']``), so a per-carriage contact pressure can scale each block;
+* a clamped base bottom turned into a bonded spring layer to the ground, ``K_foundation`` at
+  1e15 N/m^3 (the value standing in for a bonded rail fixing, ``model.RAIL_BONDED_N_PER_M3``), so the
+  base support can be softened continuously; the bonded layer reproduces the clamped frequencies to
+  better than 1e-4 (checked in ``tests/test_effects.py``).
+
+See docs/effects.md; the effects themselves are in :mod:`jointid.diagnosis.effects`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+
+from jointid.errors import ModelError
+from jointid.fe.fem import Model
+from jointid.fe.model import RAIL_BONDED_N_PER_M3, base_coefficients
+from jointid.geometry.points import dof_labels
+from jointid.geometry.rig import PART_IDS
+
+__all__ = ["BONDED_N_PER_M3", "JOINT_FACES", "StateInfo", "System", "baseline_coefficients", "build_system",
+           "carried_mass_kg"]
+
+JOINT_FACES = ("top", "flank")
+BONDED_N_PER_M3 = RAIL_BONDED_N_PER_M3
+
+
+# ------------------------------------------------------------------ system of terms
+@dataclass
+class StateInfo:
+    """Operating state as the effects see it: name and vertical motor attraction (N)."""
+
+    name: str
+    em_force_N: float = 0.0
+
+
+@dataclass
+class System:
+    """Affine terms of the diagnosis model (joint layers split per carriage, penalty support).
+
+    Attributes
+    ----------
+    stiffness, mass : dict of name -> CSR (n_dofs, n_dofs)
+        ``K0``/``M0`` plus affine terms; joint layers as ``K_<face>_<d>@<carriage>``.
+    fixed : ndarray
+        Constrained DOFs (empty when the clamped support is a bonded spring layer).
+    probe : CSR (3 * n_points, n_dofs)
+        Displacements at the measuring points, rows (point, direction).
+    labels : list of str
+        ``"<point>:<direction>"`` per probe row.
+    carriage_xz_m : ndarray (n_carriages, 2)
+        Carriage centres (X, Z) in m.
+    carried_mass_kg : float
+        Mass resting on the joints (table + carriages + motors), kg.
+    support : str
+        ``rig.support.kind`` of the model.
+    model : Model
+        The model the system was built from.
+    """
+
+    stiffness: dict
+    mass: dict
+    fixed: np.ndarray
+    probe: sp.csr_matrix
+    labels: list
+    carriage_xz_m: np.ndarray
+    carried_mass_kg: float
+    support: str
+    model: Model
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_dofs(self) -> int:
+        """Number of DOFs of the model."""
+        return self.stiffness["K0"].shape[0]
+
+    @property
+    def n_carriages(self) -> int:
+        """Number of carriages."""
+        return len(self.carriage_xz_m)
+
+    @property
+    def ordering(self):
+        """The model's cached fill-reducing ordering when the free DOFs are the model's."""
+        same = np.array_equal(np.asarray(self.fixed), np.asarray(self.model.fixed))
+        return self.model.ordering if same else None
+
+    def K(self, kc: dict) -> sp.csr_matrix:
+        """``K0 + sum kc[name] * stiffness[name]`` (CSR)."""
+        out = self.stiffness["K0"].copy()
+        for name, c in kc.items():
+            if c != 0.0:
+                out = out + c * self.stiffness[name]
+        return out.tocsr()
+
+    def M(self, mc: dict) -> sp.csr_matrix:
+        """``M0 + sum mc[name] * mass[name]`` (CSR)."""
+        out = self.mass["M0"].copy()
+        for name, c in mc.items():
+            if c != 0.0:
+                out = out + c * self.mass[name]
+        return out.tocsr()
+
+
+def carried_mass_kg(model: Model) -> float:
+    """Mass resting on the carriage joints: table + carriages (from ``M0``) + motor primaries, kg.
+
+    The body formed by the table and the carriages shares no node with the rails or the base (the
+    joints are spring layers between duplicated nodes), so the row sums of ``M0`` over its nodes add
+    up to its mass (partition of unity).  Nodes on the carriage/table interface are owned by both
+    parts (``dof_part == -1``) and counted with the body.
+    """
+    part = model.dof_part
+    body = np.isin(part, [PART_IDS["carriage"], PART_IDS["table"]]) | (part < 0)
+    M0 = model.mass["M0"]
+    ey = np.zeros(M0.shape[0])
+    ey[1::3] = 1.0
+    rows = 3 * np.flatnonzero(body) + 1
+    return float((M0 @ ey)[rows].sum() + model.meta.get("motor_mass_kg", 0.0))
+
+
+def _split_by_carriage(A: sp.csr_matrix, owner: np.ndarray, n: int) -> list[sp.csr_matrix]:
+    """Split a joint layer into per-carriage parts by the owner of each (vector) DOF."""
+    C = A.tocoo()
+    orow, ocol = owner[C.row], owner[C.col]
+    if np.any(orow != ocol):
+        raise ModelError("joint layer couples DOFs of two carriages — the carriages overlap; check "
+                         "rig.carriages.pitch_m and length_m")
+    out = []
+    for c in range(n):
+        sel = orow == c
+        out.append(sp.csr_matrix((C.data[sel], (C.row[sel], C.col[sel])), shape=A.shape))
+    return out
+
+
+def build_system(model: Model, cfg: dict) -> System:
+    """Diagnosis system of ``model``: joint terms per carriage and the clamped support as springs.
+
+    Parameters
+    ----------
+    model : Model
+        Built or loaded model (``model.build_model`` / ``model.load_model``).
+    cfg : dict
+        Validated configuration (uses ``rig.support.kind``).
+    """
+    centres = np.asarray(model.meta["carriage_centres_m"], float)
+    xz = centres[:, [0, 2]]
+    loc = model.doflocs[[0, 2]].T  # (n_scalar, 2)
+    d2 = ((loc[:, None, :] - xz[None, :, :]) ** 2).sum(axis=2)
+    owner = np.repeat(np.argmin(d2, axis=1), 3)
+    stiffness = {"K0": model.stiffness["K0"]}
+    for name, A in model.stiffness.items():
+        face = name.split("_")[1] if name.count("_") == 2 else ""
+        if name.startswith("K_") and face in JOINT_FACES:
+            for c, part in enumerate(_split_by_carriage(A, owner, len(xz))):
+                stiffness[f"{name}@{c}"] = part
+        elif name != "K0":
+            stiffness[name] = A
+    support = model.meta.get("support", cfg["rig"]["support"]["kind"])
+    fixed = np.asarray(model.fixed, dtype=np.int64)
+    if support == "clamped":
+        fixed = np.array([], dtype=np.int64)  # bonded foundation layer instead (see module doc)
+    pts = pd.DataFrame(model.meta["points"])
+    return System(stiffness=stiffness, mass=dict(model.mass), fixed=fixed, probe=model.probe,
+                  labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model),
+                  support=support, model=model, meta={"points": pts})
+
+
+def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) -> tuple[dict, dict]:
+    """Term coefficients of the baseline (no effect) at joint parameters ``theta`` (N/m^3).
+
+    Joint terms are expanded to every carriage with the same value; a clamped support becomes the
+    bonded foundation layer.  Returns ``(kc, mc)`` for :meth:`System.K` / :meth:`System.M`.
+    """
+    kc0, mc = base_coefficients(cfg, system.model, theta)
+    kc = {}
+    for name, v in kc0.items():
+        if name.split("_")[1] in JOINT_FACES and name.count("_") == 2:
+            for c in range(system.n_carriages):
+                kc[f"{name}@{c}"] = float(v)
+        else:
+            kc[name] = float(v)
+    if system.support == "clamped":
+        kc["K_foundation"] = BONDED_N_PER_M3
+    return kc, dict(mc)

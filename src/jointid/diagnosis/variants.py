@@ -1,0 +1,168 @@
+"""Measured states and model variants of the diagnosis (docs/effects.md).
+
+* :class:`StateData` — measured frequencies (and shapes) of one operating state; :func:`dataset_states`
+  reads them from a dataset folder.
+* :class:`EffectSpec` — an effect inside a variant (start or fixed values, options, fitted parameters).
+* :class:`Variant` — the joint parameters (log) plus effects; the coefficients of the affine model and
+  their derivatives at a parameter vector ``x``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from jointid.correlate import pairing as correlate
+from jointid.diagnosis.effects import Effect, apply_effects
+from jointid.diagnosis.terms import StateInfo, System, baseline_coefficients
+from jointid.errors import DataError
+
+
+@dataclass
+class StateData:
+    """Measured data of one state: frequencies (Hz), optional shapes at the probe labels."""
+
+    name: str
+    info: StateInfo
+    f_meas: np.ndarray
+    shapes: np.ndarray | None
+    sigma_rel: float
+
+
+def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = None) -> list[StateData]:
+    """:class:`StateData` of the requested states of a :class:`jointid.data.dataset.Dataset`.
+
+    The motor force comes from the dataset's ``conditions.yaml`` (the measured input), else from
+    ``cfg['states']``.  The frequency uncertainty is the dataset's ``frequency_uncertainty_pct``,
+    else ``identify.frequency_uncertainty_pct``.
+    """
+    names = list(states or ds.states)
+    missing = [s for s in names if s not in ds.states]
+    if missing:
+        raise DataError([f"{ds.name}: state {s!r} is not in the dataset — its states are "
+                         f"{', '.join(ds.states)}" for s in missing])
+    sigma = float(ds.conditions.get("frequency_uncertainty_pct",
+                                    cfg.get("identify", {}).get("frequency_uncertainty_pct", 1.0))) / 100
+    low = correlate.below_band(ds.name, {s: ds.freqs(s) for s in names},
+                               float(cfg.get("solver", {}).get("min_freq_Hz", 0.0)))
+    if low:
+        raise DataError(low)
+    out = []
+    for s in names:
+        cond = ds.state_conditions(s)
+        force = cond.get("em_force_N", cfg.get("states", {}).get(s, {}).get("em_force_N", 0.0))
+        shapes = None
+        if ds.shapes is not None and s in set(ds.shapes["state"]):
+            shapes = ds.shape_matrix(s, system.labels)
+        out.append(StateData(s, StateInfo(s, float(force)), ds.freqs(s), shapes, sigma))
+    return out
+
+
+@dataclass
+class EffectSpec:
+    """An effect inside a variant: start/fixed values (physical), options, fitted parameter names."""
+
+    effect: Effect
+    values: dict
+    options: dict
+    free: list
+
+    @classmethod
+    def candidate(cls, effect: Effect, options: dict | None = None) -> "EffectSpec":
+        """The effect as a candidate: at its null, options over its defaults, every parameter fitted."""
+        return cls(effect, effect.null_values(), {**effect.options, **(options or {})},
+                   [p.name for p in effect.params])
+
+
+class Variant:
+    """A model variant: the joint parameters (log, shared by all states) plus effects.
+
+    The parameter vector is ``x = [ln theta_1 .. ln theta_p, t_1 .. t_q]`` with ``t`` the
+    dimensionless test variables of the free effect parameters (``effects.Param``); ``slots`` lists
+    ``(effect number, Param)`` for each of them, in the order of ``x``.
+    """
+
+    def __init__(self, system: System, cfg: dict, effects: list[EffectSpec] = (), name: str | None = None,
+                 theta_fixed: dict | None = None):
+        self.system, self.cfg = system, cfg
+        jp = cfg["joints"]["parameters"]
+        self.theta_fixed = dict(theta_fixed or {})
+        self.joint_names = [n for n in jp if n not in self.theta_fixed]
+        self.effects = list(effects)
+        self.name = name or ("baseline" if not self.effects else
+                             "baseline + " + " + ".join(e.effect.name for e in self.effects))
+        self.labels = list(self.joint_names)
+        lo = [math.log(jp[n]["lower"]) for n in self.joint_names]
+        hi = [math.log(jp[n]["upper"]) for n in self.joint_names]
+        self.slots = []
+        for i, spec in enumerate(self.effects):
+            for pname in spec.free:
+                p = spec.effect.param(pname)
+                self.slots.append((i, p))
+                self.labels.append(f"{spec.effect.name}.{pname}")
+                a, b = p.t_bounds
+                lo.append(a)
+                hi.append(b if math.isfinite(b) else 1e6)
+        self.lower, self.upper = np.array(lo), np.array(hi)
+        self.p = len(self.joint_names)
+
+    @property
+    def n_params(self) -> int:
+        """Length of the parameter vector ``x``."""
+        return len(self.labels)
+
+    def x_start(self, theta: dict | None = None) -> np.ndarray:
+        """Start vector: ``theta`` (N/m^3) or the geometric mean of the bounds; effect start values."""
+        x = 0.5 * (self.lower + self.upper)
+        for j, n in enumerate(self.joint_names):
+            if theta and n in theta:
+                x[j] = math.log(theta[n])
+        for k, (i, p) in enumerate(self.slots):
+            x[self.p + k] = p.to_t(self.effects[i].values[p.name])
+        return np.clip(x, self.lower, self.upper)
+
+    def unpack(self, x) -> tuple[dict, list[dict]]:
+        """Joint parameters (N/m^3, fixed ones included) and each effect's physical values at ``x``."""
+        theta = {n: math.exp(float(v)) for n, v in zip(self.joint_names, x[: self.p])}
+        theta.update(self.theta_fixed)
+        vals = [dict(s.values) for s in self.effects]
+        for k, (i, p) in enumerate(self.slots):
+            vals[i][p.name] = p.from_t(float(x[self.p + k]))
+        return theta, vals
+
+    def physical(self, x) -> dict:
+        """Parameter values in physical units by label."""
+        theta, vals = self.unpack(x)
+        out = {n: theta[n] for n in self.joint_names}
+        for k, (i, p) in enumerate(self.slots):
+            out[self.labels[self.p + k]] = vals[i][p.name]
+        return out
+
+    def coefficients(self, x, state: StateInfo) -> tuple[dict, dict]:
+        """Term coefficients ``(kc, mc)`` at ``x`` in ``state`` (baseline, then the effects in order)."""
+        theta, vals = self.unpack(x)
+        kc, mc = baseline_coefficients(self.system, self.cfg, theta)
+        active = [(s.effect, v, s.options) for s, v in zip(self.effects, vals)]
+        return apply_effects(self.system, kc, mc, state, active)
+
+    def dcoefficients(self, x, state: StateInfo) -> list[tuple[dict, dict]]:
+        """Derivatives of the coefficients with respect to each component of ``x`` (central FD)."""
+        x = np.asarray(x, float)
+        out = []
+        for j in range(self.n_params):
+            h = 1e-6 if j < self.p else self.slots[j - self.p][1].fd_step(x[j])
+            xp, xm = x.copy(), x.copy()
+            xp[j] += h
+            xm[j] -= h
+            kp, mp = self.coefficients(xp, state)
+            km, mm = self.coefficients(xm, state)
+            dk = {k: (kp.get(k, 0.0) - km.get(k, 0.0)) / (2 * h) for k in sorted(set(kp) | set(km))}
+            dm = {k: (mp.get(k, 0.0) - mm.get(k, 0.0)) / (2 * h) for k in sorted(set(mp) | set(mm))}
+            out.append(({k: v for k, v in dk.items() if v != 0.0}, {k: v for k, v in dm.items() if v != 0.0}))
+        return out
+
+    def extended(self, spec: EffectSpec) -> "Variant":
+        """This variant plus one more effect (its parameters appended at the end of ``x``)."""
+        return Variant(self.system, self.cfg, self.effects + [spec], theta_fixed=self.theta_fixed)
