@@ -1,7 +1,14 @@
-"""Print import cycles and upward (layer-breaking) imports among the jointid modules.
+"""Check the package's layout: import layers, cycles, and the size of modules and functions.
 
-Usage: ``python tools/import_graph.py [src/jointid]`` (default: ``src/jointid`` under the working directory).  Reads every ``import`` statement (module level and
-inside functions, not under ``if TYPE_CHECKING``) with ``ast``; prints nothing and exits 0 when the graph is clean.
+Usage: ``python tools/layout.py [src/jointid]`` (default: ``src/jointid`` under the working directory).
+Prints one line per finding and exits 1 if there is any; prints nothing and exits 0 when clean.
+
+* Imports (every ``import`` statement, at module level and inside functions, not under
+  ``if TYPE_CHECKING``) point only down the layers of ``LAYERS`` (docs/architecture.md), and no
+  modules import each other in a cycle.
+* No module is over 400 lines unless a comment among its first 40 lines starts with
+  ``# over 400 lines:`` and gives the reason; no function is over 80 lines unless a comment at its top
+  (before or right after its docstring) starts with ``# long`` and gives the reason.
 """
 import ast
 import sys
@@ -39,6 +46,31 @@ def imports(path: Path, name: str) -> set[str]:
 def layer(mod: str) -> int:
     parts = mod.split(".")
     return LAYERS.index(parts[1]) if len(parts) > 1 and parts[1] in LAYERS else -1
+
+
+MAX_MODULE_LINES, MAX_FUNCTION_LINES = 400, 80
+
+
+def size_findings(path: Path) -> list[str]:
+    """Modules over 400 lines and functions over 80 lines of ``path`` that carry no reason comment."""
+    lines = path.read_text().splitlines()
+    out = []
+    if len(lines) > MAX_MODULE_LINES and not any(ln.startswith("# over 400 lines:") for ln in lines[:40]):
+        out.append(f"{path}: {len(lines)} lines, no '# over 400 lines: <reason>' comment at its top")
+    for node in ast.walk(ast.parse("\n".join(lines))):
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        n = node.end_lineno - node.lineno + 1
+        if n <= MAX_FUNCTION_LINES:
+            continue
+        first = node.body[0]
+        doc = isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+        end = first.end_lineno + 3 if doc else first.lineno + 2
+        head = [ln.strip() for ln in lines[node.lineno - 1:end]]  # from the def line to just past the docstring
+        if not any(h.startswith("# long") for h in head):
+            out.append(f"{path}:{node.lineno}: {node.name} is {n} lines, no '# long ...: <reason>' comment at "
+                       "its top")
+    return out
 
 
 def main(argv):
@@ -83,6 +115,10 @@ def main(argv):
     for comp in sccs:
         print("cycle: " + " <-> ".join(comp))
         bad += 1
+    for p in sorted(mods.values()):
+        for line in size_findings(p):
+            print(line)
+            bad += 1
     return 1 if bad else 0
 
 
