@@ -1,1 +1,1 @@
-"""jointid.stages.core."""
+"""Workflow stages: one module per rule family (read inputs, call the package, write outputs); runner: the Snakemake glue."""
