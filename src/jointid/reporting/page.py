@@ -115,7 +115,8 @@ def _summary(data: dict) -> dict:
         "increase": [{"value": f"{r.increase_pct:+.1f}", "paper": f"{r.paper_increase_pct:+.1f}"}
                      for _, r in inc.iterrows()],
         "errors": "; ".join(f"{s.replace('_', '-')} max |error| {t.relative_error_pct.abs().max():.1f} % "
-                            f"(paper {t.paper_relative_error_pct.abs().max():.1f} %)" for s, t in data["tables"].items()),
+                            f"(paper {t.paper_relative_error_pct.abs().max():.1f} %)"
+                            for s, t in data["tables"].items()),
         "damping": ", ".join(f"{k} = {v}" for k, v in d0["damping"]["config"].items()),
         "problems": data.get("table1_problems", []),
     }

@@ -23,7 +23,8 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     cell = cfg["carriage_rigidity"]["cell_size_m"]
     test = BlockTest(cfg, cell)
     at = lambda key: {n: v[key] for n, v in par["parameters"].items()}  # noqa: E731
-    res, low, high = test.rigidity(at("value")), test.rigidity(at("ci95_low"), False), test.rigidity(at("ci95_high"), False)
+    res = test.rigidity(at("value"))
+    low, high = test.rigidity(at("ci95_low"), False), test.rigidity(at("ci95_high"), False)
     springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction
     along = {"x": "lateral", "y": "normal", "z": "feed"}
     for name, spec in cfg["joints"]["parameters"].items():

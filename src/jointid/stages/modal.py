@@ -80,8 +80,9 @@ def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: st
 
     Training: a full solve at the centre of the joint-parameter box (``solver.n_modes`` + 2 modes),
     then one block inverse iteration from the current Ritz vectors at each corner (one factorisation
-    each, no Lanczos run; :func:`jointid.fe.rom.build_rom`).  Error control: candidate points (random interior ones and every point of the
-    DOE sheet) are ranked by the residual indicator; the worst are solved in full, and the basis is
+    each, no Lanczos run; :func:`jointid.fe.rom.build_rom`).  Error control: candidate points (random
+    interior ones and every point of the DOE sheet) are ranked by the residual indicator; the worst
+    are solved in full, and the basis is
     enriched until the relative frequency error of every tracked mode (at or above
     ``solver.min_freq_Hz``) is at most ``solver.rom_tolerance``.  Writes the ROM with its basis
     (``out_npz``, :func:`jointid.fe.rom.load_rom`) and a summary (``out_json``: tolerance, achieved

@@ -21,7 +21,8 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
     for state, path in verify_csvs.items():
         tab = frequency_table(pd.read_csv(path), paper, state)
         io.write_csv(tab, outputs[state])
-        io.write_text((markdown or {}).get(state) or outputs[state].replace(".csv", ".md"), markdown_table(tab, state))
+        md = (markdown or {}).get(state) or outputs[state].replace(".csv", ".md")
+        io.write_text(md, markdown_table(tab, state))
         log(f"table[{state}]: max |error| {tab.relative_error_pct.abs().max():.2f} % "
             f"(paper {tab.paper_relative_error_pct.abs().max():.1f} %)")
 
@@ -37,7 +38,8 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
     io.write_csv(df, out_csv)
     io.write_text(out_md, table1_markdown(df))
     for _, r in df.iterrows():
-        inc = "" if pd.isna(r.increase_pct) else f", increase {r.increase_pct:+.1f} % (paper {r.paper_increase_pct:+.1f} %)"
+        inc = ("" if pd.isna(r.increase_pct)
+               else f", increase {r.increase_pct:+.1f} % (paper {r.paper_increase_pct:+.1f} %)")
         log(f"table1[{r.state}]: {r.dynamic_stiffness_N_per_mm:,.0f} N/mm (paper "
             f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}){inc}")
     return df
