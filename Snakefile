@@ -21,24 +21,21 @@ os.environ.setdefault("PYTHONHASHSEED", "0")
 
 from jointid.config.datasets import dataset_folder
 from jointid.config.snakefile import validated, sections, merged
-from jointid.stages.core import doe_sheet, zoom_enabled
+from jointid.stages import doe, identify, modal, model, surface, verify
 
 configfile: "config.yaml"
 config = validated(config)
-SHEET = doe_sheet(config)
+SHEET = doe.doe_sheet(config)
 POINTS = list(SHEET["point"])
 STATES = list(config["states"])
 R = "results"
 
-# the config parts each rule uses (see the stage functions in src/jointid/stages.py)
-# the mesh, not whether identify and verify extrapolate over its edge levels (mesh.extrapolate_edges)
-CFG_MESH = sections(config, "materials", "rig", *(f"mesh.{k}" for k in config["mesh"] if k != "extrapolate_edges"))
-DOE_KEYS = ("doe.design", "doe.n_center", "doe.n_samples", "doe.seed", "doe.n_verification")
-CFG_DOE = sections(config, "joints", *DOE_KEYS)  # not doe.zoom: that is the second DOE's only
-CFG_MODAL = sections(config, "rig", "joints", "solver")
-CFG_FIT_SURFACE = sections(config, "joints", "surface", "solver.min_freq_Hz", "harmonic.band_Hz")
-SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min_freq_Hz")  # a full FE solve
-CFG_VERIFY = sections(config, "rig", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
+# the config parts each rule uses: the CONFIG keys (or config_keys()) of its stage module in
+# src/jointid/stages/ (the mesh without mesh.extrapolate_edges; the first DOE without doe.zoom; ...)
+CFG_MESH = sections(config, *model.config_keys(config))
+CFG_DOE = sections(config, *doe.CONFIG)
+CFG_FIT_SURFACE = sections(config, *surface.CONFIG)
+CFG_VERIFY = sections(config, *verify.CONFIG)
 # mesh.extrapolate_edges: identify and verify also solve on the meshes with one and two more edge levels
 EDGE_MODELS = ([f"{R}/model/edge_plus{k}/matrices.npz" for k in (1, 2)]
                if config["mesh"]["extrapolate_edges"] else [])
@@ -47,9 +44,7 @@ EDGE_MODELS = ([f"{R}/model/edge_plus{k}/matrices.npz" for k in (1, 2)]
 def cfg_identify(state):
     """rule identify: the shared sections, this state's settings and the other states' datasets (the
     measured modes of frequency-only states are paired alike in all states)."""
-    return sections(config, "rig", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
-                    f"states.{state}",
-                    *(f"states.{s}.dataset" for s in STATES))
+    return sections(config, *identify.config_keys(state, STATES))
 
 
 def state_datasets(wc):
@@ -59,8 +54,7 @@ def state_datasets(wc):
 
 USE_ROM = config["solver"]["method"] == "rom"
 # with method full the modal rule's params leave out the ROM keys (see rule rom below)
-CFG_MODAL_RULE = CFG_MODAL if USE_ROM else {
-    **CFG_MODAL, "solver": {k: v for k, v in CFG_MODAL["solver"].items() if k not in ("method", "rom_tolerance")}}
+CFG_MODAL_RULE = sections(config, *modal.config_keys(config))
 CFG_MODAL_CHAIN = merged(CFG_MESH, CFG_DOE, CFG_MODAL_RULE)
 CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT_SURFACE, CFG_VERIFY,
                           *map(cfg_identify, STATES))
@@ -82,6 +76,7 @@ rule mesh:
     output:
         matrices=f"{R}/model/matrices.npz",
         points=f"{R}/model/measuring_points.csv",
+        summary=f"{R}/model/summary.json",
         vtu=f"{R}/model/mesh.vtu",
     params:
         cfg=CFG_MESH,
@@ -132,11 +127,11 @@ rule doe:
         "workflow/scripts/doe.py"
 
 
-# solver.method: rom -- one parametric reduced-order model (jointid.fe.rom) over the joint-parameter box,
+# solver.method: rom -- one parametric reduced-order model (jointid.identification.rom) over the joint-parameter box,
 # built and verified against full solves once; every modal job then evaluates it.  With method full
 # (the default) no job asks for it, and the modal rule's params leave out the ROM keys so that the
 # full path's jobs, params and results stay exactly those it had before the option existed.
-CFG_ROM = sections(config, "rig", "joints", "solver")
+CFG_ROM = sections(config, *modal.CONFIG_ROM)
 
 
 rule rom:
@@ -226,7 +221,7 @@ rule fit_surface:
 # state a first optimum ("scout", surfaces only); a second DOE of the same design is solved in a box
 # around those optima (shared by the states: one fan-out), and the surfaces fitted there carry the
 # identification.  A quadratic in log-parameters is accurate over a factor ~2, not over decades.
-ZOOM = zoom_enabled(config)
+ZOOM = doe.zoom_enabled(config)
 SURFACE = f"{R}/surface/zoom/model.json" if ZOOM else f"{R}/surface/model.json"
 SURFACE_DIAGNOSTICS = SURFACE.replace("model.json", "diagnostics.csv")
 SURFACE_SHEET = f"{R}/doe/zoom/points.csv" if ZOOM else f"{R}/doe/points.csv"  # the DOE behind SURFACE
@@ -234,15 +229,14 @@ SURFACE_SHEET = f"{R}/doe/zoom/points.csv" if ZOOM else f"{R}/doe/points.csv"  #
 
 def cfg_scout(state):
     """rule scout: what the surface-only identification reads (not the FE solve, not the motor force)."""
-    return sections(config, "joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
-                    "identify.weights", "identify.pairing", "solver.min_freq_Hz", "measurements",
-                    *(f"states.{s}.dataset" for s in STATES))
+    return sections(config, *identify.scout_config_keys(STATES))
 
 
 rule scout:
     input:
         surface=rules.fit_surface.output.model,
         points=rules.mesh.output.points,
+        summary=rules.mesh.output.summary,
         datasets=state_datasets,
     output:
         params=f"{R}/identify/{{state}}/scout.json",
@@ -266,7 +260,7 @@ rule doe_zoom:
         sheet=f"{R}/doe/zoom/points.csv",
         box=f"{R}/doe/zoom/box.json",
     params:
-        cfg=sections(config, "joints", "doe"),
+        cfg=sections(config, *doe.CONFIG_ZOOM),
         states=STATES,
     log:
         "logs/doe_zoom.log",
@@ -343,6 +337,7 @@ rule identify:
         unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),  # the polish runs on the ROM
         surface=SURFACE,
         points=rules.mesh.output.points,
+        summary=rules.mesh.output.summary,
         matrices=rules.mesh.output.matrices,
         edges=EDGE_MODELS,
         datasets=state_datasets,
@@ -392,6 +387,8 @@ rule tables:
     output:
         power_off=f"{R}/tables/table2_power_off.csv",
         power_on=f"{R}/tables/table3_power_on.csv",
+        power_off_md=f"{R}/tables/table2_power_off.md",
+        power_on_md=f"{R}/tables/table3_power_on.md",
     params:
         cfg=CFG_TABLES_CHAIN,  # nothing of its own: for the provenance
     log:

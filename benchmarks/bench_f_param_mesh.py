@@ -21,7 +21,7 @@ LIMIT_PCT = 2.0
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     from jointid.config import load_config
     from jointid.fe.model import build_model
-    from jointid.stages.core import polish_on_model
+    from jointid.identification.polish import polish_on_model
 
     res = Result("f")
     base = {"mesh": {"element": "hex2", "max_cell_size_m": 0.12, "height_cell_fraction": 1.0,

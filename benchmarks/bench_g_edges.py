@@ -59,7 +59,7 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     from jointid.config import load_config
     from jointid.fe.model import build_model, joint_terms
     from jointid.geometry.rig import build_rig
-    from jointid.stages.core import solve_point
+    from jointid.identification.polish import solve_point
     from jointid.identification.updating import log_jacobian
 
     res = Result("g")
@@ -120,7 +120,7 @@ def _edge_levels(res: Result, cfg, theta, J, f0, s0, track, n0, data, quick):
 
     from jointid.identification.meshcheck import first_order_shift
     from jointid.fe.model import build_model
-    from jointid.stages.core import solve_point
+    from jointid.identification.polish import solve_point
 
     names = list(theta)
     verify = ROOT / "results" / "identify" / "power_off" / "verify.csv"

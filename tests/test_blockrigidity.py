@@ -8,7 +8,8 @@ import json
 import pytest
 
 from conftest import REPO
-from jointid.response.carriage import block_rig, block_rigidity, run_carriage_rigidity
+from jointid.response.carriage import block_rig, block_rigidity
+from jointid.stages.carriage import run_carriage_rigidity
 from jointid.config import load_config
 from jointid.errors import ModelError
 

@@ -135,7 +135,7 @@ def _zoom_cfg(w=0.15):
 
 
 def test_zoom_box_spans_all_state_optima_with_the_margin():
-    from jointid.stages.core import zoom_box
+    from jointid.stages.doe import zoom_box
 
     cfg = _zoom_cfg(0.15)
     optima = {"a": {"k_normal_N_per_m3": 3e11, "k_lateral_N_per_m3": 1.2e12, "k_feed_N_per_m3": 8e9},
@@ -147,7 +147,7 @@ def test_zoom_box_spans_all_state_optima_with_the_margin():
 
 
 def test_zoom_box_at_a_bound_keeps_its_width_inside_the_bounds():
-    from jointid.stages.core import parameter_bounds, zoom_box
+    from jointid.stages.doe import parameter_bounds, zoom_box
 
     cfg = _zoom_cfg(0.2)
     b_lo, b_hi = parameter_bounds(cfg)
@@ -159,7 +159,7 @@ def test_zoom_box_at_a_bound_keeps_its_width_inside_the_bounds():
 
 
 def test_zoom_box_wider_than_the_bounds_is_the_bounds():
-    from jointid.stages.core import parameter_bounds, zoom_box
+    from jointid.stages.doe import parameter_bounds, zoom_box
 
     cfg = _zoom_cfg(1.0)
     lo, hi = zoom_box(cfg, {"a": {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}})
@@ -168,7 +168,7 @@ def test_zoom_box_wider_than_the_bounds_is_the_bounds():
 
 
 def test_zoomed_sheet_codes_its_own_box():
-    from jointid.stages.core import doe_sheet, parameter_names
+    from jointid.stages.doe import doe_sheet, parameter_names
 
     cfg = _zoom_cfg()
     names = parameter_names(cfg)

@@ -15,6 +15,7 @@ from jointid.config import load_config
 from jointid.errors import ConfigError, DataError, NumericalWarning
 from jointid.fe.modal import Modes
 from jointid.fe.model import base_coefficients, build_model, save_model
+from jointid.stages import harmonic as harmonic_stage
 
 CONFIG = Path(__file__).resolve().parents[1] / "config.yaml"
 BAND = (300.0, 3500.0)
@@ -177,9 +178,10 @@ def test_run_harmonic_stage(tmp_path, rig):
     params = {"parameters": {n: {"value": v, "ci95_low": v, "ci95_high": v} for n, v in THETA.items()}}
     (tmp_path / "params.json").write_text(json.dumps(params))
     pd.DataFrame({"order": [1, 2], "fe_mode": [1, 0]}).to_csv(tmp_path / "verify.csv", index=False)
-    out = frf.run_harmonic(cfg, "power_off", str(tmp_path / "params.json"), str(tmp_path / "matrices.npz"),
-                           str(tmp_path / "frf.csv"), str(tmp_path / "ds.json"), out_modes=str(tmp_path / "m.npz"),
-                           verify_csv=str(tmp_path / "verify.csv"), progress=lambda m: None)
+    out = harmonic_stage.run_harmonic(
+        cfg, "power_off", str(tmp_path / "params.json"), str(tmp_path / "matrices.npz"),
+        str(tmp_path / "frf.csv"), str(tmp_path / "ds.json"), out_modes=str(tmp_path / "m.npz"),
+        verify_csv=str(tmp_path / "verify.csv"), progress=lambda m: None)
     tab = pd.read_csv(tmp_path / "frf.csv")
     assert list(tab.columns) == ["freq_Hz", "H_real_m_per_N", "H_imag_m_per_N", "H_abs_m_per_N", "phase_deg",
                                  "dynamic_stiffness_N_per_m"]

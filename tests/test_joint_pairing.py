@@ -86,7 +86,7 @@ DOC = {"names": NAMES, "tracked_modes": [1, 2, 3, 4]}
 
 
 def test_notes_name_a_competing_pairing_only_when_it_fits_about_as_well():
-    from jointid.stages.core import _pairing_notes
+    from jointid.stages.identify import pairing_notes as _pairing_notes
 
     close = _info((1.0, 1.0), (2.0, 2.5))  # 1 dof per state: delta chi2 1 and 1.5
     far = _info((1.0, 1.0), (9.0, 9.0))
@@ -98,7 +98,7 @@ def test_notes_name_a_competing_pairing_only_when_it_fits_about_as_well():
 
 
 def test_notes_say_when_a_state_on_its_own_pairs_otherwise():
-    from jointid.stages.core import _pairing_notes
+    from jointid.stages.identify import pairing_notes as _pairing_notes
 
     info = _info((1.0, 30.0), (20.0, 2.0))  # "off" prefers [0, 1, 3], "on" [0, 2, 3]; summed: [0, 2, 3]
     shared = info["candidates"][0]["pairing"]

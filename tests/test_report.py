@@ -10,7 +10,9 @@ import pandas as pd
 import pytest
 
 from jointid.reporting import figures as fg
-from jointid.reporting import page as rp
+from jointid.reporting import tables as rp
+from jointid.reporting.checks import check_table1
+from jointid.reporting.provenance import run_record
 from jointid.config import config_hash, load_config
 
 from conftest import REPO, STATES, clone_run, run_snakemake
@@ -61,25 +63,25 @@ def test_table1_static_stiffness_missing_when_K_singular(tmp_path):
 
 
 def test_check_table1_reports_each_problem(tmp_path):
-    assert rp.check_table1(tmp_path / "nope.csv") == [f"{tmp_path / 'nope.csv'}: missing — run "
+    assert check_table1(tmp_path / "nope.csv") == [f"{tmp_path / 'nope.csv'}: missing — run "
                                                       f"`snakemake -j2 {tmp_path / 'nope.csv'}` (rule table1)"]
     _, good = write_table1(tmp_path, 1.0e8, 1.3e8)
-    assert rp.check_table1(good) == []
+    assert check_table1(good) == []
     _, bad = write_table1(tmp_path, 1.0e8, 0.9e8)
-    problems = rp.check_table1(bad)
+    problems = check_table1(bad)
     assert len(problems) == 1 and "-10.0 %" in problems[0] and "not positive" in problems[0]
     df = pd.read_csv(bad)
     df.drop(columns=["governing_mode"]).to_csv(tmp_path / "cols.csv", index=False)
-    assert "governing_mode missing" in rp.check_table1(tmp_path / "cols.csv")[0]
+    assert "governing_mode missing" in check_table1(tmp_path / "cols.csv")[0]
     df[df.state == "power_off"].to_csv(tmp_path / "rows.csv", index=False)
-    assert "no row for state power_on" in rp.check_table1(tmp_path / "rows.csv")[0]
+    assert "no row for state power_on" in check_table1(tmp_path / "rows.csv")[0]
     df.assign(dynamic_stiffness_N_per_mm=[np.nan, 5.0]).to_csv(tmp_path / "nan.csv", index=False)
-    assert "not a positive number" in rp.check_table1(tmp_path / "nan.csv")[0]
+    assert "not a positive number" in check_table1(tmp_path / "nan.csv")[0]
 
 
 def test_provenance_has_hash_versions_and_commit():
     cfg = load_config(REPO / "config.yaml")
-    prov = rp.provenance(cfg, REPO)
+    prov = run_record(cfg, REPO)
     assert prov["config_hash"] == config_hash(cfg) and re.fullmatch(r"[0-9a-f]{12}", prov["config_hash"])
     assert re.match(r"[0-9a-f]{40}", prov["package_commit"])
     assert prov["versions"]["numpy"] == np.__version__
@@ -130,7 +132,7 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
         assert row.dynamic_stiffness_N_per_mm == pytest.approx(docs[state]["dynamic_stiffness_N_per_m"] / 1e3, rel=1e-9)
     inc = 100 * (docs["power_on"]["dynamic_stiffness_N_per_m"] / docs["power_off"]["dynamic_stiffness_N_per_m"] - 1)
     assert tab.increase_pct.iloc[1] == pytest.approx(inc, rel=1e-6)
-    problems = rp.check_table1(wd / t1)
+    problems = check_table1(wd / t1)
     assert bool(problems) == (inc <= 0) and all("increase" in p for p in problems)
     assert "paper +42.1 %" in (wd / t1).with_suffix(".md").read_text()
 

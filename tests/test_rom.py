@@ -20,7 +20,9 @@ from jointid.fe.modal import solve_modes
 from jointid.fe.model import base_coefficients, build_model, save_model
 from jointid.identification.rom import ROM, frequency_error, load_rom
 from jointid.identification.rom_build import build_rom, residual_indicator, training_points
-from jointid.stages.core import doe_sheet, polish_on_model, run_modal, run_rom
+from jointid.identification.polish import polish_on_model
+from jointid.stages.doe import doe_sheet
+from jointid.stages.modal import run_modal, run_rom
 
 ROOT = Path(__file__).resolve().parents[1]
 TOL = 1e-4

@@ -17,7 +17,7 @@ from conftest import (CORE_RULES, REPO, STATES, TABLE_COLUMNS, TABLES, clone_run
                       extra_rule_names, file_hashes, run_snakemake, scheduled_jobs, temporary_files,
                       write_config)
 from jointid.config import load_config
-from jointid.stages.core import doe_sheet
+from jointid.stages.doe import doe_sheet
 
 pytestmark = pytest.mark.slow
 

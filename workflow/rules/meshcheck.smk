@@ -3,8 +3,9 @@
 #   results/mesh_check/{state}.json (parameters: value, refined value, change %, 95 % interval)
 #   results/mesh_check/{state}.csv  (every mode: default and refined frequency, change %, MAC)
 
-CFG_MESH_CHECK = sections(config, "materials", "rig", "mesh", "mesh_check", "joints", "identify.weights",
-                          *SOLVE_KEYS)
+from jointid.stages import meshcheck as meshcheck_stage
+
+CFG_MESH_CHECK = sections(config, *meshcheck_stage.CONFIG)
 
 if config["mesh_check"]["enabled"]:
 

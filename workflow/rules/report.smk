@@ -5,14 +5,14 @@
 # Captions of the figures: workflow/report/*.rst (paths relative to this file).
 
 from jointid.config.datasets import dataset_folder as _dataset_folder
+from jointid.stages import harmonic as harmonic_stage
 
 FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
 
 
 def cfg_harmonic(state):
     """rule harmonic: the shared sections and this state's settings only."""
-    return sections(config, "rig", "joints", "solver", "harmonic", "measurements", "datasets",
-                    f"states.{state}")
+    return sections(config, *harmonic_stage.config_keys(state))
 
 
 CFG_TABLE1_CHAIN = merged(CFG_TABLES_CHAIN, *map(cfg_harmonic, STATES))

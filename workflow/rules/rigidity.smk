@@ -2,8 +2,9 @@
 # on its rail (jointid.response.carriage), the number to hold against a guide catalogue.
 #   results/identify/{state}/carriage_rigidity.json (per direction: springs, parts, assembly, interval)
 
-CFG_RIGIDITY = sections(config, "materials", "rig", "joints", "mesh.element", "solver.backend",
-                        "carriage_rigidity")
+from jointid.stages import carriage as carriage_stage
+
+CFG_RIGIDITY = sections(config, *carriage_stage.CONFIG)
 
 
 rule carriage_rigidity:

@@ -1,6 +1,6 @@
 """Snakemake adapter: one state's identified joints as a catalogue-style carriage rigidity."""
 from jointid.stages.runner import run_script
-from jointid.response.carriage import run_carriage_rigidity
+from jointid.stages.carriage import run_carriage_rigidity
 
 run_script(snakemake, lambda cfg, inp, out: run_carriage_rigidity(
     cfg, snakemake.wildcards.state, inp.params, out.json), provenance=True)

@@ -1,6 +1,6 @@
 """Snakemake adapter: the zoomed second DOE around the first-stage optima of all states."""
 from jointid.stages.runner import run_script
-from jointid.stages import core as stages
+from jointid.stages import doe
 
-run_script(snakemake, lambda cfg, inp, out: stages.run_doe_zoom(
+run_script(snakemake, lambda cfg, inp, out: doe.run_doe_zoom(
     cfg, dict(zip(snakemake.params.states, inp.scout)), out.sheet, out.box))

@@ -1,6 +1,6 @@
 """Snakemake adapter: track modes through the DOE and fit the response surfaces."""
 from jointid.stages.runner import run_script
-from jointid.stages import core as stages
+from jointid.stages import surface
 
-run_script(snakemake, lambda cfg, inp, out: stages.run_fit_surface(
+run_script(snakemake, lambda cfg, inp, out: surface.run_fit_surface(
     cfg, inp.sheet, inp.arrays, out.model, out.diagnostics, box_json=inp.get("box")), provenance=True)

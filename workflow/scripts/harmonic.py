@@ -1,7 +1,7 @@
 """Snakemake adapter: drive-point FRF and dynamic stiffness of one state at its identified parameters."""
 from jointid.stages.runner import run_script
-from jointid.response import drive_point as frf
+from jointid.stages import harmonic
 
-run_script(snakemake, lambda cfg, inp, out: frf.run_harmonic(
+run_script(snakemake, lambda cfg, inp, out: harmonic.run_harmonic(
     cfg, snakemake.wildcards.state, inp.params, inp.matrices, out.frf, out.stiffness,
     out_modes=out.modes, verify_csv=inp.verify), provenance=True)

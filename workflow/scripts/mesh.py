@@ -1,5 +1,6 @@
 """Snakemake adapter: build and cache the FE model of the rig."""
 from jointid.stages.runner import run_script
-from jointid.stages import core as stages
+from jointid.stages import model
 
-run_script(snakemake, lambda cfg, inp, out: stages.run_mesh(cfg, out.matrices, out.points, out.vtu))
+run_script(snakemake, lambda cfg, inp, out: model.run_mesh(
+    cfg, out.matrices, out.points, out.vtu, summary_json=out.summary))

@@ -1,6 +1,6 @@
 """Snakemake adapter: identified parameters of one state re-solved on a refined mesh (rule mesh_check)."""
 from jointid.stages.runner import run_script
-from jointid.identification.meshcheck import run_mesh_check
+from jointid.stages.meshcheck import run_mesh_check
 
 run_script(snakemake, lambda cfg, inp, out: run_mesh_check(
     cfg, snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv,

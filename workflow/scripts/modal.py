@@ -1,6 +1,6 @@
 """Snakemake adapter: modal solve at one DOE point (full FE solve, or the ROM with solver.method: rom)."""
 from jointid.stages.runner import run_script
-from jointid.stages import core as stages
+from jointid.stages import doe, modal
 
 
 def _theta(cfg, inp):
@@ -8,8 +8,8 @@ def _theta(cfg, inp):
     given = getattr(snakemake.params, "theta", None)
     if given:
         return dict(given)
-    return stages.sheet_theta(inp.sheet, snakemake.wildcards.point, stages.parameter_names(cfg))
+    return doe.sheet_theta(inp.sheet, snakemake.wildcards.point, doe.parameter_names(cfg))
 
 
-run_script(snakemake, lambda cfg, inp, out: stages.run_modal(
+run_script(snakemake, lambda cfg, inp, out: modal.run_modal(
     cfg, inp.matrices, _theta(cfg, inp), out.modes, rom=inp.get("rom")))

@@ -1,5 +1,5 @@
 """Snakemake adapter: the self-contained HTML report and its figures."""
 from jointid.stages.runner import run_script
-from jointid.reporting import page as report
+from jointid.stages import report
 
 run_script(snakemake, lambda cfg, inp, out: report.run_report(cfg, dict(inp.items()), dict(out.items())))

@@ -1,6 +1,6 @@
 """Snakemake adapter: build and verify the parametric reduced-order model (solver.method: rom)."""
 from jointid.stages.runner import run_script
-from jointid.stages import core as stages
+from jointid.stages import modal
 
-run_script(snakemake, lambda cfg, inp, out: stages.run_rom(
+run_script(snakemake, lambda cfg, inp, out: modal.run_rom(
     cfg, inp.matrices, inp.sheet, out.rom, out.summary), provenance=True)

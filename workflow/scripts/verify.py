@@ -1,7 +1,7 @@
 """Snakemake adapter: full FE re-solve at the identified parameters."""
 from jointid.stages.runner import run_script
-from jointid.stages import core as stages
+from jointid.stages import verify
 
-run_script(snakemake, lambda cfg, inp, out: stages.run_verify(
+run_script(snakemake, lambda cfg, inp, out: verify.run_verify(
     cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table,
     edge_matrices=list(inp.get("edges") or [])), provenance=True)

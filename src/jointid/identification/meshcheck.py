@@ -22,9 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointid.errors import ModelError
-from jointid.correlate.pairing import pair_by_shapes
-from jointid.identification.updating import log_jacobian
 
 
 def first_order_shift(J: np.ndarray, dlnf: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
@@ -40,104 +37,62 @@ def first_order_shift(J: np.ndarray, dlnf: np.ndarray, weights: np.ndarray | Non
     return -np.linalg.pinv(A) @ (J.T @ (w * np.asarray(dlnf, float)))
 
 
-def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
-                   out_json: str, out_csv: str, log=print, edge_matrices: list[str] | None = None) -> dict:
-    """Workflow stage: the mesh check of one state's identified parameters (see the module doc);
-    ``edge_matrices``: the default mesh with one and two more edge levels (``mesh.extrapolate_edges``)."""
-    import pandas as pd
+def parameter_changes(par: dict, delta: np.ndarray, limit_pct: float) -> tuple[dict, list[str]]:
+    """Each identified parameter's first-order change on the refined mesh, and the warnings on them.
 
-    from jointid import io
-    from functools import partial
+    Parameters
+    ----------
+    par : dict
+        The identification's ``params.json`` (``parameters``: value and 95 % interval, N/m^3;
+        ``on_bound``).
+    delta : ndarray
+        Change of each parameter in log10 units (:func:`first_order_shift`), in the order of
+        ``par["parameters"]``.
+    limit_pct : float
+        ``mesh_check.max_parameter_change_pct``: a larger change (%) is warned about.
 
-    from jointid.fe.extrapolate import level_config
-    from jointid.fe.model import build_model, joint_terms, load_model
-    from jointid.stages.core import edge_limit_at, solve_point
-
-    mc_cfg = cfg["mesh_check"]
-    halve = tuple(mc_cfg["halve"])
-    par = io.read_json(params_json)
-    ver = pd.read_csv(verify_csv)
-    names = list(par["parameters"])
-    theta = np.array([par["parameters"][n]["value"] for n in names])
-    theta_d = dict(zip(names, theta))
-    def solve(model):
-        _, shapes, _, modes = solve_point(cfg, model, theta_d, describe=False)
-        return modes, shapes
-
-    log(f"mesh_check[{state}]: default mesh at the identified parameters")
-    coarse = load_model(matrices)
-    modes_c, shapes_c = solve(coarse)
-    jt = joint_terms(cfg["joints"])
-    terms = [{t: 1.0 for t in jt[n]} for n in names]
-    J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
-    n_dofs_c = coarse.n_dofs
-    f_c = modes_c.freqs_Hz
-    say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
-    if edge_matrices:
-        say("default mesh: extrapolated over its edge levels")
-        f_c = edge_limit_at(cfg, [coarse, *map(load_model, edge_matrices)], theta_d, log=say,
-                            base=(modes_c.freqs_Hz, shapes_c)).limit_Hz
-    del coarse
-    say(f"the mesh with {', '.join(halve)} cells halved")
-    if edge_matrices:  # and with one and two more edge levels, each built in turn
-        lim_f = edge_limit_at(cfg, [partial(build_model, level_config(cfg, k), halve=halve, progress=say)
-                                    for k in range(3)], theta_d, log=say)
-        f_f, f_f_mesh, shapes_f, n_dofs_f = lim_f.limit_Hz, lim_f.levels_Hz[0], lim_f.shapes, lim_f.n_dofs[0]
-    else:
-        fine = build_model(cfg, halve=halve, progress=say)
-        modes_f, shapes_f = solve(fine)
-        f_f = f_f_mesh = modes_f.freqs_Hz
-        n_dofs_f = fine.n_dofs
-        del fine
-    index, macs = pair_by_shapes(shapes_c, shapes_f, threshold=0.8)
-    fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
-    use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
-    if not use.any():
-        raise ModelError(f"mesh_check[{state}]: no measured mode could be followed onto the refined mesh "
-                         "(MAC < 0.8 at the measuring points for every paired mode) — check the mesh settings")
-    rows = fe_mode[use]
-    dlnf = np.log(f_f[index[rows]] / f_c[rows])
-    weights = np.asarray(cfg["identify"].get("weights") or np.ones(len(fe_mode)), float)[use]
-    delta = first_order_shift(J_all[rows], dlnf, weights)
-    sigma_log10 = {n: (np.log10(par["parameters"][n]["ci95_high"]) - np.log10(par["parameters"][n]["ci95_low"])) / 2
-                   for n in names}
-    limit = float(mc_cfg["max_parameter_change_pct"])
-    params = {}
-    warnings = []
-    lost = [i + 1 for i in np.flatnonzero((fe_mode >= 0) & ~use)]
-    if lost:
-        warnings.append(f"measured mode(s) {', '.join(map(str, lost))}: the paired mode has no partner with "
-                        "MAC >= 0.8 on the refined mesh; left out of the estimate")
-    for n, th, d in zip(names, theta, delta):
+    Returns
+    -------
+    (params, warnings)
+        ``params``: per parameter ``value, value_refined_first_order`` (N/m^3), ``change_pct``,
+        ``ci95_half_width_pct`` (of its interval from the measurement uncertainty) and ``on_bound``.
+    """
+    params, warnings = {}, []
+    for n, d in zip(par["parameters"], delta):
+        th = par["parameters"][n]["value"]
+        sigma_log10 = (np.log10(par["parameters"][n]["ci95_high"]) - np.log10(par["parameters"][n]["ci95_low"])) / 2
         change = 100 * (10 ** d - 1)
-        ci_half = 100 * (10 ** sigma_log10[n] - 1)
+        ci_half = 100 * (10 ** sigma_log10 - 1)
         on_bound = n in par.get("on_bound", [])
         params[n] = {"value": float(th), "value_refined_first_order": float(th * 10 ** d),
                      "change_pct": float(change), "ci95_half_width_pct": float(ci_half), "on_bound": on_bound}
         if on_bound:
             warnings.append(f"{n} sits on a bound: the change is where it would move without the bound")
-        if abs(change) > limit:
+        if abs(change) > limit_pct:
             warnings.append(f"{n} would change by {change:+.1f} % on the refined mesh (more than "
-                            f"mesh_check.max_parameter_change_pct = {limit:g} %; its 95 % interval from the "
+                            f"mesh_check.max_parameter_change_pct = {limit_pct:g} %; its 95 % interval from the "
                             f"measurement uncertainty is +-{ci_half:.1f} %): the mesh is not converged for it")
+    return params, warnings
+
+
+def mode_table(f_default, f_refined, index, macs, fe_mode, raw: dict | None = None):
+    """Every mode of the default mesh beside its partner on the refined mesh.
+
+    ``f_default``/``f_refined``: the two meshes' frequencies (Hz; extrapolated ones with
+    ``mesh.extrapolate_edges``, then ``raw`` holds the meshes' own as ``default_mesh_Hz`` and the
+    refined mesh's array to be paired as ``refined_mesh_Hz``); ``index``/``macs``: the partner of each
+    default mode (:func:`jointid.correlate.pairing.pair_by_shapes`, MAC >= 0.8); ``fe_mode``: the default-mesh mode (0-based, -1: none) of each
+    measured mode.  Columns ``mode, default_Hz, refined_Hz, change_pct[, default_mesh_Hz,
+    refined_mesh_Hz], mac, measured_mode`` (0: not paired with a measured mode).
+    """
+    import pandas as pd
+
     partner = lambda f: np.where(index >= 0, f[np.clip(index, 0, None)], np.nan)  # noqa: E731
-    raw = {} if not edge_matrices else {  # the meshes' own frequencies beside the extrapolated ones
-        "default_mesh_Hz": modes_c.freqs_Hz, "refined_mesh_Hz": partner(f_f_mesh)}
-    table = pd.DataFrame({
-        "mode": np.arange(1, len(f_c) + 1), "default_Hz": f_c, "refined_Hz": partner(f_f),
-        "change_pct": 100 * (partner(f_f) / f_c - 1), **raw,
+    extra = {} if raw is None else {"default_mesh_Hz": raw["default_mesh_Hz"],
+                                    "refined_mesh_Hz": partner(raw["refined_mesh_Hz"])}
+    return pd.DataFrame({
+        "mode": np.arange(1, len(f_default) + 1), "default_Hz": f_default, "refined_Hz": partner(f_refined),
+        "change_pct": 100 * (partner(f_refined) / f_default - 1), **extra,
         "mac": macs,
         "measured_mode": [int(np.flatnonzero(fe_mode == j)[0]) + 1 if (fe_mode == j).any() else 0
-                          for j in range(len(f_c))]})
-    io.write_csv(table, out_csv)
-    doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": bool(edge_matrices),
-           "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
-           "parameters": params, "max_parameter_change_pct": limit, "warnings": warnings,
-           "max_paired_frequency_change_pct": float(100 * np.max(np.abs(np.expm1(dlnf))))}
-    io.write_json(out_json, doc)
-    for n, p in params.items():
-        log(f"mesh_check[{state}]: {n} {p['value']:.4g} -> {p['value_refined_first_order']:.4g} N/m^3 "
-            f"({p['change_pct']:+.2f} %; 95 % interval +-{p['ci95_half_width_pct']:.1f} %)")
-    for w in warnings:
-        log(f"mesh_check[{state}]: WARNING {w}")
-    return doc
+                          for j in range(len(f_default))]})

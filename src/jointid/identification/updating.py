@@ -1,6 +1,6 @@
 """Response-surface model updating: surfaces over the DOE, identification per state, FE verification.
 
-Stages (each reads and writes files, see ``jointid.stages.core`` for the workflow wiring):
+Stages (each reads and writes files, see ``jointid.stages`` for the workflow wiring):
 
 1. :func:`fit_surfaces` — track the modes through the DOE by MAC, fit one surface per tracked mode
    to ``ln f`` over the coded log-parameters, and check it at fresh verification points solved by FE.

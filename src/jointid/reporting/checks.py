@@ -8,9 +8,11 @@ Two groups, selectable so that CI can gate on one and only report the other::
 
 Exit status 1 with one line per problem (where, what, how to fix) if a selected check fails.
 
-* Table 1 (``table1_dynamic_stiffness.csv``): the file exists and has rows ``power_off`` and
-  ``power_on`` with a finite positive ``dynamic_stiffness_N_per_mm``, and the increase power_on vs
-  power_off is positive (the paper: +42.1 %; the motor's attraction preloads the joints).
+* Table 1 (``table1_dynamic_stiffness.csv``): the file exists, has the columns
+  :data:`jointid.reporting.tables.TABLE1_COLUMNS` and rows ``power_off`` and ``power_on`` with a
+  finite positive ``dynamic_stiffness_N_per_mm``, and the increase power_on vs power_off is positive
+  (the paper: +42.1 %; the motor's attraction preloads the joints).  The report page shows the same
+  problems (:func:`check_table1`).
 * Tables 2 and 3: each exists with the required columns, every ``relative_error_pct`` is a finite
   number and the largest |relative error| is within the bound (by default the paper's own: 8.1 %
   power-off, 8.2 % power-on).
@@ -27,6 +29,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from jointid.reporting.tables import TABLE1_COLUMNS
+
 if TYPE_CHECKING:
     import pandas as pd
 
@@ -34,7 +38,6 @@ COLUMNS = ["order", "experimental_Hz", "simulation_Hz", "relative_error_pct", "p
            "paper_relative_error_pct"]
 TABLES = {"table2_power_off.csv": 8.1, "table3_power_on.csv": 8.2}
 TABLE1 = "table1_dynamic_stiffness.csv"
-TABLE1_COLUMNS = ["state", "dynamic_stiffness_N_per_mm"]
 
 
 def _read_table(path: Path, columns: list[str], rule: str) -> tuple[pd.DataFrame | None, list[str]]:
@@ -117,15 +120,26 @@ def check_frequency_tables(folder: str | Path, bounds: dict[str, float] = TABLES
     return problems
 
 
-def table1_increase_pct(folder: str | Path) -> tuple[float | None, list[str]]:
+def table1_path(where: str | Path) -> Path:
+    """Table 1's file: ``where`` itself if it names a ``.csv`` file, else :data:`TABLE1` in the folder ``where``."""
+    path = Path(where)
+    return path if path.suffix == ".csv" else path / TABLE1
+
+
+def table1_increase_pct(where: str | Path) -> tuple[float | None, list[str]]:
     """Increase of the dynamic stiffness power_on vs power_off (%) from Table 1, and its problems.
+
+    Parameters
+    ----------
+    where : path-like
+        The folder of the tables, or Table 1's file (:func:`table1_path`).
 
     Returns
     -------
     (increase_pct, problems)
         ``increase_pct`` is ``100 * (k_on / k_off - 1)`` or None when it cannot be computed.
     """
-    path = Path(folder) / TABLE1
+    path = table1_path(where)
     df, problems = _read_table(path, TABLE1_COLUMNS, "table1")
     if df is None:
         return None, problems
@@ -133,8 +147,9 @@ def table1_increase_pct(folder: str | Path) -> tuple[float | None, list[str]]:
     for state in ("power_off", "power_on"):
         rows = df[df["state"] == state]
         if len(rows) != 1:
-            problems.append(f"{path}: {len(rows)} rows for state {state}, expected 1 — the config needs "
-                            "states power_off and power_on; rerun rule table1")
+            problems.append(f"{path}: {len(rows)} rows for state {state}, expected 1 — "
+                            + (f"no row for state {state}: " if rows.empty else "")
+                            + "the config needs states power_off and power_on; rerun rule table1")
             continue
         raw = rows["dynamic_stiffness_N_per_mm"].iloc[0]
         v = _number(raw)
@@ -148,10 +163,14 @@ def table1_increase_pct(folder: str | Path) -> tuple[float | None, list[str]]:
     return 100.0 * (k["power_on"] / k["power_off"] - 1.0), []
 
 
-def check_table1(folder: str | Path) -> list[str]:
-    """Problems of Table 1 in ``folder`` (empty list = fine); prints the increase when it passes."""
-    inc, problems = table1_increase_pct(folder)
-    path = Path(folder) / TABLE1
+def check_table1(where: str | Path) -> list[str]:
+    """Problems of Table 1 (empty list = fine); prints the increase when it passes.
+
+    ``where``: the folder of the tables, or Table 1's file (:func:`table1_path`).  CI gates on these
+    problems, and the report page shows them.
+    """
+    inc, problems = table1_increase_pct(where)
+    path = table1_path(where)
     if inc is not None and not inc > 0:
         problems.append(f"{path}: increase power_on vs power_off is {inc:+.1f} % (paper +42.1 %), not "
                         "positive — the identified power-on joints do not stiffen the drive point; see the "

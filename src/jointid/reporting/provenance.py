@@ -20,6 +20,7 @@ provenance(config, *, inputs=None, repo=None) -> dict
 write_provenance(table_path, config, *, inputs=None, repo=None) -> pathlib.Path
 provenance_path(table_path) -> pathlib.Path
 git_state(repo=None) -> (commit, dirty, where)
+run_record(config, workdir=".") -> dict  (the provenance of a whole run, as the report page shows it)
 """
 
 from __future__ import annotations
@@ -36,11 +37,15 @@ from pathlib import Path
 from jointid import io
 from jointid.config import config_hash
 
-__all__ = ["PACKAGES", "SUFFIX", "git_state", "provenance", "provenance_path", "sha256_file",
-           "write_provenance"]
+__all__ = ["PACKAGES", "REPORT_PACKAGES", "SUFFIX", "git_state", "provenance", "provenance_path", "run_record",
+           "sha256_file", "write_provenance"]
 
 PACKAGES = ("jointid", "numpy", "scipy", "scikit-fem", "pandas", "snakemake")
 """Distributions whose versions are recorded."""
+
+REPORT_PACKAGES = ("jointid", "numpy", "scipy", "pandas", "scikit-fem", "snakemake", "matplotlib", "pyyaml",
+                   "jsonschema", "meshio", "pypardiso")
+"""Distributions whose versions the report page lists."""
 
 SUFFIX = ".provenance.json"
 UNKNOWN = "unknown"
@@ -179,3 +184,30 @@ def write_provenance(table_path: str | os.PathLike, config: Mapping, *,
     out = provenance_path(table_path)
     io.write_json(out, rec)
     return out
+
+
+def _commit_text(folder: Path) -> str:
+    """Git commit of ``folder`` as the report shows it: the SHA, ``(with uncommitted changes)`` when
+    tracked files differ, or ``not a git checkout``."""
+    found = _commit_in(folder)
+    if found is None:
+        return "not a git checkout"
+    commit, dirty = found
+    return commit + (" (with uncommitted changes)" if dirty else "")
+
+
+def run_record(config: Mapping, workdir: str | os.PathLike = ".") -> dict:
+    """Provenance of a whole run, as the report page shows it.
+
+    Returns
+    -------
+    dict
+        ``workflow_commit`` (of ``workdir``), ``package_commit`` (of the jointid package's folder),
+        ``config_hash`` (:func:`jointid.config.config_hash` of ``config``), ``python``,
+        ``platform`` and ``versions`` ({distribution: version} of :data:`REPORT_PACKAGES`).
+    """
+    return {"workflow_commit": _commit_text(Path(workdir)),
+            "package_commit": _commit_text(Path(__file__).resolve().parents[1]),
+            "config_hash": config_hash(config),
+            "python": platform.python_version(), "platform": platform.platform(),
+            "versions": {d: _version(d) for d in REPORT_PACKAGES}}

@@ -30,10 +30,9 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from jointid.config.datasets import dataset_folder
 from jointid.response import damping as dm
 from jointid.response import harmonic as hm
-from jointid.response.harmonic import RIGID_HZ, static_residual
+from jointid.response.harmonic import RIGID_HZ
 from jointid.errors import ConfigError, DataError, ModelError, NumericalWarning
 from jointid.fe.modal import (Modes, count_modes_below, factorize_shifted, free_dofs, restrict, shift_sigma,
                               solve_modes)
@@ -43,11 +42,9 @@ __all__ = [
     "MODE_FACTOR",
     "HarmonicResult",
     "drive_vector",
-    "frf_frame",
     "harmonic_response",
     "joint_stiffness",
     "modal_damping_ratios",
-    "run_harmonic",
     "solve_band_modes",
 ]
 
@@ -104,6 +101,7 @@ class ShiftedFactor:
 def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, shift_Hz: float = -10.0,
                      backend: str = "auto", factor: float = MODE_FACTOR, max_modes: int = MAX_MODES,
                      progress=None, keep_factor: bool = False, ordering=None):
+    # long by its numpydoc (47 lines); the body is three steps: Sturm count, solve until complete, warn
     """All modes up to ``factor * f_top_Hz`` (and possibly a few above).
 
     A Sturm count (:func:`jointid.fe.modal.count_modes_below`, one LDL^T factorisation) tells how many
@@ -353,168 +351,3 @@ def harmonic_response(modes: Modes, load, zeta, band_Hz, *, n_freq: int = 1601, 
     return HarmonicResult(f_Hz=grid, H=H, freqs_Hz=fr, zeta=z, damping_source=[], participation=pphi,
                           residual_flexibility_m_per_N=residual, static_receptance_m_per_N=static_receptance,
                           residual_note="", dynamic=dyn, governing=int(np.argmax(contrib)), notes=notes)
-
-
-def frf_frame(res: HarmonicResult) -> pd.DataFrame:
-    """FRF table: ``freq_Hz, H_real_m_per_N, H_imag_m_per_N, H_abs_m_per_N, phase_deg,
-    dynamic_stiffness_N_per_m`` (``|F/X|``)."""
-    return pd.DataFrame({"freq_Hz": res.f_Hz, "H_real_m_per_N": res.H.real, "H_imag_m_per_N": res.H.imag,
-                         "H_abs_m_per_N": np.abs(res.H), "phase_deg": np.degrees(np.angle(res.H)),
-                         "dynamic_stiffness_N_per_m": 1.0 / np.abs(res.H)})
-
-
-# ------------------------------------------------------------------ the workflow stage
-def _measured_by_fe_mode(cfg, state, verify_csv) -> tuple[dict, str]:
-    """Measured damping ratios by 0-based FE mode index (paired via verify.csv), and a note."""
-    from jointid.data.dataset import read_dataset
-
-    if verify_csv is None:
-        return {}, "no verify table: measured damping not used"
-    folder = dataset_folder(cfg, state)
-    try:
-        ds = read_dataset(folder)
-    except Exception as exc:  # the identify stage has validated the dataset already
-        return {}, f"dataset {folder} not readable here ({str(exc).splitlines()[0]}): measured damping not used"
-    zm = ds.damping(state) if state in ds.states else None
-    if zm is None:
-        return {}, f"dataset {folder} has no damping ratios for {state}"
-    ver = pd.read_csv(verify_csv)
-    out = {}
-    for order, fe_mode in zip(ver["order"], ver["fe_mode"]):
-        if int(fe_mode) >= 1 and 1 <= int(order) <= len(zm):
-            out[int(fe_mode) - 1] = float(zm[int(order) - 1])
-    return out, f"measured damping ratios of {len(out)} paired modes from {folder}"
-
-
-def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv: str, out_json: str,
-                 out_modes: str | None = None, verify_csv: str | None = None, progress=print) -> dict:
-    """The ``harmonic`` workflow stage of one state.
-
-    Reads the identified parameters and the cached model, writes the drive-point FRF (``out_csv``,
-    columns of :func:`frf_frame`), the dynamic stiffness summary (``out_json``) and, if given, the
-    modes at the measuring points (``out_modes``: ``freqs_Hz (n_modes,)``, ``shapes (n_labels,
-    n_modes)``, ``labels``, ``description``, ``zeta``, ``participation``).
-
-    Parameters
-    ----------
-    cfg : dict
-        Sections ``rig, joints, solver, harmonic`` (+ ``states, measurements, datasets`` for measured
-        damping).
-    state : str
-        Operating state (names the dataset's damping ratios).
-    params_json, matrices : str
-        Identified parameters (identify stage) and the cached model (mesh stage).
-    verify_csv : str, optional
-        The verify stage's table; its ``fe_mode`` column pairs measured modes with FE modes (for the
-        measured damping ratios and the measured order of the governing mode).
-
-    Returns
-    -------
-    dict
-        The content of ``out_json``.
-    """
-    from jointid import io
-    from jointid.fe.model import base_coefficients, load_model
-
-    h = cfg["harmonic"]
-    par = io.read_json(params_json)
-    theta = {n: float(v["value"]) for n, v in par["parameters"].items()}
-    model = load_model(matrices)
-    kc, mc = base_coefficients(cfg, model, theta)
-    band = [float(b) for b in h["band_Hz"]]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        res, modes, desc, dcfg, mnote = _response(cfg, state, model, kc, mc, band, verify_csv, progress)
-    notes = [str(w.message) for w in caught]
-    for w in caught:
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    io.write_csv(frf_frame(res), out_csv)
-    g = res.governing
-    order = None
-    if verify_csv:
-        ver = pd.read_csv(verify_csv)
-        hit = ver.index[ver["fe_mode"] == g + 1]
-        order = int(ver.loc[hit[0], "order"]) if len(hit) else None
-    k_r = (2 * np.pi * res.freqs_Hz[g]) ** 2 / res.participation[g] ** 2
-    dyn = res.dynamic
-    R, H0 = res.residual_flexibility_m_per_N, res.static_receptance_m_per_N
-    out = {
-        "state": state,
-        "drive_point": h["drive_point"], "direction": h.get("direction", "y"),
-        "band_Hz": band,
-        "dynamic_stiffness_N_per_m": dyn["k_dyn_min_N_per_m"],
-        "dynamic_stiffness_N_per_mm": dyn["k_dyn_min_N_per_m"] * 1e-3,
-        "f_at_min_Hz": dyn["f_at_min_Hz"],
-        "static_stiffness_N_per_m": dyn["k_static_N_per_m"],
-        "static_stiffness_N_per_mm": None if dyn["k_static_N_per_m"] is None else dyn["k_static_N_per_m"] * 1e-3,
-        "governing_mode": {
-            "fe_mode": g + 1, "freq_Hz": float(res.freqs_Hz[g]), "description": str(desc["description"][g]),
-            "damping_ratio": float(res.zeta[g]), "measured_order": order,
-            "modal_stiffness_N_per_m": float(k_r),
-            "two_zeta_k_N_per_m": float(2 * res.zeta[g] * k_r),
-            "strain_joints": float(desc["strain_joints"][g])},
-        "damping": {"config": dcfg, "measured": mnote,
-                    "per_mode": [{"fe_mode": i + 1, "freq_Hz": float(f), "damping_ratio": float(z), "source": src}
-                                 for i, (f, z, src) in enumerate(zip(res.freqs_Hz, res.zeta, res.damping_source))],
-                    "why": _DAMPING_WHY.get(dcfg.get("model", "modal"), "")},
-        "modes": {"n_modes": int(res.freqs_Hz.size), "highest_Hz": float(res.freqs_Hz[-1]),
-                  "target_Hz": MODE_FACTOR * band[1]},
-        "residual": {"used": R is not None, "flexibility_m_per_N": R, "static_receptance_m_per_N": H0,
-                     "note": res.residual_note},
-        "parameters_N_per_m3": theta,
-        "warnings": notes,
-        "n_freq": int(res.f_Hz.size),
-    }
-    io.write_json(out_json, out)
-    if out_modes:
-        labels = dof_labels(pd.DataFrame(model.meta["points"]))
-        io.write_npz(out_modes, freqs_Hz=res.freqs_Hz, shapes=model.probe @ modes.phi, labels=np.array(labels),
-                     description=desc["description"].to_numpy().astype(str), zeta=res.zeta,
-                     participation=res.participation)
-    static = out["static_stiffness_N_per_mm"]
-    progress(f"harmonic[{state}]: K_dyn,min = {out['dynamic_stiffness_N_per_mm']:.5g} N/mm at "
-             f"{out['f_at_min_Hz']:.1f} Hz (FE mode {g + 1}, {desc['description'][g]}), static "
-             f"{'n/a' if static is None else format(static, '.5g')} N/mm")
-    return out
-
-
-def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
-    """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`)."""
-    from jointid.fe.describe import describe_modes
-
-    h, s = cfg["harmonic"], cfg["solver"]
-    K, M = model.K(kc), model.M(mc)
-    modes, shifted = solve_band_modes(K, M, band[1], fixed=model.fixed, n_start=max(int(s["n_modes"]), 12),
-                                      shift_Hz=s["shift_Hz"], backend=s["backend"], progress=progress,
-                                      keep_factor=True, ordering=model.ordering)
-    try:
-        p = drive_vector(model, h["drive_point"], h.get("direction", "y"))
-        R, H0, note = static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed, backend=s["backend"],
-                                      shifted=shifted)
-    finally:
-        shifted.free_memory()
-    desc = describe_modes(model, modes.phi, kc, mc)
-    progress(f"harmonic[{state}]: {note}")
-    dcfg = dict(h.get("damping") or {"model": "modal", "damping_ratio": 0.03})
-    measured, mnote = _measured_by_fe_mode(cfg, state, verify_csv)
-    share = None
-    if dcfg.get("model") == "joint":
-        elastic = modes.freqs_Hz >= RIGID_HZ
-        share = np.zeros(modes.freqs_Hz.size)
-        share[elastic] = dm.joint_energy_share(modes.phi[:, elastic], modes.freqs_Hz[elastic],
-                                               joint_stiffness(model, kc))
-    zeta, source = modal_damping_ratios(dcfg, modes.freqs_Hz, joint_share=share, measured=measured)
-    res = harmonic_response(modes, p, zeta, band, n_freq=int(h["n_freq"]), residual=R, static_receptance=H0)
-    res.damping_source, res.residual_note = source, note
-    return res, modes, desc, dcfg, mnote
-
-
-_DAMPING_WHY = {
-    "modal": ("constant modal damping ratio: the paper publishes no damping, so one ratio typical of bolted/"
-              "guided machine structures is assumed for every mode; K_min then scales as k_r, i.e. as "
-              "(f_on/f_off)^2 for a mode whose mass is unchanged"),
-    "rayleigh": "Rayleigh damping C = alpha M + beta K with the configured coefficients",
-    "joint": ("joint dashpots proportional to the joint springs (c = eta k_joint): damping grows with the "
-              "joint stiffness, so K_min scales about as (f_on/f_off)^3"),
-    "measured": "measured modal damping ratios of the dataset (mean measured ratio for unpaired modes)",
-}

@@ -18,6 +18,11 @@ class Terminated(SystemExit):
     """Raised by the SIGTERM handler of :func:`run_script` (a ``SystemExit``: not caught as an error)."""
 
 
+def log(msg: str) -> None:
+    """Print a stage's progress line at once (the rule's log is a pipe, not a terminal)."""
+    print(msg, flush=True)
+
+
 def _on_sigterm(signum, frame):
     from jointid import io
 

@@ -1,0 +1,200 @@
+"""FE polish of the surface optimum, and modal solves on mesh-extrapolated frequencies.
+
+The response surfaces give each state a first optimum; the polish refines it by Gauss-Newton on the
+full FE model (or on the verified reduced-order model), see
+:func:`jointid.identification.updating.fe_polish`.  With ``mesh.extrapolate_edges`` the polish fits
+the frequencies extrapolated over the mesh's edge-refinement levels (:mod:`jointid.fe.extrapolate`,
+docs/reconstruction.md, "Mesh extrapolation"): :func:`extrapolated_polish` repeats it with the
+factors taken at its last optimum until they settle.
+
+* :func:`solve_point` - modal solve of a cached model at joint parameters (Hz, shapes at the
+  measuring points);
+* :func:`edge_limit_at` - the mesh-extrapolated frequencies of a model at joint parameters;
+* :func:`polish_on_model` / :func:`polish_optimum` - the polish on a model / on the model files of
+  a run;
+* :func:`extrapolated_polish` - the polish again on mesh-extrapolated frequencies;
+* :func:`corrected` - a solve function with each frequency scaled by its extrapolation factor.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointid.fe.describe import describe_modes
+from jointid.fe.extrapolate import FrequencyCorrection, edge_limit
+from jointid.fe.modal import solve_model
+from jointid.fe.model import base_coefficients, joint_terms, load_model
+from jointid.fe.reduced import ReducedSolver
+from jointid.identification.rom import ROM, load_rom
+from jointid.identification.updating import fe_polish, log_jacobian
+
+__all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "corrected", "edge_limit_at", "extrapolated_polish",
+           "polish_on_model", "polish_optimum", "solve_point"]
+
+EXTRAPOLATION_PASSES = 3  # polishes on extrapolated frequencies, each with factors taken at the last optimum
+EXTRAPOLATION_SETTLED = 2e-3  # the factors have settled once their first-order change over a polish is below this
+
+
+def _log(msg: str) -> None:
+    print(msg, flush=True)
+
+
+def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True,
+                certify: bool = False):
+    """Modal solve of the cached model at joint parameters ``theta`` (N/m^3); ``certify``: with a
+    Sturm check of its completeness (``modes.sturm``, :func:`jointid.fe.modal.solve_model`).
+
+    Returns ``(freqs_Hz, shapes at measuring points (n_labels, n_modes), description table, modes)``.
+    """
+    s = cfg["solver"]
+    kc, mc = base_coefficients(cfg, model, theta)
+    modes = solve_model(model, kc, mc, n_modes or s["n_modes"], shift_Hz=s["shift_Hz"], backend=s["backend"],
+                        certify=certify)
+    shapes = model.probe @ modes.phi
+    desc = None
+    if describe:
+        desc = describe_modes(model, modes.phi, kc, mc)
+    return modes.freqs_Hz, shapes, desc, modes
+
+
+def polish_optimum(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False,
+                   rom=None, correction=None):
+    """Gauss-Newton refinement of the surface optimum on the full FE model (or the ROM file ``rom``).
+
+    ``doc`` is the surface model (its ``names`` and ``ref_shapes``), ``matrices`` the cached model
+    file, ``theta0`` the surface optimum (N/m^3), ``pairing`` the tracked-mode columns of the
+    measured modes; the rest as in :func:`polish_on_model`.
+    """
+    ref = np.asarray(doc["ref_shapes"])[:, pairing]
+    model = load_rom(rom) if rom else load_model(matrices)
+    return polish_on_model(cfg, model, doc["names"], theta0, f_meas, ref, lower, upper,
+                           weights=weights, sigma_rel=sigma_rel, repair=repair, correction=correction)
+
+
+def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas, weights, sigma_rel,
+                        lower, upper, *, repair, rom):
+    """The polish again on mesh-extrapolated frequencies, until their factors are those of its optimum.
+
+    The factors are taken at the current optimum (first the base mesh's), with their first-order
+    dependence on the parameters, and the polish is repeated with them.  Should they change by more
+    than ``EXTRAPOLATION_SETTLED`` (relative, to first order) over the polish's step, where their
+    second-order change might matter, they are taken again at the new optimum (at most
+    ``EXTRAPOLATION_PASSES`` passes).  Returns ``(record for params.json, the last polish)``.
+    """
+    say = lambda m: _log(f"identify[{state}]: {m}")  # noqa: E731
+    models = [load_model(p) for p in (matrices, *edge_matrices)]
+    theta_mesh = dict(zip(doc["names"], map(float, polish["theta"])))
+    passes = []
+    for k in range(EXTRAPOLATION_PASSES):
+        at = np.asarray(polish["theta"], float)
+        say(f"mesh extrapolation over the edge levels at {'the base-mesh optimum' if k == 0 else 'the new optimum'}")
+        lim = edge_limit_at(cfg, models, dict(zip(doc["names"], map(float, at))), log=say, sensitivities=True)
+        shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= cfg["solver"]["min_freq_Hz"]]
+        say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
+        say("polish on the extrapolated frequencies")
+        polish = polish_optimum(cfg, doc, matrices, at, pairing, f_meas, weights, sigma_rel, lower, upper,
+                                repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim, at))
+        moved = float(np.max(np.abs(polish["theta"] / at - 1)))
+        drift = float(np.max(np.abs(lim.slope[shown] @ np.log10(polish["theta"] / at))))
+        passes.append({"factors_at": dict(zip(doc["names"], map(float, at))), "max_parameter_change": moved,
+                       "max_factor_change_first_order": drift})
+        say(f"pass {k + 1}: the polish moved the parameters by at most {100 * moved:.2f} %, the factors by "
+            f"{100 * drift:.3f} % (first order)")
+        if drift < EXTRAPOLATION_SETTLED:
+            break
+    else:
+        say(f"warning: the factors did not settle in {EXTRAPOLATION_PASSES} passes (last change {100 * drift:.3f} %)")
+    odd = [f"{lim.levels_Hz[0, i]:.0f} Hz ({lim.status[i]})" for i in shown
+           if lim.status[i] in ("not asymptotic", "lost")]
+    if odd:
+        say("kept the finest mesh's frequency (no geometric sequence): " + ", ".join(odd))
+    record = {"theta_base_mesh": theta_mesh, "n_dofs": lim.n_dofs, "passes": passes,
+              "modes": lim.table().to_dict(orient="list"), "not_extrapolated": odd}
+    return record, polish
+
+
+def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shapes, lower, upper, *,
+                    weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None,
+                    correction=None):
+    """FE polish (:func:`jointid.identification.updating.fe_polish`) of joint parameters ``names`` on ``model``.
+
+    ``model`` is the full FE model (:class:`jointid.fe.fem.Model`) or a reduced-order model
+    (:class:`jointid.identification.rom.ROM`, evaluated in its generalised coordinates, where the sensitivities
+    ``y^T Kr_i y`` are exact for the reduced model).  On the full model the iterates are solved by a
+    :class:`jointid.fe.reduced.ReducedSolver` started at ``theta0`` (the exact modes there and their
+    responses to each parameter, enriched wherever a Ritz pair's full-space residual says its
+    eigenvalue is off by more than 1e-6): full-FE answers for one factorisation instead of one per
+    iterate.  ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by
+    MAC; with ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate
+    instead.  ``correction`` (:class:`jointid.fe.extrapolate.FrequencyCorrection`) scales each mode's
+    frequency by the mesh-extrapolation factor of the mode it continues.
+    """
+    jt = joint_terms(cfg["joints"])
+    terms = [{t: 1.0 for t in jt[n]} for n in names]
+    n_modes = cfg["solver"]["n_modes"]
+    if isinstance(model, ROM):
+        reduced_terms = dict(zip(model.k_names, model.k_terms))
+
+        def solve(theta):
+            freqs, shapes, y = model.solve_theta(dict(zip(names, theta)), n_modes, return_coords=True)
+            return freqs, shapes, y, reduced_terms
+    else:
+        kc0, mc0 = base_coefficients(cfg, model, dict(zip(names, theta0)))
+        rs = ReducedSolver(model, kc0, mc0, n_modes, [(t, {}) for t in terms], shift_Hz=cfg["solver"]["shift_Hz"],
+                           backend=cfg["solver"]["backend"])
+
+        def solve(theta):
+            sol = rs.solve(*base_coefficients(cfg, model, dict(zip(names, theta))), n_modes)
+            return sol.freqs_Hz, sol.shapes, rs.full_phi(sol), model.stiffness
+
+    if correction is not None:
+        solve = corrected(solve, correction)
+    return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
+                     sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
+                     repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None)
+
+
+def corrected(solve, correction):
+    """``solve`` with each mode's frequency scaled by its mesh-extrapolation factor (in ascending order).
+
+    A factor adds its own ``d ln c / d log10 theta`` to the mode's ``d ln f / d log10 theta``, which
+    the polish gets as a fifth return value; :func:`jointid.identification.updating.log_jacobian` computes the
+    mesh's part as ``phi^T K' phi / (2 lambda)`` from the frequency it is given, so ``phi`` is scaled
+    by the same factor to keep that part exact.
+    """
+    def solve_corrected(theta):
+        freqs, shapes, phi, stiff = solve(theta)
+        c, grad = correction.factors(shapes, theta)
+        order = np.argsort(freqs * c, kind="stable")
+        out = (freqs * c)[order], shapes[:, order], (phi * c)[:, order], stiff
+        return out if grad is None else (*out, grad[order])  # + the factors' own d ln / d log10 theta
+
+    return solve_corrected
+
+
+def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, base=None,
+                  sensitivities: bool = False):
+    """:class:`jointid.fe.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta``; ``models``:
+    the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
+    those, so that the highest base modes find their partner), each a model or a function that
+    builds one (built when its turn comes and dropped after its solve); ``base``: the base mesh's
+    ``(freqs_Hz, shapes)`` at ``theta`` when already solved; ``sensitivities``: with the factors'
+    first-order dependence on ``theta`` (exact modal sensitivities on each mesh)."""
+    names = list(theta)
+    jt = joint_terms(cfg["joints"])
+    terms = [{t: 1.0 for t in jt[n]} for n in names]
+    solves = []
+    for k, model in enumerate(models):
+        model = model() if callable(model) else model
+        if k == 0 and base is not None:
+            solves.append((*base, model.n_dofs))
+            continue
+        f, s, _, modes = solve_point(cfg, model, theta, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
+                                     describe=False)
+        J = (log_jacobian(model.stiffness, modes.phi, modes.omega2, terms, np.array([theta[n] for n in names]))
+             if sensitivities else None)
+        solves.append((f, s, model.n_dofs, J))
+        if log:
+            log(f"edge level +{k}: {model.n_dofs} DOFs solved")
+        del model
+    return edge_limit(solves)

@@ -1,0 +1,51 @@
+"""Rule ``carriage_rigidity``: each state's identified joint springs in a catalogue-style test of one
+carriage on its rail (:mod:`jointid.response.carriage`), the number to hold against a guide catalogue."""
+
+from __future__ import annotations
+
+from jointid import io
+from jointid.response.carriage import DIRECTIONS, BlockTest
+
+CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity")
+"""Config keys of rule ``carriage_rigidity``."""
+
+
+def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str, log=print) -> dict:
+    """Rule ``carriage_rigidity``: the identified joints of one state as a catalogue's block rigidity.
+
+    Writes, per direction: the joint springs alone (parameter x contact area), the carriage and rail
+    alone (stiff joints), the assembly (both in series, the catalogue's quantity) with every parameter
+    at the low and at the high end of its 95 % interval (``assembly_ci95_low/high``: the rigidity grows
+    with every spring, so this is an outer bound of its interval), and the joints' share of the
+    assembly's compliance (1 - assembly / parts: the compliance they add over stiff joints).
+    """
+    par = io.read_json(params_json)
+    cell = cfg["carriage_rigidity"]["cell_size_m"]
+    test = BlockTest(cfg, cell)
+    at = lambda key: {n: v[key] for n, v in par["parameters"].items()}  # noqa: E731
+    res = test.rigidity(at("value"))
+    low, high = test.rigidity(at("ci95_low"), False), test.rigidity(at("ci95_high"), False)
+    springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction
+    along = {"x": "lateral", "y": "normal", "z": "feed"}
+    for name, spec in cfg["joints"]["parameters"].items():
+        per = par.get("per_carriage", {}).get(name.replace("_N_per_m3", "_per_carriage_N_per_um"))
+        if per is not None:
+            springs[along[spec["direction"]]] += per["value"]
+    rows = {}
+    for d in DIRECTIONS:
+        a = res.assembly_N_per_m[d] * 1e-6
+        rows[d] = {"joint_springs_N_per_um": springs[d] or None, "parts_N_per_um": res.parts_N_per_m[d] * 1e-6,
+                   "assembly_N_per_um": a, "assembly_ci95_low_N_per_um": low.assembly_N_per_m[d] * 1e-6,
+                   "assembly_ci95_high_N_per_um": high.assembly_N_per_m[d] * 1e-6,
+                   "joint_share_of_compliance": 1 - a / (res.parts_N_per_m[d] * 1e-6)}
+        log(f"carriage_rigidity[{state}]: {d}: assembly {a:,.0f} N/um "
+            f"[{rows[d]['assembly_ci95_low_N_per_um']:,.0f}, {rows[d]['assembly_ci95_high_N_per_um']:,.0f}]"
+            + (f", joint springs alone {springs[d]:,.0f}" if springs[d] else "")
+            + f", carriage and rail alone {rows[d]['parts_N_per_um']:,.0f} N/um "
+            f"(joints {100 * rows[d]['joint_share_of_compliance']:.0f} % of the compliance)")
+    doc = {"state": state, "cell_size_m": cell, "n_dofs": res.n_dofs,
+           "test": "one carriage on a rail segment (2 rail heights beyond either end), rail bottom clamped, "
+                   "carriage top moved as a rigid plate; rigidity = reaction / displacement",
+           "directions": rows}
+    io.write_json(out_json, doc)
+    return doc

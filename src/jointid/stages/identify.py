@@ -1,0 +1,281 @@
+"""Rules ``scout`` and ``identify``: one state's joint parameters from its measured modes.
+
+The multistart on the response surfaces (:func:`jointid.identification.updating.identify_state`),
+the pairing of frequency-only states shared by all states
+(:func:`jointid.identification.updating.identify_states_jointly`) and the FE polish
+(:mod:`jointid.identification.polish`); rule ``scout`` is the same stage without the model matrices
+(surfaces only, the first optimum of the zoomed DOE).
+
+Imports of the numerical modules are inside the functions (see :mod:`jointid.stages.model`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointid import io
+from jointid.stages.doe import parameter_bounds
+from jointid.stages.modal import SOLVE_KEYS
+from jointid.stages.runner import log
+
+AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are reported as alternatives
+
+
+def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
+    """Config keys of rule ``identify``: the shared sections, this state's settings and the other
+    states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
+    return ("rig", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
+            f"states.{state}", *(f"states.{s}.dataset" for s in states))
+
+
+def scout_config_keys(states: list[str]) -> tuple[str, ...]:
+    """Config keys of rule ``scout``: what the surface-only identification reads (not the FE solve,
+    not the motor force)."""
+    return ("joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
+            "identify.weights", "identify.pairing", "solver.min_freq_Hz", "measurements",
+            *(f"states.{s}.dataset" for s in states))
+
+
+def measured_modes(cfg: dict, state: str, pts):
+    """``(frequencies, shapes or None, frequency uncertainty in %)`` of one state's measured modes
+    (``pts``: the measuring-point table)."""
+    from jointid.correlate.pairing import below_band
+    from jointid.data.dataset import read_dataset
+    from jointid.errors import DataError
+    from jointid.geometry.points import dof_labels
+    from jointid.response.drive_point import dataset_folder
+
+    ds = read_dataset(dataset_folder(cfg, state), measuring_points=pts)
+    low = below_band(ds.name, {state: ds.freqs(state)}, float(cfg["solver"]["min_freq_Hz"]))
+    if low:
+        raise DataError(low)
+    shapes = None
+    if ds.shapes is not None and state in set(ds.shapes["state"]):
+        shapes = ds.shape_matrix(state, dof_labels(pts))
+    sigma_pct = ds.conditions.get("frequency_uncertainty_pct", cfg["identify"]["frequency_uncertainty_pct"])
+    return ds.freqs(state), shapes, float(sigma_pct)
+
+
+def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:
+    """Warnings on the pairing of frequency-only states: competing pairings of about equal fit, and
+    the pairing the other rule (``identify.pairing``) would choose."""
+    tm = lambda p: [doc["tracked_modes"][j] for j in p]  # noqa: E731
+    own = info[state]["own"]
+    k = len(doc["names"])
+    if rule == "shared":
+        chi2 = {tuple(c["pairing"]): c["chi2"] for c in info["candidates"]}
+        dof = max(1, sum(len(own) - k for _ in states))
+        chosen, what = tuple(shared), "over all states"
+    else:
+        chi2 = {tuple(c["pairing"]): c["chi2_by_state"][state] for c in info["candidates"]}
+        dof = max(1, len(own) - k)
+        chosen, what = tuple(own), "in this state"
+    best = chi2[chosen]
+    # chi2 scaled by its value per degree of freedom when the best fit is itself poor (then a model
+    # error, not the noise, sets the scatter)
+    scale = max(1.0, best / dof)
+    close = sorted((v, p) for p, v in chi2.items() if p != chosen and (v - best) / scale < AMBIGUOUS_DCHI2)
+    notes = []
+    if close:
+        notes.append(f"ambiguous pairing: besides tracked modes {tm(chosen)} (chi2 {best:.1f} {what}, {dof} "
+                     "degrees of freedom) also " + "; ".join(f"tracked modes {tm(p)} (chi2 {v:.1f})" for v, p in close)
+                     + f" fit within delta chi2 < {AMBIGUOUS_DCHI2:g}" + (f" (scaled by chi2/dof = {scale:.1f})"
+                                                                          if scale > 1 else "")
+                     + ": frequencies alone cannot tell them apart; measured shapes would")
+    if list(shared) != own:
+        if rule == "shared":
+            notes.append(f"on its own this state would pair its measured modes with tracked modes {tm(own)} "
+                         f"instead of {tm(shared)}: one pairing for all states ({', '.join(states)}) fits them "
+                         "best together (identify.pairing: shared)")
+        else:
+            diff = [i + 1 for i, (a, b) in enumerate(zip(own, shared)) if a != b]
+            notes.append(f"measured mode(s) {', '.join(map(str, diff))} pair with other tracked modes here "
+                         f"({tm(own)}) than one pairing shared by all states would ({tm(shared)}): either the "
+                         "modes swap order between the states or a pairing is off (identify.pairing: shared "
+                         "forces one)")
+    return notes
+
+
+def _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule):
+    """``(shared pairing, joint-pairing record, notes)`` of frequency-only states of equal mode counts
+    (:func:`jointid.identification.updating.identify_states_jointly`); ``(None, None, [])`` otherwise."""
+    from jointid.identification.updating import identify_states_jointly
+
+    ic = cfg["identify"]
+    others = {s: measured_modes(cfg, s, pts) for s in states}
+    if not (all(o[1] is None for o in others.values()) and len({len(o[0]) for o in others.values()}) == 1):
+        return None, None, []
+    shared, joint_info = identify_states_jointly(
+        doc, {s: o[0] for s, o in others.items()}, lower, upper, weights=weights,
+        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()})
+    return shared, joint_info, pairing_notes(doc, state, states, shared, joint_info, rule)
+
+
+def _count_note(n_meas: int, n_par: int) -> str:
+    return (f"{n_meas} measured frequencies for {n_par} identified parameters: "
+            + ("underdetermined, the values are one of many that fit equally well"
+               if n_meas < n_par else "no residual degree of freedom is left")
+            + " and the intervals mean little — measure more modes, or fix parameters (joints.fixed)")
+
+
+def _polish_notes(polish: dict, shapes) -> list[str]:
+    """Warnings of the FE polish: parameters on a bound, model modes in the band without a partner."""
+    msgs = [f"{n} sits on a bound of joints.parameters.{n} after the FE polish — widen the bounds"
+            for n in polish["on_bound"]]
+    skipped = polish["unpaired_in_band_Hz"]
+    if skipped:
+        msgs.append(f"{len(skipped)} model mode(s) inside the measured band ("
+                    + ", ".join(f"{f:.0f}" for f in skipped) + " Hz) have no measured partner: "
+                    + ("the frequency-only pairing skipped them. Either the test missed them (check that "
+                       "the excitation and measuring points could see them) or the reconstruction is off; "
+                       "measured shapes would make the pairing unambiguous (MAC)" if shapes is None else
+                       "the measured shapes pair with other model modes; check whether the test could "
+                       "have missed them"))
+    return msgs
+
+
+def _zoom_notes(names, theta, lower, upper, polish, res) -> list[str]:
+    """Warnings of an identification on the zoomed DOE's surfaces: the optimum outside or on its box."""
+    out_of_box = [f"{n} = {t:.3g} (box {a:.3g}..{b:.3g})" for n, t, a, b in zip(names, theta, lower, upper)
+                  if not a * (1 - 1e-9) <= t <= b * (1 + 1e-9)]
+    if out_of_box:
+        return ["the optimum lies outside the zoomed DOE box, where its surfaces extrapolate: "
+                + "; ".join(out_of_box) + " — raise doe.zoom.half_width_decades"]
+    if polish is None and res.on_bound:
+        return [f"{', '.join(res.on_bound)} on an edge of the zoomed DOE box: the optimum may lie beyond "
+                "it — raise doe.zoom.half_width_decades or enable identify.fe_polish"]
+    return []
+
+
+def _face_of(cfg: dict, name: str) -> str:
+    from jointid.fe.model import joint_terms
+
+    terms = joint_terms(cfg["joints"])[name]
+    return "+".join(sorted({t.split("_")[1] for t in terms}))
+
+
+def _per_carriage(cfg, names, theta, ci_lo, ci_hi, areas: dict) -> dict:
+    """The parameters as springs of one carriage (N/um): value x its faces' contact area per carriage."""
+    per_carriage = {}
+    for n, th, lo, hi in zip(names, theta, ci_lo, ci_hi):
+        a = areas.get(_face_of(cfg, n), 0.0)
+        per_carriage[n.replace("_N_per_m3", "_per_carriage_N_per_um")] = {
+            "value": th * a * 1e-6, "ci95_low": lo * a * 1e-6, "ci95_high": hi * a * 1e-6}
+    return per_carriage
+
+
+def _polish_step(cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairing, repair, matrices, rom,
+                 edge_matrices):
+    """The FE polish of the surface optimum ``res`` (and its repeats on mesh-extrapolated frequencies).
+
+    Returns ``(theta, ci95_low, ci95_high, frequencies fitted, polish, edge record, notes)``.
+    """
+    from jointid.identification.polish import extrapolated_polish, polish_optimum
+
+    surface_theta = np.asarray(res.theta, float)
+    b_lo, b_hi = parameter_bounds(cfg)
+    polish = polish_optimum(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, b_lo,
+                            b_hi, repair=repair, rom=rom)
+    edge = None
+    if edge_matrices:
+        edge, polish = extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas,
+                                           weights, sigma_pct / 100, b_lo, b_hi, repair=repair, rom=rom)
+    theta = polish["theta"]
+    sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
+    return (theta, theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd), polish["f_fe"], polish, edge,
+            _polish_notes(polish, shapes))
+
+
+def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
+            f_final, polish, edge, rom, per_carriage, msgs) -> dict:
+    """The content of ``params.json``."""
+    names, lower, upper = doc["names"], doc["lower"], doc["upper"]
+    return {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
+                                           for n, th, lo, hi in zip(names, theta, ci_lo, ci_hi)},
+            "surface_optimum": {n: float(t) for n, t in zip(names, np.asarray(res.theta, float))},
+            "surface_stage": doc.get("stage", "global"),
+            "surface_box": {n: [float(a), float(b)] for n, a, b in zip(names, lower, upper)},
+            "fe_polish": None if polish is None else {
+                "on": "rom" if rom else "fe",
+                "unpaired_in_band_Hz": polish["unpaired_in_band_Hz"],
+                "iterations": polish["iterations"], "cost_history": polish["cost_history"],
+                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
+            "edge_extrapolation": edge,
+            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
+                doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
+            "paired_by": "mac" if shapes is not None else ("frequency, shared by all states" if fixed is not None
+                                                           else "frequency"),
+            "joint_pairing": joint_info,
+            "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model,
+            "residual_pct": 100 * (np.asarray(f_final) - f_meas) / f_meas,
+            "cost": res.cost, "condition_number": res.condition_number,
+            "weak_combination": res.weak_combination,
+            "on_bound": res.on_bound if polish is None else polish["on_bound"],
+            "n_starts_agreeing": res.n_starts_agreeing, "warnings": msgs,
+            "frequency_uncertainty_pct": sigma_pct}
+
+
+def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
+                 matrices: str | None = None, rom: str | None = None, states: list[str] | None = None,
+                 edge_matrices: list[str] | None = None, summary_json: str | None = None) -> None:
+    """Identify one state's joint parameters: multistart on the surfaces, then the polish.
+
+    The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
+    reduced-order model ``rom`` when one is given (``solver.method: rom``; the verify stage then
+    checks the result with a full solve).  With ``states`` (all states of the run) and frequencies
+    alone in every one of them, in equal numbers, ``identify.pairing: shared`` pairs the measured
+    modes with the same tracked modes in every state (:func:`jointid.identification.updating.identify_states_jointly`)
+    and the polish follows those modes by shape; ``independent`` (default) pairs each state by its
+    own frequencies and re-pairs at every polish iterate.  Either way the notes name competing
+    pairings and the other rule's choice.  With ``edge_matrices`` (``mesh.extrapolate_edges``: the
+    models with one and two more edge levels) the polish is repeated on mesh-extrapolated frequencies
+    (:mod:`jointid.fe.extrapolate`) until their factors settle
+    (:func:`jointid.identification.polish.extrapolated_polish`).  ``summary_json``: the model summary
+    of rule ``mesh`` (default: ``summary.json`` beside ``points_csv``), for the per-carriage values.
+    """
+    import pandas as pd
+
+    from jointid.identification.updating import identify_state
+
+    doc = io.read_json(surface_json)
+    pts = pd.read_csv(points_csv)
+    f_meas, shapes, sigma_pct = measured_modes(cfg, state, pts)
+    ic = cfg["identify"]
+    weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
+    lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
+    names, zoom = doc["names"], doc.get("stage") == "zoom"
+    rule = ic.get("pairing", "independent")
+    shared, joint_info, pair_msgs = None, None, []
+    if states and len(states) > 1 and state in states and shapes is None:
+        shared, joint_info, pair_msgs = _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule)
+    fixed = shared if rule == "shared" else None
+    res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
+                                        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
+                                        pairing=fixed)
+    msgs += pair_msgs
+    if len(f_meas) <= len(names):
+        msgs.insert(0, _count_note(len(f_meas), len(names)))
+    if zoom:  # an edge of the zoomed box is no bound of the parameters: the FE polish may pass it
+        msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in names)]
+    theta, ci_lo, ci_hi = np.asarray(res.theta, float), res.ci_lower, res.ci_upper
+    f_final, polish, edge = res.f_model, None, None
+    if edge_matrices and not (matrices and ic.get("fe_polish", True)):
+        msgs.append("mesh.extrapolate_edges needs identify.fe_polish: the frequencies fitted are those of the "
+                    "base mesh")
+    if matrices and cfg["identify"].get("fe_polish", True):
+        theta, ci_lo, ci_hi, f_final, polish, edge, notes = _polish_step(
+            cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairing, shapes is None and fixed is None,
+            matrices, rom, edge_matrices)
+        msgs += notes
+    if zoom:
+        msgs += _zoom_notes(names, theta, lower, upper, polish, res)
+    summary = summary_json or points_csv.replace("measuring_points.csv", "summary.json")
+    per_carriage = _per_carriage(cfg, names, theta, ci_lo, ci_hi,
+                                 io.read_json(summary)["contact_area_per_carriage_m2"])
+    out = _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
+                  f_final, polish, edge, rom, per_carriage, msgs)
+    io.write_json(out_json, out)
+    log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))
+        + f"; max |error| {np.abs(out['residual_pct']).max():.2f} %")
+    for m in msgs:
+        log("warning: " + m)

@@ -1,0 +1,118 @@
+"""Rule ``mesh_check`` (opt-in, ``mesh_check.enabled``): each state's identified parameters re-solved
+on a nested refinement of the mesh, and the first-order change a re-identification there would give
+(:mod:`jointid.identification.meshcheck`).
+
+Imports of the numerical modules are inside the functions (see :mod:`jointid.stages.model`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointid import io
+from jointid.errors import ModelError
+from jointid.stages.modal import SOLVE_KEYS
+
+CONFIG = ("materials", "rig", "mesh", "mesh_check", "joints", "identify.weights", *SOLVE_KEYS)
+"""Config keys of rule ``mesh_check``."""
+
+
+def _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices, say):
+    """Solve of the default mesh at the identified parameters.
+
+    Returns ``(frequencies (Hz; extrapolated with edge_matrices), its own frequencies, shapes,
+    d ln f / d log10 theta of every mode, number of DOFs)``.
+    """
+    from jointid.fe.model import joint_terms, load_model
+    from jointid.identification.polish import edge_limit_at, solve_point
+    from jointid.identification.updating import log_jacobian
+
+    coarse = load_model(matrices)
+    _, shapes_c, _, modes_c = solve_point(cfg, coarse, theta_d, describe=False)
+    jt = joint_terms(cfg["joints"])
+    terms = [{t: 1.0 for t in jt[n]} for n in names]
+    J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
+    f_c = modes_c.freqs_Hz
+    if edge_matrices:
+        say("default mesh: extrapolated over its edge levels")
+        f_c = edge_limit_at(cfg, [coarse, *map(load_model, edge_matrices)], theta_d, log=say,
+                            base=(modes_c.freqs_Hz, shapes_c)).limit_Hz
+    return f_c, modes_c.freqs_Hz, shapes_c, J_all, coarse.n_dofs
+
+
+def _refined_mesh(cfg, theta_d, halve, extrapolate: bool, say):
+    """Solve of the mesh with the ``halve`` cells halved (and its two more edge levels with
+    ``extrapolate``); returns ``(frequencies, its own frequencies, shapes, number of DOFs)``."""
+    from functools import partial
+
+    from jointid.fe.extrapolate import level_config
+    from jointid.fe.model import build_model
+    from jointid.identification.polish import edge_limit_at, solve_point
+
+    if extrapolate:  # and with one and two more edge levels, each built in turn
+        lim_f = edge_limit_at(cfg, [partial(build_model, level_config(cfg, k), halve=halve, progress=say)
+                                    for k in range(3)], theta_d, log=say)
+        return lim_f.limit_Hz, lim_f.levels_Hz[0], lim_f.shapes, lim_f.n_dofs[0]
+    fine = build_model(cfg, halve=halve, progress=say)
+    _, shapes_f, _, modes_f = solve_point(cfg, fine, theta_d, describe=False)
+    return modes_f.freqs_Hz, modes_f.freqs_Hz, shapes_f, fine.n_dofs
+
+
+def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
+                   out_json: str, out_csv: str, log=print, edge_matrices: list[str] | None = None) -> dict:
+    """Rule ``mesh_check`` for one state's identified parameters (see the module doc);
+    ``edge_matrices``: the default mesh with one and two more edge levels (``mesh.extrapolate_edges``).
+
+    Writes every mode of the default mesh beside the refined mesh's (``out_csv``,
+    :func:`jointid.identification.meshcheck.mode_table`) and the parameters' first-order change
+    (``out_json``); returns the latter.
+    """
+    import pandas as pd
+
+    from jointid.correlate.pairing import pair_by_shapes
+    from jointid.identification.meshcheck import first_order_shift, mode_table, parameter_changes
+
+    mc_cfg = cfg["mesh_check"]
+    halve = tuple(mc_cfg["halve"])
+    par = io.read_json(params_json)
+    ver = pd.read_csv(verify_csv)
+    names = list(par["parameters"])
+    theta = np.array([par["parameters"][n]["value"] for n in names])
+    theta_d = dict(zip(names, theta))
+    say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
+    say("default mesh at the identified parameters")
+    f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices,
+                                                             say)
+    say(f"the mesh with {', '.join(halve)} cells halved")
+    f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(cfg, theta_d, halve, bool(edge_matrices), say)
+    index, macs = pair_by_shapes(shapes_c, shapes_f, threshold=0.8)
+    fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
+    use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
+    if not use.any():
+        raise ModelError(f"mesh_check[{state}]: no measured mode could be followed onto the refined mesh "
+                         "(MAC < 0.8 at the measuring points for every paired mode) — check the mesh settings")
+    rows = fe_mode[use]
+    dlnf = np.log(f_f[index[rows]] / f_c[rows])
+    weights = np.asarray(cfg["identify"].get("weights") or np.ones(len(fe_mode)), float)[use]
+    delta = first_order_shift(J_all[rows], dlnf, weights)
+    limit = float(mc_cfg["max_parameter_change_pct"])
+    warnings = []
+    lost = [i + 1 for i in np.flatnonzero((fe_mode >= 0) & ~use)]
+    if lost:
+        warnings.append(f"measured mode(s) {', '.join(map(str, lost))}: the paired mode has no partner with "
+                        "MAC >= 0.8 on the refined mesh; left out of the estimate")
+    params, notes = parameter_changes(par, delta, limit)
+    warnings += notes
+    raw = None if not edge_matrices else {"default_mesh_Hz": f_c_mesh, "refined_mesh_Hz": f_f_mesh}
+    io.write_csv(mode_table(f_c, f_f, index, macs, fe_mode, raw), out_csv)
+    doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": bool(edge_matrices),
+           "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
+           "parameters": params, "max_parameter_change_pct": limit, "warnings": warnings,
+           "max_paired_frequency_change_pct": float(100 * np.max(np.abs(np.expm1(dlnf))))}
+    io.write_json(out_json, doc)
+    for n, p in params.items():
+        log(f"mesh_check[{state}]: {n} {p['value']:.4g} -> {p['value_refined_first_order']:.4g} N/m^3 "
+            f"({p['change_pct']:+.2f} %; 95 % interval +-{p['ci95_half_width_pct']:.1f} %)")
+    for w in warnings:
+        log(f"mesh_check[{state}]: WARNING {w}")
+    return doc

@@ -1,0 +1,156 @@
+"""Rules ``modal``/``modal_zoom`` (one modal solve per DOE point), ``gather_modal``/``gather_zoom``
+and ``rom`` (the parametric reduced-order model of ``solver.method: rom``).
+
+Imports of the numerical modules are inside the functions (see :mod:`jointid.stages.model`): the
+modal fan-out is the workflow's largest, and each job loads only what its solve uses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointid import io
+from jointid.stages.doe import parameter_names
+from jointid.stages.runner import log
+
+SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min_freq_Hz")
+"""Config keys of a full FE solve (:func:`jointid.identification.polish.solve_point`) in the later stages."""
+ROM_KEYS = ("method", "rom_tolerance")
+"""``solver`` keys of the reduced-order model only."""
+CONFIG_ROM = ("rig", "joints", "solver")
+"""Config keys of rule ``rom``."""
+
+
+def config_keys(config: dict) -> tuple[str, ...]:
+    """Config keys of rules ``modal`` and ``modal_zoom``.
+
+    With ``solver.method: full`` (the default) they leave out the ROM keys (:data:`ROM_KEYS`), so
+    that the full path's jobs, params and results stay exactly those it had before the option existed.
+    """
+    if config["solver"]["method"] == "rom":
+        return CONFIG_ROM
+    return ("rig", "joints", *(f"solver.{k}" for k in config["solver"] if k not in ROM_KEYS))
+
+
+def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, rom: str | None = None) -> None:
+    """Modes at one DOE point -> ``out_npz`` (freqs_Hz, shapes, labels, description, strain_joints, theta).
+
+    ``solver.method``: ``full`` (default) solves the FE model; ``rom`` evaluates the reduced-order
+    model ``rom`` (written by :func:`run_rom`) and expands its modes to full DOF vectors for the
+    mode descriptions.  Both write the same arrays.
+    """
+    import pandas as pd
+
+    from jointid.fe.model import load_model
+    from jointid.geometry.points import dof_labels
+
+    model = load_model(matrices)
+    if cfg["solver"].get("method", "full") == "rom":
+        freqs, shapes, desc = _rom_point(cfg, model, theta, rom)
+    else:
+        from jointid.identification.polish import solve_point
+
+        freqs, shapes, desc, _ = solve_point(cfg, model, theta)
+    labels = dof_labels(pd.DataFrame(model.meta["points"]))
+    io.write_npz(out_npz, freqs_Hz=freqs, shapes=shapes, labels=np.array(labels),
+                 description=desc["description"].to_numpy().astype(str),
+                 strain_joints=desc["strain_joints"].to_numpy(),
+                 theta_names=np.array(list(theta)), theta=np.array(list(theta.values())))
+    log("modal: " + ", ".join(f"{f:.1f}" for f in freqs) + " Hz")
+
+
+def _rom_point(cfg: dict, model, theta: dict[str, float], rom: str | None):
+    """``(freqs_Hz, shapes at the measuring points, description)`` of the ROM file ``rom`` at ``theta``."""
+    from jointid.errors import ConfigError
+    from jointid.fe.describe import describe_modes
+    from jointid.fe.model import base_coefficients
+    from jointid.identification.rom import full_modes, load_rom
+
+    if not rom:
+        raise ConfigError("solver.method: rom needs the reduced-order model (rule rom, "
+                          "results/rom/rom.npz) — build it with run_rom, or set solver.method: full")
+    reduced = load_rom(rom)
+    kc, mc = base_coefficients(cfg, model, theta)
+    modes = full_modes(reduced, kc, mc, cfg["solver"]["n_modes"])
+    return modes.freqs_Hz, model.probe @ modes.phi, describe_modes(model, modes.phi, kc, mc)
+
+
+def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: str) -> dict:
+    """Build the parametric reduced-order model once (``solver.method: rom``) with error control.
+
+    Training: a full solve at the centre of the joint-parameter box (``solver.n_modes`` + 2 modes),
+    then one block inverse iteration from the current Ritz vectors at each corner (one factorisation
+    each, no Lanczos run; :func:`jointid.identification.rom_build.build_rom`).  Error control: candidate points (random
+    interior ones and every point of the DOE sheet) are ranked by the residual indicator; the worst
+    are solved in full, and the basis is
+    enriched until the relative frequency error of every tracked mode (at or above
+    ``solver.min_freq_Hz``) is at most ``solver.rom_tolerance``.  Writes the ROM with its basis
+    (``out_npz``, :func:`jointid.identification.rom.load_rom`) and a summary (``out_json``: tolerance, achieved
+    error, basis size, verification rounds); returns the summary.
+
+    Raises
+    ------
+    ModelError
+        If the tolerance is not met after the enrichment rounds.
+    """
+    import warnings
+
+    import pandas as pd
+
+    from jointid.errors import ModelError, NumericalWarning
+    from jointid.fe.model import load_model
+    from jointid.identification.rom_build import build_rom
+
+    s = cfg["solver"]
+    tol = float(s.get("rom_tolerance", 1e-4))
+    model = load_model(matrices)
+    sheet = pd.read_csv(sheet_csv)
+    doe_x = sheet[[f"x_{n}" for n in parameter_names(cfg)]].to_numpy(float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)  # not verified: raised as an error below
+        rom = build_rom(model, cfg, s["n_modes"], "corners", tol=tol, candidates=doe_x, progress=log)
+    rep = rom.report
+    n_inverse = sum(1 for t in rep["training"] if t.get("how", "full solve") != "full solve")
+    n_full = len(rep["training"]) - n_inverse + sum(len(r["points"]) for r in rep["rounds"])
+    summary = {"n_dofs": int(model.n_dofs), "n_modes": rep["n_modes"], "n_train_modes": rep["n_train_modes"],
+               "min_freq_Hz": float(s["min_freq_Hz"]), "tolerance": tol, "max_error": rep["max_error"],
+               "verified": rep["verified"], "basis_size": rom.size, "n_full_solves": n_full,
+               "n_inverse_iteration_points": n_inverse,
+               "n_training_points": len(rep["training"]), "n_doe_candidates": int(len(doe_x)),
+               "rounds": [{"round": r["round"], "basis_size": r["r"], "max_error": r["max_error"],
+                           "added": r.get("added", 0),
+                           "points": [{"theta": p["theta"], "max_error": p["max_error"]} for p in r["points"]]}
+                          for r in rep["rounds"]],
+               "coeff_range": rom.coeff_range}
+    if not rep["verified"]:
+        raise ModelError(f"rom: relative frequency error {rep['max_error']:.2e} at the verification points is "
+                         f"above solver.rom_tolerance = {tol:.1e} after {len(rep['rounds'])} enrichment rounds "
+                         f"(basis size {rom.size}) — raise solver.rom_tolerance, narrow joints.parameters, "
+                         "or use solver.method: full")
+    rom.save(out_npz)
+    io.write_json(out_json, summary)
+    log(f"rom: basis {rom.size} vectors from {n_full} full solves and {n_inverse} inverse-iteration points "
+        f"({model.n_dofs} DOFs); max relative "
+        f"frequency error at the verification points {rep['max_error']:.2e} <= {tol:.1e} -> {out_npz}")
+    return summary
+
+
+def run_gather(sheet_csv: str, npz_paths: list[str], out_csv: str, out_npz: str) -> None:
+    """Rules ``gather_modal``/``gather_zoom``: per-point modal results -> one long table and one array file."""
+    import pandas as pd
+
+    sheet = pd.read_csv(sheet_csv)
+    rows, freqs, shapes, descr = [], [], [], []
+    for point, path in zip(sheet["point"], npz_paths):
+        z = np.load(path)
+        freqs.append(z["freqs_Hz"])
+        shapes.append(z["shapes"])
+        descr.append(z["description"])
+        for j, f in enumerate(z["freqs_Hz"]):
+            rows.append({"point": point, "mode": j + 1, "freq_Hz": float(f),
+                         "description": str(z["description"][j]), "strain_joints": float(z["strain_joints"][j])})
+    io.write_csv(pd.DataFrame(rows), out_csv)
+    io.write_npz(out_npz, points=sheet["point"].to_numpy().astype(str), freqs_Hz=np.array(freqs),
+                 shapes=np.array(shapes), labels=np.load(npz_paths[0])["labels"],
+                 descriptions=np.array(descr))
+    log(f"gather: {len(npz_paths)} points -> {out_csv}")

@@ -1,0 +1,59 @@
+"""Rules ``mesh`` and ``mesh_edges``: build and cache the FE model of the rig.
+
+Imports of the numerical modules are inside the functions: every workflow job is a fresh Python
+process and loads only what its stage uses, and the Snakefile reads :func:`config_keys` at parse
+time without loading the FE code.
+"""
+
+from __future__ import annotations
+
+from jointid import io
+from jointid.stages.runner import log
+
+
+def config_keys(config: dict) -> tuple[str, ...]:
+    """Config keys of rules ``mesh`` and ``mesh_edges``: the mesh, not whether identify and verify
+    extrapolate over its edge levels (``mesh.extrapolate_edges``)."""
+    return ("materials", "rig", *(f"mesh.{k}" for k in config["mesh"] if k != "extrapolate_edges"))
+
+
+def run_mesh(cfg: dict, matrices: str, points_csv: str | None = None, vtu: str | None = None,
+             extra_edge_levels: int = 0, summary_json: str | None = None) -> None:
+    """Build and cache the model matrices, the measuring-point table, the model summary
+    (:func:`model_summary`; ``summary_json``, by default ``summary.json`` beside ``points_csv``) and a
+    VTK file of the mesh; ``extra_edge_levels``: the matrices alone of the mesh with that many more
+    edge levels."""
+    import pandas as pd
+
+    from jointid.fe.extrapolate import level_config
+    from jointid.fe.modal import model_ordering
+    from jointid.fe.model import build_model, save_model
+
+    model = build_model(level_config(cfg, extra_edge_levels), progress=log)
+    model.ordering = model_ordering(model)  # the pattern, so its ordering, is the same at any shift
+    save_model(model, matrices)
+    if points_csv is None:
+        log(f"mesh: wrote {matrices} ({model.n_dofs} DOFs)")
+        return
+    pts = pd.DataFrame(model.meta["points"])
+    io.write_csv(pts, points_csv)
+    io.write_json(summary_json or str(points_csv).replace("measuring_points.csv", "summary.json"),
+                  model_summary(model))
+    if vtu:
+        from jointid.fe.vtk import write_mesh_vtu
+
+        write_mesh_vtu(model, vtu)
+    log(f"mesh: wrote {matrices} ({model.n_dofs} DOFs), {points_csv}")
+
+
+def model_summary(model) -> dict:
+    """Sizes and areas of the model (for per-carriage conversions and reports): ``n_dofs,
+    n_elements, element, support, contact_area_m2`` (m^2 per face), ``contact_area_per_carriage_m2``,
+    ``motor_mass_kg``, ``dims_m``, ``carriage_centres_m``."""
+    m = model.meta
+    per = {face: a / 4 for face, a in m["contact_area_m2"].items()}
+    per["flank+top"] = per["top"] + per["flank"]
+    return {"n_dofs": m["n_dofs"], "n_elements": m["n_elements"], "element": m["element"],
+            "support": m["support"], "contact_area_m2": m["contact_area_m2"],
+            "contact_area_per_carriage_m2": per, "motor_mass_kg": m["motor_mass_kg"],
+            "dims_m": m["dims_m"], "carriage_centres_m": m["carriage_centres_m"]}

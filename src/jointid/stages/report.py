@@ -1,0 +1,79 @@
+"""Rule ``report``: the self-contained HTML report of a run (:mod:`jointid.reporting.page`) and its
+figures as PNG files (for ``snakemake --report``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from jointid import io
+from jointid.stages.runner import log
+
+
+def _as_list(x) -> list:
+    return [x] if isinstance(x, (str, Path)) else list(x)
+
+
+def load_inputs(inputs: dict) -> dict:
+    """The report's data: tables and frames read from the paths of ``inputs`` (see :func:`run_report`);
+    per-state files keyed by the state (their parent folder's name); ``table1_problems``: those of
+    :func:`jointid.reporting.checks.check_table1` (shown on the page)."""
+    import numpy as np
+    import pandas as pd
+
+    from jointid.reporting.checks import check_table1
+
+    by_state = lambda key, reader: {Path(p).parent.name: reader(p) for p in _as_list(inputs[key])}  # noqa: E731
+    return {
+        "table1": pd.read_csv(inputs["table1"]),
+        "tables": {"power_off": pd.read_csv(inputs["table2"]), "power_on": pd.read_csv(inputs["table3"])},
+        "verify": by_state("verify", pd.read_csv),
+        "params": by_state("params", io.read_json),
+        "frf": by_state("frf", pd.read_csv),
+        "stiffness": by_state("stiffness", io.read_json),
+        "modes": by_state("modes", lambda p: dict(np.load(p))),
+        "diagnostics": pd.read_csv(inputs["diagnostics"]),
+        "sheet": pd.read_csv(inputs["sheet"]),
+        "points": pd.read_csv(inputs["points"]),
+        "paper_table1": pd.read_csv(inputs["paper_table1"]),
+        "mesh_check": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("mesh_check") or []))},
+        "rigidity": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("rigidity") or []))},
+        "table1_problems": check_table1(inputs["table1"]),
+    }
+
+
+def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
+    """The ``report`` workflow stage.
+
+    Parameters
+    ----------
+    cfg : dict
+        The whole configuration (shown, and hashed).
+    inputs : dict
+        Paths: ``table1, table2, table3, paper_table1, diagnostics, sheet, points`` (one each),
+        ``verify, params, frf, stiffness, modes`` (one per state; the state is the parent folder name)
+        and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check) and ``rigidity``
+        (one JSON per state, from the rule carriage_rigidity).
+    outputs : dict
+        ``html`` and one PNG path per figure (``frf, errors, parameters, surface, doe, mode_shapes``);
+        figures without a path are only embedded.
+    workdir : path-like
+        The workflow's folder (its git commit is shown).
+
+    Returns
+    -------
+    str
+        The HTML page.
+    """
+    from jointid.reporting.page import build_html, report_figures
+    from jointid.reporting.provenance import run_record
+
+    data = load_inputs(inputs)
+    figs = report_figures(cfg, data)
+    for name, png in figs.items():
+        if outputs.get(name):
+            with io.atomic_path(outputs[name]) as tmp:
+                tmp.write_bytes(png)
+    page = build_html(cfg, data, figs, run_record(cfg, workdir))
+    io.write_text(outputs["html"], page)
+    log(f"report: {outputs['html']} ({len(page) / 1e6:.1f} MB, {len(figs)} figures)")
+    return page

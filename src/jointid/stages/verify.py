@@ -1,0 +1,85 @@
+"""Rule ``verify``: a full FE re-solve at the identified parameters gives the tables' frequencies.
+
+Imports of the numerical modules are inside the functions (see :mod:`jointid.stages.model`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointid import io
+from jointid.stages.modal import SOLVE_KEYS
+from jointid.stages.runner import log
+
+CONFIG = ("rig", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
+"""Config keys of rule ``verify`` (``mesh.extrapolate_edges``: it also solves on the meshes with one
+and two more edge levels)."""
+
+
+def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes):
+    """``(FE mode index, MAC to the tracked mode)`` of each measured mode at the identified parameters."""
+    from jointid.identification.updating import verify_pairing
+
+    f_meas = np.asarray(par["f_meas_Hz"])
+    if par.get("paired_by") == "frequency":  # the polish's rule: re-paired by frequency at its optimum
+        from jointid.correlate.mac import mac
+        from jointid.correlate.pairing import pair_by_frequency
+
+        cand = np.flatnonzero(f_all >= cfg["solver"]["min_freq_Hz"])
+        index = cand[pair_by_frequency(f_meas, f_all[cand])]
+        ref = np.asarray(doc["ref_shapes"])[:, np.asarray(par["pairing_columns"])]
+        macs = np.array([float(mac(ref[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
+    else:
+        index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
+    return index, macs
+
+
+def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
+               edge_matrices: list[str] | None = None) -> None:
+    """Full FE re-solve at the identified parameters: the tables' simulated frequencies.
+
+    With ``edge_matrices`` (``mesh.extrapolate_edges``) the simulated frequencies are the
+    mesh-extrapolated ones at these parameters (:mod:`jointid.fe.extrapolate`, solved afresh here), and
+    ``simulation_mesh_Hz`` keeps the base mesh's; the surfaces are compared with the base mesh.
+    """
+    import pandas as pd
+
+    from jointid.fe.model import load_model
+    from jointid.identification.polish import edge_limit_at, solve_point
+
+    par = io.read_json(params_json)
+    doc = io.read_json(surface_json)
+    theta = {n: v["value"] for n, v in par["parameters"].items()}
+    model = load_model(matrices)
+    freqs, shapes, desc, modes = solve_point(cfg, model, theta, certify=True)
+    log(f"verify[{state}]: {modes.sturm.describe() if modes.sturm else 'no Sturm check (one mode)'}")
+    f_meas = np.asarray(par["f_meas_Hz"])
+    f_all, lim = freqs, None
+    if edge_matrices:
+        lim = edge_limit_at(cfg, [model, *map(load_model, edge_matrices)], theta,
+                            log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes))
+        f_all = lim.limit_Hz
+    index, macs = _pairing(cfg, par, doc, f_all, shapes)
+    paired = np.clip(index, 0, None)
+    fe = np.where(index >= 0, freqs[paired], np.nan)
+    sim, extra = fe, {}
+    if lim is not None:
+        sim = np.where(index >= 0, lim.limit_Hz[paired], np.nan)
+        extra = {"simulation_mesh_Hz": fe, "edge_factor": np.where(index >= 0, lim.factor[paired], np.nan),
+                 "edge_ratio": np.where(index >= 0, lim.ratio[paired], np.nan),
+                 "edge_status": [lim.status[i] if i >= 0 else "" for i in index]}
+    rows = pd.DataFrame({
+        "order": np.arange(1, len(f_meas) + 1), "experimental_Hz": f_meas, "simulation_Hz": sim,
+        "relative_error_pct": 100 * (sim - f_meas) / f_meas, **extra,
+        "surface_Hz": par["f_surface_Hz"], "surface_vs_fe_pct": 100 * (np.asarray(par["f_surface_Hz"]) - fe) / fe,
+        "fe_mode": index + 1, "mac_to_tracked": macs,
+        "description": [desc["description"][i] if i >= 0 else "unpaired" for i in index],
+        "strain_joints": [float(desc["strain_joints"][i]) if i >= 0 else np.nan for i in index]})
+    io.write_csv(rows, out_csv)
+    log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
+        f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
+    if edge_matrices and par.get("fe_polish"):
+        # the identification's last polish scaled by factors taken at its previous optimum; here they are fresh
+        drift = 100 * (sim / np.asarray(par["fe_polish"]["f_fe_Hz"]) - 1)
+        log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
+            f"{np.nanmax(np.abs(drift)):.3f} % (its factors come from its previous optimum, to first order)")
