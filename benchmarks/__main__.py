@@ -11,7 +11,7 @@ import importlib
 import sys
 import time
 
-from jointid import BENCHMARKS
+from . import BENCHMARKS
 from .common import OUT, format_table, load_result, write_result
 
 MODULES = {"a": "bench_a_solve", "b": "bench_b_rom", "c": "bench_c_workflow", "d": "bench_d_scaling",

@@ -43,7 +43,7 @@ def measured_modes(cfg: dict, state: str, pts):
     from jointid.data.dataset import read_dataset
     from jointid.errors import DataError
     from jointid.geometry.points import dof_labels
-    from jointid.response.drive_point import dataset_folder
+    from jointid.config.datasets import dataset_folder
 
     ds = read_dataset(dataset_folder(cfg, state), measuring_points=pts)
     low = below_band(ds.name, {state: ds.freqs(state)}, float(cfg["solver"]["min_freq_Hz"]))
