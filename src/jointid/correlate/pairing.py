@@ -109,35 +109,40 @@ def pair_by_shapes(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float 
     return index, value
 
 
-def pair_by_frequency(f_meas: np.ndarray, f_model: np.ndarray) -> np.ndarray:
+def pair_by_frequency(f_meas: np.ndarray, f_model: np.ndarray, skip_cost: np.ndarray | None = None) -> np.ndarray:
     """Order-preserving assignment of measured modes to model modes by log-frequency distance.
 
-    ``f_meas`` (m,) and ``f_model`` (n,), n >= m, in Hz.  Returns the model index for each measured
-    mode (strictly increasing in the model's frequency order).
+    ``f_meas`` (m,) and ``f_model`` (n,), n >= m, in Hz.  ``skip_cost`` (n,), in the same units as the
+    squared log distance: the cost of leaving each model mode unpaired (0, the default, for a mode the
+    test need not have seen; :mod:`jointid.correlate.observability` for one it would have).  Returns
+    the model index for each measured mode (strictly increasing in the model's frequency order).
     """
     fm = np.log(np.asarray(f_meas, float))
     order = np.argsort(f_model)
     fc = np.log(np.asarray(f_model, float)[order])
     if len(fc) < len(fm):
         raise ValueError(f"{len(fm)} measured modes but only {len(fc)} model modes to pair with")
-    return order[ordered_assignment((fm[:, None] - fc[None, :]) ** 2)]
+    skip = None if skip_cost is None else np.asarray(skip_cost, float)[order]
+    return order[ordered_assignment((fm[:, None] - fc[None, :]) ** 2, skip_cost=skip)]
 
 
-def ordered_assignment(cost: np.ndarray) -> np.ndarray:
+def ordered_assignment(cost: np.ndarray, skip_cost: np.ndarray | None = None) -> np.ndarray:
     """Order-preserving assignment of rows to columns minimising the summed cost.
 
-    ``cost`` is ``(m, n)`` with ``n >= m``; returns the column of each row, strictly increasing
-    (dynamic programming, O(m n)).
+    ``cost`` is ``(m, n)`` with ``n >= m``; ``skip_cost`` (n,) is what leaving each column unassigned
+    costs (default: nothing).  Returns the column of each row, strictly increasing (dynamic
+    programming, O(m n)).
     """
     m, n = cost.shape
     if n < m:
         raise ValueError(f"{m} rows but only {n} columns to assign")
+    s = np.zeros(n) if skip_cost is None else np.asarray(skip_cost, float)
     D = np.full((m + 1, n + 1), np.inf)
-    D[0, :] = 0.0
+    D[0, :] = np.concatenate([[0.0], np.cumsum(s)]) if skip_cost is not None else 0.0
     take = np.zeros((m + 1, n + 1), bool)
     for i in range(1, m + 1):
         for j in range(i, n + 1):
-            skip = D[i, j - 1]
+            skip = D[i, j - 1] + s[j - 1] if skip_cost is not None else D[i, j - 1]
             use = D[i - 1, j - 1] + cost[i - 1, j - 1]
             if use <= skip:
                 D[i, j], take[i, j] = use, True
