@@ -285,3 +285,22 @@ def _written(folder, modes, shapes, frf, conditions):
         {"source": conditions["source"], "states": {s: {k: (float(v) if isinstance(v, np.floating) else v)
                                                        for k, v in c.items()} for s, c in conditions["states"].items()}}))
     return folder
+
+
+# ------------------------------------------------------------------------------ conditions.yaml test_setup
+def test_test_setup_is_read_and_checked(tmp_path):
+    good = _write_conditions(tmp_path / "good", (
+        "source: t\ntest_setup:\n  excitation: [T05:x, T05:y]\n  response_points: all\n"
+        "  response_directions: [x, y, z]\n  note: roving 3-axis sensor\n"
+        "states:\n  power_off: {em_force_N: 0}\n  power_on: {em_force_N: 1e3}\n"))
+    assert validate_dataset(good) == []
+    assert read_dataset(good).conditions["test_setup"]["excitation"] == ["T05:x", "T05:y"]
+    bad = _write_conditions(tmp_path / "bad", (
+        "source: t\ntest_setup:\n  excitation: [T05-y, 'T05:w']\n  response_directions: [y, q]\n  hammer: steel\n"
+        "states:\n  power_off: {em_force_N: 0}\n  power_on: {em_force_N: 1e3}\n"))
+    problems = validate_dataset(bad)
+    text = "\n".join(problems)
+    assert len(problems) == 4, problems
+    assert "test_setup.excitation[0]: 'T05-y' is not '<point>:<direction>'" in text
+    assert "test_setup.excitation[1]: 'T05:w' is not '<point>:<direction>'" in text
+    assert "test_setup.response_directions" in text and "test_setup.hammer: unknown key" in text

@@ -15,9 +15,10 @@ import yaml
 from jointid.data.validate import DIRECTIONS, few
 from jointid.yamlio import number_from_text
 
-__all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "check_conditions"]
+__all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "SETUP_KEYS", "check_conditions"]
 
-TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "notes")
+TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "test_setup", "notes")
+SETUP_KEYS = ("excitation", "response_points", "response_directions", "note")
 STATE_KEYS = ("em_force_N", "currents", "motor_position_m", "frf_drive_point",
               "frf_drive_direction", "notes")
 CURRENT_KEYS = ("exciting_current_A", "eddy_current_A")
@@ -97,6 +98,8 @@ def check_conditions(path, label, problems, points, has_frf_states):
             problems.add(f"{label}:frequency_uncertainty_pct",
                          f"frequency_uncertainty_pct = {u!r} is not a number in (0, 100)",
                          "give the 1-sigma frequency uncertainty in percent, e.g. 1.0")
+    if "test_setup" in data:
+        _check_setup(problems, f"{label}:test_setup", data["test_setup"], points)
     states = data.get("states")
     if not isinstance(states, dict) or not states:
         problems.add(f"{label}:states", "states is missing or not a mapping",
@@ -195,3 +198,40 @@ def _check_currents(problems, where, currents) -> None:
             elif c < 0:
                 problems.add(f"{where}.currents.{key}", f"{key} = {c} is negative",
                              "give the RMS current magnitude (>= 0 A)")
+
+
+def _check_setup(problems, where, setup, points) -> None:
+    """Check the ``test_setup`` block: where the hammer struck and where the sensor measured."""
+    if not isinstance(setup, dict):
+        problems.add(where, "test_setup is not a mapping",
+                     "write excitation: [T05:y, ...], response_points: all, response_directions: [x, y, z]")
+        return
+    _unknown_keys(problems, f"{where}.", setup, SETUP_KEYS)
+    exc = setup.get("excitation")
+    if exc is not None:
+        if not isinstance(exc, list) or not exc:
+            problems.add(f"{where}.excitation", "excitation is not a non-empty list",
+                         "list the hammer DOFs as '<point>:<direction>', e.g. [T05:x, T05:y, T05:z]")
+        else:
+            for i, lab in enumerate(exc):
+                point, sep, d = str(lab).partition(":")
+                if not sep or d not in DIRECTIONS:
+                    problems.add(f"{where}.excitation[{i}]", f"{lab!r} is not '<point>:<direction>'",
+                                 "write e.g. T05:y (direction x, y or z)")
+                elif points is not None and point not in points:
+                    problems.add(f"{where}.excitation[{i}]", f"{point!r} is not a measuring point",
+                                 f"use a name from the measuring-point table ({few(points)})")
+    pts = setup.get("response_points", "all")
+    if pts != "all":
+        if not isinstance(pts, list) or not pts:
+            problems.add(f"{where}.response_points", "response_points is neither 'all' nor a list of points",
+                         "write 'all' or a list such as [T01, T02]")
+        elif points is not None:
+            for name in pts:
+                if str(name) not in points:
+                    problems.add(f"{where}.response_points", f"{name!r} is not a measuring point",
+                                 f"use names from the measuring-point table ({few(points)})")
+    dirs = setup.get("response_directions")
+    if dirs is not None and (not isinstance(dirs, list) or not dirs or any(d not in DIRECTIONS for d in dirs)):
+        problems.add(f"{where}.response_directions", f"response_directions = {dirs!r} is not a list of x, y, z",
+                     "write e.g. [x, y, z] for a 3-axis accelerometer")
