@@ -58,7 +58,7 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
 
 
 def polish_optimum(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False,
-                   rom=None, correction=None):
+                   rom=None, correction=None, rule=None):
     """Gauss-Newton refinement of the surface optimum on the full FE model (or the ROM file ``rom``).
 
     ``doc`` is the surface model (its ``names`` and ``ref_shapes``), ``matrices`` the cached model
@@ -68,11 +68,11 @@ def polish_optimum(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_r
     ref = np.asarray(doc["ref_shapes"])[:, pairing]
     model = load_rom(rom) if rom else load_model(matrices)
     return polish_on_model(cfg, model, doc["names"], theta0, f_meas, ref, lower, upper,
-                           weights=weights, sigma_rel=sigma_rel, repair=repair, correction=correction)
+                           weights=weights, sigma_rel=sigma_rel, repair=repair, correction=correction, rule=rule)
 
 
 def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas, weights, sigma_rel,
-                        lower, upper, *, repair, rom):
+                        lower, upper, *, repair, rom, rule=None):
     """The polish again on mesh-extrapolated frequencies, until their factors are those of its optimum.
 
     The factors are taken at the current optimum (first the base mesh's), with their first-order
@@ -93,7 +93,7 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
         say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
         say("polish on the extrapolated frequencies")
         polish = polish_optimum(cfg, doc, matrices, at, pairing, f_meas, weights, sigma_rel, lower, upper,
-                                repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim, at))
+                                repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim, at), rule=rule)
         moved = float(np.max(np.abs(polish["theta"] / at - 1)))
         drift = float(np.max(np.abs(lim.slope[shown] @ np.log10(polish["theta"] / at))))
         passes.append({"factors_at": dict(zip(doc["names"], map(float, at))), "max_parameter_change": moved,
@@ -115,7 +115,7 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
 
 def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shapes, lower, upper, *,
                     weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None,
-                    correction=None):
+                    correction=None, rule=None):
     """FE polish (:func:`jointid.identification.updating.fe_polish`) of joint parameters ``names`` on ``model``.
 
     ``model`` is the full FE model (:class:`jointid.fe.fem.Model`) or a reduced-order model
@@ -127,7 +127,9 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
     iterate.  ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by
     MAC; with ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate
     instead.  ``correction`` (:class:`jointid.fe.extrapolate.FrequencyCorrection`) scales each mode's
-    frequency by the mesh-extrapolation factor of the mode it continues.
+    frequency by the mesh-extrapolation factor of the mode it continues.  ``rule``
+    (:class:`jointid.identification.visibility.VisibilityRule`): modes the test would clearly have
+    seen count as misfits when no measured mode takes them.
     """
     jt = joint_terms(cfg["joints"])
     terms = [{t: 1.0 for t in jt[n]} for n in names]
@@ -151,7 +153,7 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
         solve = corrected(solve, correction)
     return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
                      sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
-                     repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None)
+                     repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None, rule=rule)
 
 
 def corrected(solve, correction):

@@ -26,6 +26,7 @@ from jointid.identification.surface_checks import diagnostics
 from jointid.correlate.mac import mac
 from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
 from jointid.identification.tracking import track_doe
+from jointid.identification.visibility import misfit_table
 
 
 class LogFrequencyModel:
@@ -96,14 +97,19 @@ def fit_surfaces(sheet: pd.DataFrame, freqs: np.ndarray, shapes: np.ndarray, des
 # ------------------------------------------------------------------ 2. identification
 def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
                    meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
-                   seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None):
+                   seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None,
+                   rule=None):
+    # long: four closures share the surface, the data and the rule (misfits, fit, run, pair); the body is the multistart
     """Identify the joint parameters of one state from measured frequencies.
 
     Returns ``(result, pairing, warnings list)`` where ``pairing[i]`` is the column of the tracked
     mode paired with measured mode ``i``.  A given ``pairing`` is kept as it is; otherwise it comes
     from the measured shapes (MAC) or, for frequencies alone, from the best of several starts, each
     re-paired by frequency until stable.  ``candidates`` (a list) collects ``(pairing, cost)`` of
-    every start in that last case.
+    every start in that last case.  ``rule`` (:class:`jointid.identification.visibility.VisibilityRule`,
+    its labels those of ``doc["ref_shapes"]``): tracked modes the test would clearly have seen and
+    that no measured mode takes are misfits, extra residuals of the fit (``result.residuals`` beyond
+    the measured modes), and the frequency pairing pays for leaving them unpaired.
     """
     surf = Surface.from_dict(doc["surface"])
     names = doc["names"]
@@ -112,22 +118,47 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
     if len(f_meas) > n_track:
         raise DataError(f"measurement: {len(f_meas)} measured modes but only {n_track} model modes are "
                         "tracked in the band — raise solver.n_modes or widen the tracked band")
+    ref_shapes = np.asarray(doc["ref_shapes"]) if (rule is not None or meas_shapes is not None) else None
     caught: list[str] = []
 
-    def run(pairing):
+    def misfits(pairing, x):
+        if rule is None:
+            return np.zeros(0, int), np.zeros(0)
+        f = full(x)
+        return rule.misfits(pairing, f, rule.visibility(ref_shapes, f), f_meas)
+
+    def fit(pairing, pen, tgt):
         model = LogFrequencyModel(surf, pairing)
+        extra = None
+        if pen.size:  # the unpaired visible modes: their distance to the nearest measured mode
+            extra = lambda x: (full(x)[pen] - tgt) / tgt  # noqa: E731
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always", NumericalWarning)
             res = identify(model, f_meas, weights=weights, jacobian=model.jacobian, n_starts=n_starts,
-                           seed=seed, sigma_rel=sigma_rel, names=names, lower=lower, upper=upper)
+                           seed=seed, sigma_rel=sigma_rel, names=names, lower=lower, upper=upper, extra=extra)
         return res, [str(x.message) for x in w]
+
+    def run(pairing, x_hint=None):
+        pen, tgt = misfits(pairing, np.zeros(len(names)) if x_hint is None else x_hint)
+        for _ in range(4):  # the misfit set at the optimum it gives, until it repeats
+            res, msgs = fit(pairing, pen, tgt)
+            new_pen, new_tgt = misfits(pairing, res.x_coded)
+            if np.array_equal(new_pen, pen) and np.allclose(new_tgt, tgt):
+                break
+            pen, tgt = new_pen, new_tgt
+        return res, msgs
+
+    def pair(x):
+        if rule is None:
+            return pair_by_frequency(f_meas, full(x))
+        f = full(x)
+        return rule.pair_by_frequency(f_meas, f, rule.visibility(ref_shapes, f), np.arange(n_track))
 
     if pairing is not None:
         pairing = np.asarray(pairing, int)
         res, caught = run(pairing)
         return res, pairing, caught
     if meas_shapes is not None:
-        ref_shapes = np.asarray(doc["ref_shapes"])
         pairing, macs = pair_by_shapes(meas_shapes, ref_shapes)
         if np.any(pairing < 0):
             bad = ", ".join(str(i + 1) for i in np.flatnonzero(pairing < 0))
@@ -140,10 +171,10 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
     starts = np.vstack([np.zeros(k), rng.uniform(-1, 1, size=(8, k))])
     best = None
     for x0 in starts:
-        pairing = pair_by_frequency(f_meas, full(x0))
+        pairing = pair(x0)
         for _ in range(10):
-            res, msgs = run(pairing)
-            new = pair_by_frequency(f_meas, full(res.x_coded))
+            res, msgs = run(pairing, x0 if rule is not None else None)
+            new = pair(res.x_coded)
             if np.array_equal(new, pairing):
                 break
             pairing = new
@@ -165,24 +196,26 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
     state rules out.
 
     ``f_meas`` maps state -> measured frequencies (equal counts); ``kw`` as :func:`identify_state`
-    (``sigma_rel`` may be a mapping state -> value).  Returns ``(pairing, info)``: the summed-cost
+    (``sigma_rel`` and ``rule`` may be mappings state -> value).  Returns ``(pairing, info)``: the summed-cost
     winner; ``info[state]`` its cost there and the state's own best pairing; ``info["candidates"]``
     every pairing tried with its summed cost and chi-square (``sum cost / sigma^2``), best first.
     """
     sig = kw.pop("sigma_rel", 0.01)
     sigma = sig if isinstance(sig, dict) else {s: sig for s in f_meas}
+    vr = kw.pop("rule", None)
+    rules = vr if isinstance(vr, dict) else {s: vr for s in f_meas}
     cands, own = {}, {}
     for state, f in f_meas.items():
         found: list = []
         _, p, _ = identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[state],
-                                 candidates=found, **kw)
+                                 candidates=found, rule=rules[state], **kw)
         own[state] = tuple(int(c) for c in p)
         for pairing, _ in found:
             cands.setdefault(pairing, None)
     best, tried = None, []
     for pairing in sorted(cands):
         costs = {s: identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[s],
-                                   pairing=pairing, **kw)[0].cost for s, f in f_meas.items()}
+                                   pairing=pairing, rule=rules[s], **kw)[0].cost for s, f in f_meas.items()}
         total = sum(costs.values())
         chi2 = sum(c / sigma[s] ** 2 for s, c in costs.items())
         tried.append({"pairing": list(pairing), "cost": total, "chi2": chi2, "costs": costs,
@@ -230,7 +263,8 @@ def log_jacobian(stiffness: dict, phi: np.ndarray, lam: np.ndarray, terms: list[
 def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
               target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
               max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print,
-              repair_min_Hz: float | None = None):
+              repair_min_Hz: float | None = None, rule=None):
+    # long: one Gauss-Newton loop whose every iterate re-pairs, scores the misfits and keeps the best
     """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
 
     ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms[, extra])`` gives the FE
@@ -241,9 +275,13 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
     ``terms[i]`` maps stiffness term names to the coefficient per unit of parameter i.
     With ``repair_min_Hz`` (frequency-only data) the measured modes are re-paired at every iterate by
     the order-preserving frequency assignment among FE modes above that frequency, the same rule as
-    on the surfaces; the best iterate is kept.
+    on the surfaces; the best iterate is kept.  ``rule``
+    (:class:`jointid.identification.visibility.VisibilityRule`, its labels those of the solve's
+    shapes): FE modes the test would clearly have seen that no measured mode takes are misfits, extra
+    residuals with exact sensitivities, and the frequency re-pairing pays for leaving them unpaired.
 
-    Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations)``.
+    Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations, unpaired_visible,
+    chi2, dof)``.
     """
     lo, hi = np.log10(lower), np.log10(upper)
     y = np.log10(np.asarray(theta0, float))
@@ -253,27 +291,35 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
     best = None
     for it in range(max_iter + 1):
         freqs, shapes, phi, stiff, *extra = solve(10 ** y)
+        vis = rule.visibility(shapes, freqs) if rule is not None else None
         if repair_min_Hz is not None:
             cand = np.flatnonzero(freqs >= repair_min_Hz)
-            index = cand[pair_by_frequency(f_meas, freqs[cand])]
+            index = (cand[pair_by_frequency(f_meas, freqs[cand])] if rule is None
+                     else rule.pair_by_frequency(f_meas, freqs, vis, cand))
             macs = np.array([float(mac(shapes_now[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
         else:
             index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
         if np.any(index < 0):
             raise DataError("FE polish: a paired mode could not be followed by MAC — widen the DOE "
                             "or check the pairing in results/identify/<state>/params.json")
-        f = freqs[index]
-        r = np.sqrt(w) * (f - f_meas) / f_meas
-        # d(f / f_meas) / d log10 theta = (f / f_meas) d ln f / d log10 theta
-        dlnf = log_jacobian(stiff, phi[:, index], (2 * np.pi * f) ** 2, terms, 10 ** y)
+        pen, tgt = rule.misfits(index, freqs, vis, f_meas) if rule is not None else (np.zeros(0, int), np.zeros(0))
+        rows = np.concatenate([index, pen]).astype(int)
+        f, f_all = freqs[index], freqs[rows]
+        target = np.concatenate([f_meas, tgt])
+        sw = np.sqrt(np.concatenate([w, np.ones(pen.size)]))
+        r = sw * (f_all - target) / target
+        # d(f / f_target) / d log10 theta = (f / f_target) d ln f / d log10 theta
+        dlnf = log_jacobian(stiff, phi[:, rows], (2 * np.pi * f_all) ** 2, terms, 10 ** y)
         if extra:  # a part of d ln f / d log10 theta that the solve knows beyond phi (e.g. a correction factor's)
-            dlnf = dlnf + np.asarray(extra[0])[index]
-        J = (np.sqrt(w) * f / f_meas)[:, None] * dlnf
+            dlnf = dlnf + np.asarray(extra[0])[rows]
+        J = (sw * f_all / target)[:, None] * dlnf
         history.append(float(r @ r))
         if best is None or history[-1] < best[0]:
-            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs))
-        log(f"  FE polish it {it}: max |error| {100 * np.abs(r / np.sqrt(w)).max():.3f} %, "
-            + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
+            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs),
+                    None if vis is None else vis.copy())
+        log(f"  FE polish it {it}: max |error| {100 * np.abs(r[:len(f_meas)] / np.sqrt(w)).max():.3f} %"
+            + (f" (+{pen.size} unpaired visible, max misfit {100 * np.abs(r[len(f_meas):]).max():.2f} %)"
+               if pen.size else "") + ", " + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
         shapes_now = shapes[:, index]
         if it == max_iter:
             break
@@ -285,12 +331,14 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
             y = y_new
             break
         y = y_new
-    _, y, f, index, macs, J, freqs = best
+    chi2_raw, y, f, index, macs, J, freqs, vis = best
     cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
     band = (np.min(f_meas), np.max(f_meas))
     unpaired = [float(freqs[j]) for j in range(len(freqs))
                 if band[0] <= freqs[j] <= band[1] and j not in set(index.tolist())]
+    visible = [] if rule is None else misfit_table(rule, index, freqs, vis, f_meas)
     return {"theta": 10 ** y, "f_fe": f, "index": index, "mac": macs, "jacobian_log10": J,
-            "unpaired_in_band_Hz": unpaired,
+            "unpaired_in_band_Hz": unpaired, "unpaired_visible": visible,
+            "chi2": chi2_raw / sigma_rel**2, "dof": max(1, len(f_meas) - len(y)),
             "cov_log10": cov, "iterations": it, "cost_history": history,
             "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}

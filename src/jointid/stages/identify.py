@@ -25,14 +25,15 @@ def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
     """Config keys of rule ``identify``: the shared sections, this state's settings and the other
     states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
     return ("rig", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
-            f"states.{state}", *(f"states.{s}.dataset" for s in states))
+            "harmonic.band_Hz", "harmonic.drive_point", f"states.{state}", *(f"states.{s}.dataset" for s in states))
 
 
 def scout_config_keys(states: list[str]) -> tuple[str, ...]:
     """Config keys of rule ``scout``: what the surface-only identification reads (not the FE solve,
     not the motor force)."""
     return ("joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
-            "identify.weights", "identify.pairing", "solver.min_freq_Hz", "measurements",
+            "identify.weights", "identify.pairing", "identify.visible_threshold", "solver.min_freq_Hz",
+            "harmonic.band_Hz", "harmonic.drive_point", "measurements",
             *(f"states.{s}.dataset" for s in states))
 
 
@@ -54,6 +55,34 @@ def measured_modes(cfg: dict, state: str, pts):
         shapes = ds.shape_matrix(state, dof_labels(pts))
     sigma_pct = ds.conditions.get("frequency_uncertainty_pct", cfg["identify"]["frequency_uncertainty_pct"])
     return ds.freqs(state), shapes, float(sigma_pct)
+
+
+def visibility_rule(cfg: dict, state: str, pts):
+    """The observability rule of ``state`` (:class:`jointid.identification.visibility.VisibilityRule`),
+    from its dataset's ``test_setup`` (default: the hammer at ``harmonic.drive_point`` in x, y and z,
+    the responses where shapes were measured, else at every point in x, y and z); None when
+    ``identify.visible_threshold`` is null."""
+    from jointid.config.datasets import dataset_folder
+    from jointid.correlate.observability import MeasurementSetup
+    from jointid.data.dataset import read_dataset
+    from jointid.geometry.points import dof_labels
+    from jointid.identification.visibility import VisibilityRule
+
+    threshold = cfg["identify"].get("visible_threshold", 0.25)
+    if threshold is None:
+        return None
+    folder = dataset_folder(cfg, state)
+    ds = read_dataset(folder, measuring_points=pts)
+    labels = dof_labels(pts)
+    measured = None
+    if ds.shapes is not None and state in set(ds.shapes["state"]):
+        rows = np.isfinite(ds.shape_matrix(state, labels)).any(axis=1)
+        measured = [lab for lab, ok in zip(labels, rows) if ok]
+    drive = cfg["harmonic"]["drive_point"]
+    setup = MeasurementSetup.from_spec(ds.conditions.get("test_setup"), list(pts["point"]),
+                                       [f"{drive}:{d}" for d in "xyz"], measured_labels=measured,
+                                       where=f"{folder}/conditions.yaml")
+    return VisibilityRule(setup, tuple(labels), tuple(float(b) for b in cfg["harmonic"]["band_Hz"]), float(threshold))
 
 
 def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:
@@ -107,7 +136,8 @@ def _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule):
         return None, None, []
     shared, joint_info = identify_states_jointly(
         doc, {s: o[0] for s, o in others.items()}, lower, upper, weights=weights,
-        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()})
+        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()},
+        rule={s: visibility_rule(cfg, s, pts) for s in states})
     return shared, joint_info, pairing_notes(doc, state, states, shared, joint_info, rule)
 
 
@@ -122,6 +152,12 @@ def _polish_notes(polish: dict, shapes) -> list[str]:
     """Warnings of the FE polish: parameters on a bound, model modes in the band without a partner."""
     msgs = [f"{n} sits on a bound of joints.parameters.{n} after the FE polish — widen the bounds"
             for n in polish["on_bound"]]
+    seen = polish.get("unpaired_visible") or []
+    if seen:
+        msgs.append(f"{len(seen)} model mode(s) the test would clearly have seen have no measured partner and "
+                    "count as misfits: " + "; ".join(
+                        f"{m['freq_Hz']:.0f} Hz ({m['misfit_pct']:+.1f} % from the measured {m['nearest_measured_Hz']:.0f} Hz, "
+                        f"visibility {m['visibility_rel']:.2f} of the weakest paired mode)" for m in seen))
     skipped = polish["unpaired_in_band_Hz"]
     if skipped:
         msgs.append(f"{len(skipped)} model mode(s) inside the measured band ("
@@ -165,9 +201,11 @@ def _per_carriage(cfg, names, theta, ci_lo, ci_hi, areas: dict) -> dict:
 
 
 def _polish_step(cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairing, repair, matrices, rom,
-                 edge_matrices):
+                 edge_matrices, vis_rule=None):
     """The FE polish of the surface optimum ``res`` (and its repeats on mesh-extrapolated frequencies).
 
+    The 95 % intervals are scaled by ``max(1, sqrt(chi2 / dof))``: when the fit is worse than the
+    stated frequency uncertainty, a model error, not the noise, sets the scatter.
     Returns ``(theta, ci95_low, ci95_high, frequencies fitted, polish, edge record, notes)``.
     """
     from jointid.identification.polish import extrapolated_polish, polish_optimum
@@ -175,13 +213,15 @@ def _polish_step(cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairi
     surface_theta = np.asarray(res.theta, float)
     b_lo, b_hi = parameter_bounds(cfg)
     polish = polish_optimum(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, b_lo,
-                            b_hi, repair=repair, rom=rom)
+                            b_hi, repair=repair, rom=rom, rule=vis_rule)
     edge = None
     if edge_matrices:
         edge, polish = extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas,
-                                           weights, sigma_pct / 100, b_lo, b_hi, repair=repair, rom=rom)
+                                           weights, sigma_pct / 100, b_lo, b_hi, repair=repair, rom=rom,
+                                           rule=vis_rule)
     theta = polish["theta"]
-    sd = np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
+    polish["interval_scale"] = float(max(1.0, np.sqrt(polish["chi2"] / polish["dof"])))
+    sd = polish["interval_scale"] * np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
     return (theta, theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd), polish["f_fe"], polish, edge,
             _polish_notes(polish, shapes))
 
@@ -198,6 +238,8 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
             "fe_polish": None if polish is None else {
                 "on": "rom" if rom else "fe",
                 "unpaired_in_band_Hz": polish["unpaired_in_band_Hz"],
+                "unpaired_visible": polish["unpaired_visible"],
+                "chi2": polish["chi2"], "dof": polish["dof"], "interval_scale": polish["interval_scale"],
                 "iterations": polish["iterations"], "cost_history": polish["cost_history"],
                 "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
             "edge_extrapolation": edge,
@@ -249,9 +291,10 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     if states and len(states) > 1 and state in states and shapes is None:
         shared, joint_info, pair_msgs = _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule)
     fixed = shared if rule == "shared" else None
+    vis_rule = visibility_rule(cfg, state, pts)
     res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
-                                        pairing=fixed)
+                                        pairing=fixed, rule=vis_rule)
     msgs += pair_msgs
     if len(f_meas) <= len(names):
         msgs.insert(0, _count_note(len(f_meas), len(names)))
@@ -265,7 +308,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     if matrices and cfg["identify"].get("fe_polish", True):
         theta, ci_lo, ci_hi, f_final, polish, edge, notes = _polish_step(
             cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairing, shapes is None and fixed is None,
-            matrices, rom, edge_matrices)
+            matrices, rom, edge_matrices, vis_rule)
         msgs += notes
     if zoom:
         msgs += _zoom_notes(names, theta, lower, upper, polish, res)
@@ -274,6 +317,9 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                                  io.read_json(summary)["contact_area_per_carriage_m2"])
     out = _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
                   f_final, polish, edge, rom, per_carriage, msgs)
+    out["observability"] = None if vis_rule is None else {
+        "excitation": list(vis_rule.setup.excitation), "n_response_dofs": len(vis_rule.setup.response),
+        "note": vis_rule.setup.note, "band_Hz": list(vis_rule.band_Hz), "threshold": vis_rule.threshold}
     io.write_json(out_json, out)
     log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))
         + f"; max |error| {np.abs(out['residual_pct']).max():.2f} %")

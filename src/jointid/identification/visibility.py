@@ -1,0 +1,113 @@
+"""The observability rule of the identification: a mode the test would clearly have seen is never skipped free.
+
+The measured modes are paired with model modes (by MAC, or by an order-preserving frequency
+assignment when only frequencies are measured).  A model mode inside the test band that no measured
+mode is paired with, but that the test would clearly have seen
+(:func:`jointid.correlate.observability.clearly_visible`), is a **misfit** of the model: it enters
+the objective as a residual ``(f_u - f_near) / f_near``, its distance to the nearest measured mode
+(a mode near a measured one may have merged with it in the test; one far from every measured mode is
+a peak the test does not show), and the frequency-only pairing pays that residual, squared, for
+leaving it unpaired.  The same rule serves the surfaces, the FE polish and the verification.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from jointid.correlate.observability import (VISIBLE_THRESHOLD, MeasurementSetup, clearly_visible,
+                                             nearest_measured, visibility)
+from jointid.correlate.pairing import pair_by_frequency
+
+__all__ = ["VisibilityRule", "misfit_table"]
+
+
+@dataclass(frozen=True)
+class VisibilityRule:
+    """Which model modes the test must account for.
+
+    Attributes
+    ----------
+    setup : MeasurementSetup
+        Excitation and response DOFs of the test.
+    labels : list of str
+        DOF label of each row of the model shapes given to the methods (``"<point>:<direction>"``).
+    band_Hz : (float, float)
+        The test's band; modes outside it are never counted.
+    threshold : float
+        Clearly visible: at least this share of the weakest paired mode's visibility.
+    """
+
+    setup: MeasurementSetup
+    labels: tuple
+    band_Hz: tuple
+    threshold: float = VISIBLE_THRESHOLD
+
+    def visibility(self, shapes: np.ndarray, freqs_Hz: np.ndarray) -> np.ndarray:
+        """Visibility (m/N, at a damping ratio of 0.03) of each mode; shapes ``(n_labels, n)``."""
+        return visibility(shapes, freqs_Hz, list(self.labels), self.setup)
+
+    def misfits(self, index, freqs_Hz, vis, f_meas) -> tuple[np.ndarray, np.ndarray]:
+        """``(modes, targets)``: the clearly visible modes in the band that ``index`` (the model mode of
+        each measured mode) leaves unpaired, and the nearest measured frequency of each (Hz)."""
+        freqs_Hz = np.asarray(freqs_Hz, float)
+        index = np.asarray(index, int)
+        seen = clearly_visible(vis, index, self.threshold)
+        inside = (freqs_Hz >= self.band_Hz[0]) & (freqs_Hz <= self.band_Hz[1])
+        taken = np.zeros(freqs_Hz.size, bool)
+        taken[index[index >= 0]] = True
+        cols = np.flatnonzero(seen & inside & ~taken)
+        return cols, nearest_measured(freqs_Hz[cols], f_meas) if cols.size else np.zeros(0)
+
+    def skip_costs(self, index, freqs_Hz, vis, f_meas) -> np.ndarray:
+        """Cost of leaving each mode unpaired in the frequency pairing: the squared log distance to the
+        nearest measured mode for a clearly visible mode in the band (visibility judged against the
+        modes ``index`` pairs), else 0."""
+        freqs_Hz = np.asarray(freqs_Hz, float)
+        index = np.asarray(index, int)
+        seen = clearly_visible(vis, index, self.threshold)
+        inside = (freqs_Hz >= self.band_Hz[0]) & (freqs_Hz <= self.band_Hz[1])
+        cost = np.log(freqs_Hz / nearest_measured(freqs_Hz, f_meas)) ** 2
+        return np.where(seen & inside, cost, 0.0)
+
+    def pair_by_frequency(self, f_meas, freqs_Hz, vis, candidates: np.ndarray, max_rounds: int = 6) -> np.ndarray:
+        """Order-preserving frequency pairing among the model modes ``candidates`` in which leaving a
+        clearly visible mode unpaired costs its misfit; the model mode of each measured mode.
+
+        Visibility is judged against the weakest paired mode, so the pairing and the costs are
+        settled in turn, from the free pairing, until the pairing repeats (at most ``max_rounds``).
+        """
+        f_meas = np.asarray(f_meas, float)
+        freqs_Hz = np.asarray(freqs_Hz, float)
+        candidates = np.asarray(candidates, int)
+        index = candidates[pair_by_frequency(f_meas, freqs_Hz[candidates])]
+        seen = set()
+        for _ in range(max_rounds):
+            skip = self.skip_costs(index, freqs_Hz, vis, f_meas)[candidates]
+            new = candidates[pair_by_frequency(f_meas, freqs_Hz[candidates], skip_cost=skip)]
+            if np.array_equal(new, index) or tuple(new) in seen:
+                return new
+            seen.add(tuple(index))
+            index = new
+        return index
+
+
+def misfit_table(rule: VisibilityRule, index, freqs_Hz, vis, f_meas, descriptions=None) -> list[dict]:
+    """The unpaired, clearly visible modes as records for params.json and the tables.
+
+    Each: ``model_mode`` (1-based), ``freq_Hz``, ``nearest_measured_Hz``, ``misfit_pct`` (signed,
+    model minus nearest measured), ``visibility_rel`` (to the weakest paired mode) and, if given,
+    ``description``.
+    """
+    cols, targets = rule.misfits(index, freqs_Hz, vis, f_meas)
+    index = np.asarray(index, int)
+    weakest = float(np.min(np.asarray(vis)[index[index >= 0]])) if np.any(index >= 0) else float("nan")
+    out = []
+    for j, t in zip(cols, targets):
+        rec = {"model_mode": int(j) + 1, "freq_Hz": float(freqs_Hz[j]), "nearest_measured_Hz": float(t),
+               "misfit_pct": float(100 * (freqs_Hz[j] - t) / t), "visibility_rel": float(vis[j] / weakest)}
+        if descriptions is not None:
+            rec["description"] = str(descriptions[j])
+        out.append(rec)
+    return out
