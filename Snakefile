@@ -366,6 +366,7 @@ rule verify:
         edges=EDGE_MODELS,
     output:
         table=f"{R}/identify/{{state}}/verify.csv",
+        unpaired=f"{R}/identify/{{state}}/unpaired_visible.csv",
     params:
         cfg=CFG_VERIFY,
     log:
@@ -383,9 +384,11 @@ rule verify:
 rule tables:
     input:
         verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
+        unpaired=expand(f"{R}/identify/{{state}}/unpaired_visible.csv", state=STATES),
         paper="data/paper/paper_tables.csv",
     output:
         power_off=f"{R}/tables/table2_power_off.csv",
+        unpaired=f"{R}/tables/unpaired_visible.csv",
         power_on=f"{R}/tables/table3_power_on.csv",
         power_off_md=f"{R}/tables/table2_power_off.md",
         power_on_md=f"{R}/tables/table3_power_on.md",

@@ -15,7 +15,9 @@ Exit status 1 with one line per problem (where, what, how to fix) if a selected 
   problems (:func:`check_table1`).
 * Tables 2 and 3: each exists with the required columns, every ``relative_error_pct`` is a finite
   number and the largest |relative error| is within the bound (by default the paper's own: 8.1 %
-  power-off, 8.2 % power-on).
+  power-off, 8.2 % power-on).  The misfits of the model modes the test would clearly have seen but
+  no measured mode is paired with (``unpaired_visible.csv`` beside the tables, when present) count in
+  that largest error.
 
 A missing, unreadable (e.g. 0-byte) or incomplete table, or an empty / non-numeric checked cell,
 fails the check with the file, row and column named; it never passes silently.
@@ -38,6 +40,8 @@ COLUMNS = ["order", "experimental_Hz", "simulation_Hz", "relative_error_pct", "p
            "paper_relative_error_pct"]
 TABLES = {"table2_power_off.csv": 8.1, "table3_power_on.csv": 8.2}
 TABLE1 = "table1_dynamic_stiffness.csv"
+UNPAIRED = "unpaired_visible.csv"
+STATE_OF = {"table2_power_off.csv": "power_off", "table3_power_on.csv": "power_on"}
 
 
 def _read_table(path: Path, columns: list[str], rule: str) -> tuple[pd.DataFrame | None, list[str]]:
@@ -113,11 +117,26 @@ def check_frequency_tables(folder: str | Path, bounds: dict[str, float] = TABLES
             problems += bad
             continue
         worst = max(abs(_number(v)) for v in df["relative_error_pct"])
+        misfits = _misfits(Path(folder) / UNPAIRED, STATE_OF.get(name))
+        what = "max |relative error|" + (f" (with {len(misfits)} unpaired visible mode(s))" if misfits else "")
+        worst = max([worst, *map(abs, misfits)])
         if not worst <= bound:
-            problems.append(f"{path}: max |relative error| {worst:.2f} % exceeds the required {bound} %")
+            problems.append(f"{path}: {what} {worst:.2f} % exceeds the required {bound} %")
         else:
-            print(f"{path}: max |relative error| {worst:.2f} % (required <= {bound} %)")
+            print(f"{path}: {what} {worst:.2f} % (required <= {bound} %)")
     return problems
+
+
+def _misfits(path: Path, state: str | None) -> list[float]:
+    """Misfits (%) of one state's unpaired, clearly visible model modes; none without the file."""
+    if state is None or not path.exists():
+        return []
+    import pandas as pd
+
+    df = pd.read_csv(path)
+    if not len(df):
+        return []
+    return [float(v) for v in df.loc[df["state"] == state, "misfit_pct"]]
 
 
 def table1_path(where: str | Path) -> Path:

@@ -39,14 +39,35 @@ def frequency_table(verify: pd.DataFrame, paper: pd.DataFrame, state: str) -> pd
     return out
 
 
-def markdown_table(df: pd.DataFrame, state: str) -> str:
-    """Markdown rendering of :func:`frequency_table` (Hz to 0.1, errors in % to 0.01, signed)."""
+def markdown_table(df: pd.DataFrame, state: str, unpaired: pd.DataFrame | None = None) -> str:
+    """Markdown rendering of :func:`frequency_table` (Hz to 0.1, errors in % to 0.01, signed).
+
+    ``unpaired``: the model modes the test would clearly have seen that no measured mode is paired
+    with (rule ``verify``'s ``unpaired_visible.csv``); listed below the table, and their misfit
+    counts in the max error.
+    """
     fmt = {c: (lambda v: f"{int(v)}") if c == "order" else (lambda v: f"{v:.1f}") if c.endswith("_Hz")
            else (lambda v: f"{v:+.2f}") for c in df.columns}
     cells = pd.DataFrame({c: [fmt[c](v) for v in df[c]] for c in df.columns})
-    return "\n".join([f"# {TABLE_TITLES.get(state, state)}", "", _markdown(cells), "",
-                      f"max |relative error|: this model {df.relative_error_pct.abs().max():.2f} %, "
-                      f"paper {df.paper_relative_error_pct.abs().max():.2f} %", ""])
+    worst = df.relative_error_pct.abs().max()
+    lines = [f"# {TABLE_TITLES.get(state, state)}", "", _markdown(cells), ""]
+    if unpaired is not None and len(unpaired):
+        worst = max(worst, unpaired.misfit_pct.abs().max())
+        extra = pd.DataFrame({
+            "model mode": [f"{int(v)}" for v in unpaired.model_mode],
+            "simulation_Hz": [f"{v:.1f}" for v in unpaired.freq_Hz],
+            "nearest measured_Hz": [f"{v:.1f}" for v in unpaired.nearest_measured_Hz],
+            "misfit_pct": [f"{v:+.2f}" for v in unpaired.misfit_pct],
+            "visibility (weakest paired = 1)": [f"{v:.2f}" for v in unpaired.visibility_rel],
+            "description": list(unpaired.description)})
+        lines += ["Model modes in the band that the test would clearly have seen, with no measured partner "
+                  "(misfits, counted in the max error):", "", _markdown(extra), ""]
+    elif unpaired is not None:
+        lines += ["Every model mode in the band that the test would clearly have seen is paired.", ""]
+    lines += [f"max |relative error|: this model {worst:.2f} %"
+              + (" (misfits included)" if unpaired is not None and len(unpaired) else "")
+              + f", paper {df.paper_relative_error_pct.abs().max():.2f} %", ""]
+    return "\n".join(lines)
 
 
 def reference_state(states: list[str]) -> str:

@@ -318,7 +318,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     out = _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
                   f_final, polish, edge, rom, per_carriage, msgs)
     out["observability"] = None if vis_rule is None else {
-        "excitation": list(vis_rule.setup.excitation), "n_response_dofs": len(vis_rule.setup.response),
+        "excitation": list(vis_rule.setup.excitation), "response": list(vis_rule.setup.response),
         "note": vis_rule.setup.note, "band_Hz": list(vis_rule.band_Hz), "threshold": vis_rule.threshold}
     io.write_json(out_json, out)
     log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))

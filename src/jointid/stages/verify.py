@@ -16,7 +16,19 @@ CONFIG = ("rig", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
 and two more edge levels)."""
 
 
-def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes):
+def visibility_rule(par: dict, labels: list[str]):
+    """The identification's observability rule (its ``params.json`` record), or None without one."""
+    from jointid.correlate.observability import MeasurementSetup
+    from jointid.identification.visibility import VisibilityRule
+
+    rec = par.get("observability")
+    if not rec:
+        return None
+    setup = MeasurementSetup(tuple(rec["excitation"]), tuple(rec["response"]), rec.get("note", ""))
+    return VisibilityRule(setup, tuple(labels), tuple(rec["band_Hz"]), float(rec["threshold"]))
+
+
+def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes, rule=None):
     """``(FE mode index, MAC to the tracked mode)`` of each measured mode at the identified parameters."""
     from jointid.identification.updating import verify_pairing
 
@@ -26,7 +38,10 @@ def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes):
         from jointid.correlate.pairing import pair_by_frequency
 
         cand = np.flatnonzero(f_all >= cfg["solver"]["min_freq_Hz"])
-        index = cand[pair_by_frequency(f_meas, f_all[cand])]
+        if rule is None:
+            index = cand[pair_by_frequency(f_meas, f_all[cand])]
+        else:
+            index = rule.pair_by_frequency(f_meas, f_all, rule.visibility(shapes, f_all), cand)
         ref = np.asarray(doc["ref_shapes"])[:, np.asarray(par["pairing_columns"])]
         macs = np.array([float(mac(ref[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
     else:
@@ -35,8 +50,12 @@ def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes):
 
 
 def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
-               edge_matrices: list[str] | None = None) -> None:
+               edge_matrices: list[str] | None = None, unpaired_csv: str | None = None) -> None:
     """Full FE re-solve at the identified parameters: the tables' simulated frequencies.
+
+    ``unpaired_csv``: the model modes the test would clearly have seen that no measured mode is paired
+    with (:mod:`jointid.identification.visibility`; columns ``model_mode, freq_Hz,
+    nearest_measured_Hz, misfit_pct, visibility_rel, description``), the misfits of the tables.
 
     With ``edge_matrices`` (``mesh.extrapolate_edges``) the simulated frequencies are the
     mesh-extrapolated ones at these parameters (:mod:`jointid.fe.extrapolate`, solved afresh here), and
@@ -59,7 +78,11 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
         lim = edge_limit_at(cfg, [model, *map(load_model, edge_matrices)], theta,
                             log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes))
         f_all = lim.limit_Hz
-    index, macs = _pairing(cfg, par, doc, f_all, shapes)
+    from jointid.geometry.points import dof_labels
+    from jointid.identification.visibility import misfit_table
+
+    rule = visibility_rule(par, dof_labels(pd.DataFrame(model.meta["points"])))
+    index, macs = _pairing(cfg, par, doc, f_all, shapes, rule)
     paired = np.clip(index, 0, None)
     fe = np.where(index >= 0, freqs[paired], np.nan)
     sim, extra = fe, {}
@@ -76,6 +99,14 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
         "description": [desc["description"][i] if i >= 0 else "unpaired" for i in index],
         "strain_joints": [float(desc["strain_joints"][i]) if i >= 0 else np.nan for i in index]})
     io.write_csv(rows, out_csv)
+    if unpaired_csv:
+        cols = ["model_mode", "freq_Hz", "nearest_measured_Hz", "misfit_pct", "visibility_rel", "description"]
+        seen = ([] if rule is None else
+                misfit_table(rule, index, f_all, rule.visibility(shapes, f_all), f_meas, list(desc["description"])))
+        io.write_csv(pd.DataFrame(seen, columns=cols), unpaired_csv)
+        for m in seen:
+            log(f"verify[{state}]: unpaired but clearly visible: {m['freq_Hz']:.0f} Hz {m['description']} "
+                f"({m['misfit_pct']:+.1f} % from the measured {m['nearest_measured_Hz']:.0f} Hz)")
     log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
     if edge_matrices and par.get("fe_polish"):
