@@ -108,3 +108,30 @@ def test_notes_say_when_a_state_on_its_own_pairs_otherwise():
     sh = _pairing_notes(DOC, "off", ["off", "on"], shared, info, "shared")
     assert any("on its own this state would pair" in n and "[1, 2, 4] instead of [1, 3, 4]" in n for n in sh), sh
     assert not any("on its own" in n for n in _pairing_notes(DOC, "on", ["off", "on"], shared, info, "shared"))
+
+
+def _rule():
+    from jointid.correlate.observability import MeasurementSetup
+    from jointid.identification.visibility import VisibilityRule
+
+    return VisibilityRule(MeasurementSetup(("P:y",), ("P:y", "Q:y")), ("P:y", "Q:y"), (300.0, 3500.0))
+
+
+@pytest.mark.parametrize("seen", [False, True])
+def test_a_mode_the_test_would_have_seen_is_a_misfit_not_a_free_skip(seen):
+    doc = _doc()
+    # tracked mode 3 (index 2) shows at the sensor only when ``seen``
+    doc["ref_shapes"] = [[1.0, 1.0, 1.0 if seen else 1e-4, 1.0], [0.5, 0.5, 0.5 if seen else 0.0, 0.5]]
+    truth = np.array([5e11, 8e9])
+    f = four_modes(truth)[[0, 1, 3]]  # the test shows three modes; tracked mode 3 is not among them
+    free, p_free, _ = identify_state(doc, f, LOWER, UPPER, **KW)
+    res, p, _ = identify_state(doc, f, LOWER, UPPER, rule=_rule(), **KW)
+    if not seen:  # an invisible mode may be skipped: the same fit as without the rule
+        assert list(p) == list(p_free) == [0, 1, 3]
+        np.testing.assert_allclose(res.theta, free.theta, rtol=1e-6)
+        assert res.residuals.size == 3
+    else:  # skipping it costs its distance to the nearest measured mode: the fit can no longer be exact
+        assert res.cost > 100 * max(free.cost, 1e-12)
+        misfit = res.residuals[3:] if res.residuals.size > 3 else np.zeros(0)
+        paired_it = 2 in list(p)
+        assert paired_it or misfit.size == 1, (p, res.residuals)
