@@ -187,6 +187,10 @@ def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None) -> str
         inc = ("not available (a state is not identified)" if pd.isna(r.increase_pct) else f"{r.increase_pct:+.1f} %")
         lines.append(f"**Increase {r.state} vs {ref}: this model {inc}; lowest peaks of paired modes "
                      f"{_num(r.paired_increase_pct, '+.1f')} %; paper {r.paper_increase_pct:+.1f} %.**")
+        o_ref = df.loc[df.state == ref, "paired_governing_measured_order"].iloc[0]
+        if not (pd.isna(o_ref) or pd.isna(r.paired_governing_measured_order)) and o_ref != r.paired_governing_measured_order:
+            lines.append(f"The lowest paired peaks are of different measured modes ({ref}: mode {int(o_ref)}, {r.state}: "
+                         f"mode {int(r.paired_governing_measured_order)}), so their ratio is not the stiffening of one mode.")
     z = ", ".join(f"{r.state} {r.damping_ratio_governing:.3g}" for _, r in df.iterrows())
     lines += ["", f"Damping model: `{df.damping_model.iloc[0]}`; damping ratio of the governing mode: {z}. "
               "The minimum dynamic stiffness sits at a resonance, K_min ≈ 2 ζ_r k_r, so its absolute value scales "
