@@ -125,7 +125,8 @@ def _summary(data: dict) -> dict:
         for r in rng.itertuples() if r.over == "points × damping laws"]
     return {
         "stiffness": stiffness,
-        "increase": [{"value": num(r.increase_pct, "+.1f"), "paired": num(r.paired_increase_pct, "+.1f"),
+        "increase": [{"value": "n/a (a state is not identified)" if pd.isna(r.increase_pct) else f"{r.increase_pct:+.1f} %",
+                      "paired": num(r.paired_increase_pct, "+.1f"),
                       "paper": f"{r.paper_increase_pct:+.1f}"} for _, r in t1[t1.paper_increase_pct.notna()].iterrows()],
         "ranges": ranges,
         "errors": "; ".join(f"{s.replace('_', '-')} max |error| {t.relative_error_pct.abs().max():.1f} % "
