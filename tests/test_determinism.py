@@ -96,9 +96,11 @@ WITH_PROVENANCE = (
     "results/modal/zoom/all.csv", "results/modal/zoom/all.npz",
     "results/surface/zoom/model.json", "results/surface/zoom/diagnostics.csv",
     *(f"results/identify/{s}/{f}" for s in STATES for f in ("scout.json", "params.json", "verify.csv")),
-    *(f"results/harmonic/{s}/{f}" for s in STATES for f in ("frf.csv", "dynamic_stiffness.json", "modes.npz")),
+    *(f"results/harmonic/{s}/{f}" for s in STATES for f in ("frf.csv", "dynamic_stiffness.json", "modes.npz",
+                                                                     "drive_points.npz")),
     "results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv",
     "results/tables/table1_dynamic_stiffness.csv", "results/tables/table1_dynamic_stiffness.md",
+    "results/tables/table1_ranges.csv", "results/tables/table1_cases.csv",
     *(f"results/mesh_check/{s}.{ext}" for s in STATES for ext in ("json", "csv")),
 )
 

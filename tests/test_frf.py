@@ -181,7 +181,7 @@ def test_run_harmonic_stage(tmp_path, rig):
     out = harmonic_stage.run_harmonic(
         cfg, "power_off", str(tmp_path / "params.json"), str(tmp_path / "matrices.npz"),
         str(tmp_path / "frf.csv"), str(tmp_path / "ds.json"), out_modes=str(tmp_path / "m.npz"),
-        verify_csv=str(tmp_path / "verify.csv"), progress=lambda m: None)
+        verify_csv=str(tmp_path / "verify.csv"), out_points=str(tmp_path / "pts.npz"), progress=lambda m: None)
     tab = pd.read_csv(tmp_path / "frf.csv")
     assert list(tab.columns) == ["freq_Hz", "H_real_m_per_N", "H_imag_m_per_N", "H_abs_m_per_N", "phase_deg",
                                  "dynamic_stiffness_N_per_m"]
@@ -196,3 +196,15 @@ def test_run_harmonic_stage(tmp_path, rig):
     assert BAND[0] < g["freq_Hz"] < BAND[1]
     z = np.load(tmp_path / "m.npz")
     assert z["shapes"].shape == (108, z["freqs_Hz"].size)
+    # Table 1's status: identified only if the governing mode is paired (here only FE mode 1 is)
+    assert doc["patch_diameter_m"] == 0.010
+    assert (doc["status"] == "identified") == (g["fe_mode"] == 1)
+    if g["fe_mode"] != 1:
+        assert doc["status"].startswith(f"not identified: the governing mode (FE mode {g['fe_mode']}, ")
+    pm = doc["paired_minimum"]
+    assert pm is None or (pm["fe_mode"] == 1 and pm["dynamic_stiffness_N_per_m"] >= doc["dynamic_stiffness_N_per_m"])
+    pts = np.load(tmp_path / "pts.npz")
+    assert list(pts["points"]) == [f"T{i:02d}" for i in range(1, 19)]
+    assert pts["pphi"].shape == (18, z["freqs_Hz"].size) and pts["measured_order"].tolist()[:2] == [1, 0]
+    k5 = 4  # T05: its patch participation is the drive point's
+    np.testing.assert_allclose(pts["pphi"][k5], z["participation"], rtol=1e-10, atol=1e-12 * np.abs(z["participation"]).max())

@@ -21,8 +21,14 @@ PAPER_T1 = REPO / "data" / "paper" / "paper_table1.csv"
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
-def stiffness_doc(state, k_N_per_m, f=1400.0, static=9e8, fe_mode=4, order=2):
+def stiffness_doc(state, k_N_per_m, f=1400.0, static=9e8, fe_mode=4, order=2, paired_k=None):
+    paired = None if paired_k is None else {
+        "dynamic_stiffness_N_per_m": paired_k, "f_at_min_Hz": 2000.0, "fe_mode": 5, "freq_Hz": 2001.0,
+        "description": "table pitch", "measured_order": 3, "damping_ratio": 0.03}
+    status = "identified" if order else (f"not identified: the governing mode (FE mode {fe_mode}, {f * 1.001:.1f} Hz, "
+                                         "table bounce) has no measured partner")
     return {"state": state, "drive_point": "T05", "direction": "y", "band_Hz": [300.0, 3500.0],
+            "patch_diameter_m": 0.01, "status": status, "paired_minimum": paired,
             "dynamic_stiffness_N_per_m": k_N_per_m, "f_at_min_Hz": f,
             "static_stiffness_N_per_m": static,
             "governing_mode": {"fe_mode": fe_mode, "freq_Hz": f * 1.001, "description": "table bounce",
@@ -31,8 +37,9 @@ def stiffness_doc(state, k_N_per_m, f=1400.0, static=9e8, fe_mode=4, order=2):
             "damping": {"config": {"model": "modal", "damping_ratio": 0.03}, "measured": "", "why": ""}}
 
 
-def write_table1(tmp_path, k_off, k_on):
-    df = rp.table1_frame([stiffness_doc("power_off", k_off), stiffness_doc("power_on", k_on, order=None)],
+def write_table1(tmp_path, k_off, k_on, order_on=2):
+    df = rp.table1_frame([stiffness_doc("power_off", k_off, paired_k=k_off),
+                          stiffness_doc("power_on", k_on, order=order_on, paired_k=1.2 * k_off)],
                          pd.read_csv(PAPER_T1))
     path = tmp_path / "table1.csv"
     df.to_csv(path, index=False)
@@ -42,17 +49,33 @@ def write_table1(tmp_path, k_off, k_on):
 # ------------------------------------------------------------------ Table 1
 def test_table1_columns_values_and_increase(tmp_path):
     df, _ = write_table1(tmp_path, 1.0e8, 1.3e8)
-    assert list(df.columns[:5]) == rp.TABLE1_COLUMNS
-    assert df.state.tolist() == ["power_off", "power_on"]
+    assert list(df.columns[:6]) == rp.TABLE1_COLUMNS
+    assert df.state.tolist() == ["power_off", "power_on"] and df.status.tolist() == ["identified"] * 2
     np.testing.assert_allclose(df.dynamic_stiffness_N_per_mm, [1.0e5, 1.3e5])
+    assert df.not_identified_dynamic_stiffness_N_per_mm.isna().all()
     np.testing.assert_allclose(df.paper_dynamic_stiffness_N_per_mm, [104547, 148551])
     np.testing.assert_allclose(df.static_stiffness_N_per_mm, [9e5, 9e5])
     assert df.governing_mode.tolist() == [4, 4]
     assert np.isnan(df.increase_pct[0]) and df.increase_pct[1] == pytest.approx(30.0)
+    assert df.paired_increase_pct[1] == pytest.approx(20.0)
     assert df.paper_increase_pct[1] == pytest.approx(42.09, abs=0.01)  # 148551 / 104547 - 1
     md = rp.table1_markdown(df)
-    assert "this model +30.0 %, paper +42.1 %" in md
-    assert "| power_on | 130,000 | 148,551 | 0.88 |" in md
+    assert "this model +30.0 %; lowest peaks of paired modes +20.0 %; paper +42.1 %" in md
+    assert "| power_on | identified | 130,000 | 148,551 |" in md
+
+
+def test_table1_state_not_identified_keeps_its_number_apart(tmp_path):
+    df, _ = write_table1(tmp_path, 1.0e8, 1.3e8, order_on=None)
+    assert df.status[0] == "identified"
+    assert df.status[1] == ("not identified: the governing mode (FE mode 4, 1401.4 Hz, table bounce) has no "
+                            "measured partner")
+    assert np.isnan(df.dynamic_stiffness_N_per_mm[1]) and np.isnan(df.increase_pct[1])
+    assert df.not_identified_dynamic_stiffness_N_per_mm[1] == pytest.approx(1.3e5)
+    assert df.paired_dynamic_stiffness_N_per_mm.tolist() == pytest.approx([1.0e5, 1.2e5])
+    assert df.paired_governing_measured_order.tolist() == [3, 3]
+    md = rp.table1_markdown(df)
+    assert "— (not identified: 130,000)" in md and "not available (a state is not identified)" in md
+    assert "120,000 (FE mode 5, 2001 Hz, table pitch, measured mode 3)" in md
 
 
 def test_table1_static_stiffness_missing_when_K_singular(tmp_path):
@@ -63,20 +86,24 @@ def test_table1_static_stiffness_missing_when_K_singular(tmp_path):
 
 
 def test_check_table1_reports_each_problem(tmp_path):
-    assert check_table1(tmp_path / "nope.csv") == [f"{tmp_path / 'nope.csv'}: missing — run "
-                                                      f"`snakemake -j2 {tmp_path / 'nope.csv'}` (rule table1)"]
+    assert check_table1(tmp_path / "nope.csv", ranges=False) == [
+        f"{tmp_path / 'nope.csv'}: missing — run `snakemake -j2 {tmp_path / 'nope.csv'}` (rule table1)"]
     _, good = write_table1(tmp_path, 1.0e8, 1.3e8)
-    assert check_table1(good) == []
+    assert check_table1(good, ranges=False) == []
     _, bad = write_table1(tmp_path, 1.0e8, 0.9e8)
-    problems = check_table1(bad)
+    assert check_table1(bad, ranges=False) == []  # a decrease is a finding, not a broken table
+    problems = check_table1(bad, require_increase=True, ranges=False)
     assert len(problems) == 1 and "-10.0 %" in problems[0] and "not positive" in problems[0]
+    _, unpaired = write_table1(tmp_path, 1.0e8, 1.3e8, order_on=None)
+    assert check_table1(unpaired, ranges=False) == []
+    assert "--require-increase" in check_table1(unpaired, require_increase=True, ranges=False)[0]
     df = pd.read_csv(bad)
     df.drop(columns=["governing_mode"]).to_csv(tmp_path / "cols.csv", index=False)
-    assert "governing_mode missing" in check_table1(tmp_path / "cols.csv")[0]
+    assert "governing_mode missing" in check_table1(tmp_path / "cols.csv", ranges=False)[0]
     df[df.state == "power_off"].to_csv(tmp_path / "rows.csv", index=False)
-    assert "no row for state power_on" in check_table1(tmp_path / "rows.csv")[0]
+    assert "no row for state power_on" in check_table1(tmp_path / "rows.csv", ranges=False)[0]
     df.assign(dynamic_stiffness_N_per_mm=[np.nan, 5.0]).to_csv(tmp_path / "nan.csv", index=False)
-    assert "not a positive number" in check_table1(tmp_path / "nan.csv")[0]
+    assert "not a positive number" in check_table1(tmp_path / "nan.csv", ranges=False)[0]
 
 
 def test_provenance_has_hash_versions_and_commit():
@@ -126,14 +153,22 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
         assert 0 < d["dynamic_stiffness_N_per_m"] < d["static_stiffness_N_per_m"]
         docs[state] = d
     tab = pd.read_csv(wd / t1)
-    assert list(tab.columns[:5]) == rp.TABLE1_COLUMNS
+    assert list(tab.columns[:6]) == rp.TABLE1_COLUMNS
     for state in STATES:
         row = tab[tab.state == state].iloc[0]
-        assert row.dynamic_stiffness_N_per_mm == pytest.approx(docs[state]["dynamic_stiffness_N_per_m"] / 1e3, rel=1e-9)
-    inc = 100 * (docs["power_on"]["dynamic_stiffness_N_per_m"] / docs["power_off"]["dynamic_stiffness_N_per_m"] - 1)
-    assert tab.increase_pct.iloc[1] == pytest.approx(inc, rel=1e-6)
-    problems = check_table1(wd / t1)
-    assert bool(problems) == (inc <= 0) and all("increase" in p for p in problems)
+        k = docs[state]["dynamic_stiffness_N_per_m"] / 1e3
+        if docs[state]["governing_mode"]["measured_order"]:
+            assert row.status == "identified" and row.dynamic_stiffness_N_per_mm == pytest.approx(k, rel=1e-9)
+        else:
+            assert row.status.startswith("not identified: the governing mode (FE mode ")
+            assert np.isnan(row.dynamic_stiffness_N_per_mm)
+            assert row.not_identified_dynamic_stiffness_N_per_mm == pytest.approx(k, rel=1e-9)
+        pm = docs[state]["paired_minimum"]
+        if pm is not None:  # the lowest paired peak is never below the band minimum
+            assert row.paired_dynamic_stiffness_N_per_mm >= k * (1 - 1e-12)
+    ranges = pd.read_csv(wd / "results" / "tables" / "table1_ranges.csv")
+    assert set(ranges.basis) == {"paired modes", "all modes"} and len(ranges) == 10
+    assert check_table1(wd / t1) == []
     assert "paper +42.1 %" in (wd / t1).with_suffix(".md").read_text()
 
     page = (wd / "results" / "report" / "index.html").read_text()

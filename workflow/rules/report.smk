@@ -1,6 +1,6 @@
 # Report stage: harmonic response per state -> Table 1 -> one self-contained HTML page.
-#   results/harmonic/{state}/{frf.csv, dynamic_stiffness.json, modes.npz}
-#   results/tables/table1_dynamic_stiffness.{csv,md}
+#   results/harmonic/{state}/{frf.csv, dynamic_stiffness.json, modes.npz, drive_points.npz}
+#   results/tables/table1_dynamic_stiffness.{csv,md}, table1_ranges.csv, table1_cases.csv
 #   results/report/index.html (+ figures/*.png, wrapped for `snakemake --report report.html`)
 # Captions of the figures: workflow/report/*.rst (paths relative to this file).
 
@@ -30,6 +30,7 @@ rule harmonic:
         frf=f"{R}/harmonic/{{state}}/frf.csv",
         stiffness=f"{R}/harmonic/{{state}}/dynamic_stiffness.json",
         modes=f"{R}/harmonic/{{state}}/modes.npz",
+        points=f"{R}/harmonic/{{state}}/drive_points.npz",
     params:
         cfg=lambda wc: cfg_harmonic(wc.state),
     log:
@@ -47,13 +48,16 @@ rule harmonic:
 rule table1:
     input:
         stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
+        points=expand(f"{R}/harmonic/{{state}}/drive_points.npz", state=STATES),
         paper="data/paper/paper_table1.csv",
     output:
         csv=report(f"{R}/tables/table1_dynamic_stiffness.csv", caption="../report/table1.rst",
                    category="Tables"),
         md=f"{R}/tables/table1_dynamic_stiffness.md",
+        ranges=f"{R}/tables/table1_ranges.csv",
+        cases=f"{R}/tables/table1_cases.csv",
     params:
-        cfg=CFG_TABLE1_CHAIN,  # nothing of its own: for the provenance
+        cfg=CFG_TABLE1_CHAIN,  # harmonic.band_Hz / n_freq for the ranges; the rest for the provenance
     log:
         "logs/table1.log",
     threads: 1
@@ -67,6 +71,7 @@ rule table1:
 rule report:
     input:
         table1=rules.table1.output.csv,
+        table1_ranges=rules.table1.output.ranges,
         table2=rules.tables.output.power_off,
         table3=rules.tables.output.power_on,
         paper_table1="data/paper/paper_table1.csv",
@@ -109,5 +114,6 @@ rule report:
 EXTRA_TARGETS += [
     f"{R}/tables/table1_dynamic_stiffness.csv",
     f"{R}/tables/table1_dynamic_stiffness.md",
+    f"{R}/tables/table1_ranges.csv",
     f"{R}/report/index.html",
 ]

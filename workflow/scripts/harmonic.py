@@ -4,4 +4,4 @@ from jointid.stages import harmonic
 
 run_script(snakemake, lambda cfg, inp, out: harmonic.run_harmonic(
     cfg, snakemake.wildcards.state, inp.params, inp.matrices, out.frf, out.stiffness,
-    out_modes=out.modes, verify_csv=inp.verify), provenance=True)
+    out_modes=out.modes, verify_csv=inp.verify, out_points=out.points), provenance=True)

@@ -105,15 +105,30 @@ def report_figures(cfg: dict, data: dict) -> dict[str, bytes]:
 
 
 def _summary(data: dict) -> dict:
-    """The key numbers above the sections: Table 1, its increase, the frequency errors, the damping."""
+    """The key numbers above the sections: Table 1 (status, identified value or why not, the lowest
+    paired peak), its increases, the ranges, the frequency errors, the damping."""
     t1 = data["table1"]
-    inc = t1[t1.increase_pct.notna()]
     d0 = next(iter(data["stiffness"].values()))
+    num = lambda v, f: "–" if pd.isna(v) else format(v, f)  # noqa: E731
+    stiffness = []
+    for _, r in t1.iterrows():
+        value = (f"{r.dynamic_stiffness_N_per_mm:,.0f} N/mm" if r.status == "identified" else
+                 f"not identified ({r.not_identified_dynamic_stiffness_N_per_mm:,.0f} N/mm at unpaired FE mode "
+                 f"{r.governing_mode}, {r.governing_description})")
+        stiffness.append({"state": r.state.replace("_", "-"), "value": value,
+                          "paired": num(r.paired_dynamic_stiffness_N_per_mm, ",.0f"),
+                          "paper": f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}"})
+    rng = data.get("table1_ranges")
+    ranges = [] if rng is None else [
+        {"basis": r.basis, "over": r.over, "value": f"{num(r.increase_low_pct, '+.1f')} … {num(r.increase_high_pct, '+.1f')}",
+         "inside": "inside" if r.paper_inside in (True, "True") else "outside"}
+        for r in rng.itertuples() if r.over == "points × damping laws"]
     return {
-        "stiffness": [{"state": r.state.replace("_", "-"), "value": f"{r.dynamic_stiffness_N_per_mm:,.0f}",
-                       "paper": f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}"} for _, r in t1.iterrows()],
-        "increase": [{"value": f"{r.increase_pct:+.1f}", "paper": f"{r.paper_increase_pct:+.1f}"}
-                     for _, r in inc.iterrows()],
+        "stiffness": stiffness,
+        "increase": [{"value": "n/a (a state is not identified)" if pd.isna(r.increase_pct) else f"{r.increase_pct:+.1f} %",
+                      "paired": num(r.paired_increase_pct, "+.1f"),
+                      "paper": f"{r.paper_increase_pct:+.1f}"} for _, r in t1[t1.paper_increase_pct.notna()].iterrows()],
+        "ranges": ranges,
         "errors": "; ".join(f"{s.replace('_', '-')} max |error| {t.relative_error_pct.abs().max():.1f} % "
                             f"(paper {t.paper_relative_error_pct.abs().max():.1f} %)"
                             for s, t in data["tables"].items()),
@@ -124,22 +139,53 @@ def _summary(data: dict) -> dict:
 
 def _table1_html(data: dict) -> str:
     t = data["table1"].copy()
+    order = lambda v: "" if pd.isna(v) else f" (measured mode {int(v)})"  # noqa: E731
     t["ratio_to_paper"] = t.dynamic_stiffness_N_per_mm / t.paper_dynamic_stiffness_N_per_mm
     t["governing"] = [f"FE mode {r.governing_mode}: {r.governing_description}, {r.governing_freq_Hz:.0f} Hz"
-                      + ("" if pd.isna(r.governing_measured_order) else f" (measured mode {int(r.governing_measured_order)})")
-                      for _, r in t.iterrows()]
-    cols = ["state", "dynamic_stiffness_N_per_mm", "paper_dynamic_stiffness_N_per_mm", "ratio_to_paper",
-            "increase_pct", "paper_increase_pct", "f_at_min_Hz", "governing", "damping_ratio_governing",
-            "static_stiffness_N_per_mm"]
-    heads = {"dynamic_stiffness_N_per_mm": "K_dyn,min this model (N/mm)",
+                      + order(r.governing_measured_order) for _, r in t.iterrows()]
+    t["paired_governing"] = ["–" if pd.isna(r.paired_governing_mode) else
+                             f"FE mode {r.paired_governing_mode}: {r.paired_governing_description}, "
+                             f"{r.paired_governing_freq_Hz:.0f} Hz" + order(r.paired_governing_measured_order)
+                             for _, r in t.iterrows()]
+    cols = ["state", "status", "dynamic_stiffness_N_per_mm", "not_identified_dynamic_stiffness_N_per_mm",
+            "paper_dynamic_stiffness_N_per_mm", "ratio_to_paper", "increase_pct", "paper_increase_pct", "f_at_min_Hz",
+            "governing", "paired_dynamic_stiffness_N_per_mm", "paired_increase_pct", "paired_governing",
+            "damping_ratio_governing", "static_stiffness_N_per_mm"]
+    heads = {"dynamic_stiffness_N_per_mm": "K_dyn,min identified (N/mm)",
+             "not_identified_dynamic_stiffness_N_per_mm": "K_dyn,min not identified (N/mm)",
              "paper_dynamic_stiffness_N_per_mm": "paper (N/mm)", "ratio_to_paper": "ratio to paper",
              "increase_pct": "increase (%)", "paper_increase_pct": "paper increase (%)",
-             "f_at_min_Hz": "minimum at (Hz)", "governing": "governing mode", "damping_ratio_governing": "ζ of that mode",
-             "static_stiffness_N_per_mm": "static 1/H(0) (N/mm)"}
-    fm = {"dynamic_stiffness_N_per_mm": ",.0f", "paper_dynamic_stiffness_N_per_mm": ",.0f", "ratio_to_paper": ".2f",
-          "increase_pct": "+.1f", "paper_increase_pct": "+.1f", "f_at_min_Hz": ".1f", "damping_ratio_governing": ".3g",
-          "static_stiffness_N_per_mm": ",.0f"}
-    return html_table(t[cols], fm, heads, text_cols=("state", "governing"))
+             "f_at_min_Hz": "minimum at (Hz)", "governing": "governing mode",
+             "paired_dynamic_stiffness_N_per_mm": "lowest peak of a paired mode (N/mm)",
+             "paired_increase_pct": "its increase (%)", "paired_governing": "that paired mode",
+             "damping_ratio_governing": "ζ of the governing mode", "static_stiffness_N_per_mm": "static 1/H(0) (N/mm)"}
+    fm = {c: ",.0f" for c in cols if c.endswith("_N_per_mm")}
+    fm.update({"ratio_to_paper": ".2f", "increase_pct": "+.1f", "paper_increase_pct": "+.1f", "paired_increase_pct": "+.1f",
+               "f_at_min_Hz": ".1f", "damping_ratio_governing": ".3g"})
+    out = html_table(t[cols], fm, heads, text_cols=("state", "status", "governing", "paired_governing"))
+    rng = data.get("table1_ranges")
+    if rng is not None and len(rng):
+        r = rng.copy()
+        r["paper_inside"] = r["paper_inside"].map(lambda v: "yes" if v in (True, "True") else "no")
+        ref = r["reference_state"].iloc[0]
+        rc = ["state", "basis", "over", "n_cases", "reference_k_min_low_N_per_mm", "reference_k_min_high_N_per_mm",
+              "k_min_low_N_per_mm", "k_min_high_N_per_mm", "increase_low_pct", "increase_high_pct", "paper_inside"]
+        rh = {"basis": "K_min of", "n_cases": "cases", "reference_k_min_low_N_per_mm": f"{ref} lowest (N/mm)",
+              "reference_k_min_high_N_per_mm": f"{ref} highest (N/mm)", "k_min_low_N_per_mm": "lowest (N/mm)",
+              "k_min_high_N_per_mm": "highest (N/mm)", "increase_low_pct": "increase from (%)",
+              "increase_high_pct": "increase to (%)", "paper_inside": "paper +42.1 % inside"}
+        rf = {c: ",.0f" for c in rc if c.endswith("_N_per_mm")}
+        rf.update({"increase_low_pct": "+.1f", "increase_high_pct": "+.1f"})
+        out += ("<h3>Ranges over the 18 table points and three damping laws</h3>"
+                + html_table(r[rc], rf, rh, text_cols=("state", "basis", "over", "paper_inside"))
+                + "<p class='note'>Each case: drive and response at one table point (T01…T18) in the drive direction, "
+                  "over a hammer-tip patch; damping laws: constant modal ζ; joint dashpots c = η·k_joint (ζ_r = η ω_r e_r / 2, "
+                  "e_r the mode's strain-energy share in the joints); a constant joint loss factor k_joint(1 + iγ) "
+                  "(ζ_r ≈ γ e_r / 2). The laws are calibrated so that the reference state's governing paired mode at "
+                  "the drive point has the configured ratio, so they differ only in how the damping changes between the "
+                  "states. The increase is taken case by case. 'Paired modes': the lowest resonance peak of a mode "
+                  "paired with a measured one; 'all modes': the band minimum, whichever mode sets it.</p>")
+    return out
 
 
 def _freq_tables_html(data: dict) -> str:
@@ -291,11 +337,13 @@ def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str
         ("table1", "Table 1 — dynamic stiffness",
          _table1_html(data)
          + f"<p class='note'>Drive point {d0['drive_point']} ({pt['part']} top at x = {pt['x_m']:.3f} m, "
-           f"z = {pt['z_m']:.3f} m), force and response in {d0['direction'].upper()}. The minimum of |F/X| over the "
+           f"z = {pt['z_m']:.3f} m), force and response in {d0['direction'].upper()}, spread and averaged over a "
+           f"{1e3 * d0.get('patch_diameter_m', 0.0):g} mm hammer-tip patch. The minimum of |F/X| over the "
            "band sits at a resonance, K_min ≈ 2 ζ_r k_r: its absolute value follows the assumed damping ratio "
            "(the paper gives none) and which modes the drive point excites, so the absolute numbers are not "
-           "expected to match the paper's ANSYS model; the increase between the states is the comparable "
-           "quantity.</p>"),
+           "expected to match the paper's ANSYS model. A state is <i>identified</i> only when the mode that sets "
+           "the minimum is paired with a measured mode (verify stage); otherwise the model's minimum is shown "
+           "apart, as not identified, beside the lowest resonance peak of a paired mode.</p>"),
         ("frf", "Frequency response, power-off vs power-on",
          _img(figs["frf"], "FRF overlay") + _harmonic_notes(data)),
         ("freq", "Tables 2 and 3 — natural frequencies",

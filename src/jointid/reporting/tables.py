@@ -17,9 +17,15 @@ __all__ = ["REFERENCE_STATE", "TABLE1_COLUMNS", "TABLE_TITLES", "frequency_table
 
 TABLE_TITLES = {"power_off": "Table 2 — natural frequencies, power-off state",
                 "power_on": "Table 3 — natural frequencies, power-on state"}
-TABLE1_COLUMNS = ["state", "dynamic_stiffness_N_per_mm", "paper_dynamic_stiffness_N_per_mm", "governing_mode",
-                  "static_stiffness_N_per_mm"]
+TABLE1_COLUMNS = ["state", "status", "dynamic_stiffness_N_per_mm", "paper_dynamic_stiffness_N_per_mm",
+                  "governing_mode", "static_stiffness_N_per_mm"]
 """The columns the issue asks for, first and in this order; more follow (see :func:`table1_frame`)."""
+IDENTIFIED = "identified"
+"""``status`` of a state whose band minimum is set by a mode paired with a measured one."""
+RANGE_COLUMNS = ["state", "reference_state", "basis", "over", "n_cases", "reference_k_min_low_N_per_mm",
+                 "reference_k_min_high_N_per_mm", "k_min_low_N_per_mm", "k_min_high_N_per_mm", "increase_low_pct",
+                 "increase_high_pct", "paper_increase_pct", "paper_inside"]
+"""Columns of ``table1_ranges.csv`` (:func:`jointid.response.ranges.range_table`)."""
 REFERENCE_STATE = "power_off"
 
 
@@ -78,6 +84,13 @@ def reference_state(states: list[str]) -> str:
 def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
     """Table 1: minimum dynamic stiffness in the drive direction per state, beside the paper's.
 
+    A state is ``identified`` when the mode that sets the minimum of ``|F/X|`` over the band is paired
+    with a measured mode (verify stage); then ``dynamic_stiffness_N_per_mm`` holds the minimum.
+    Otherwise ``status`` says which unpaired mode governs, ``dynamic_stiffness_N_per_mm`` is empty and
+    the model's minimum is in ``not_identified_dynamic_stiffness_N_per_mm``: a number the test never
+    saw is not put where it would be read as the result.  ``paired_dynamic_stiffness_N_per_mm`` is
+    always the lowest resonance peak of a paired mode.
+
     Parameters
     ----------
     stiffness : list of dict
@@ -89,24 +102,35 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
     -------
     DataFrame
         One row per state. Columns :data:`TABLE1_COLUMNS` (``governing_mode`` = FE mode number, 1-based),
-        then ``increase_pct`` (vs the reference state, power_off; empty on its row),
-        ``paper_increase_pct``, ``f_at_min_Hz``, ``governing_freq_Hz``, ``governing_description``,
-        ``governing_measured_order`` (the measured mode it is paired with, if any), ``damping_model``,
-        ``damping_ratio_governing``, ``drive_point``.
+        then ``increase_pct`` (vs the reference state, power_off; empty on its row and where a state is
+        not identified), ``paper_increase_pct``, ``not_identified_dynamic_stiffness_N_per_mm``,
+        ``paired_dynamic_stiffness_N_per_mm``, ``paired_increase_pct``, ``paired_f_at_min_Hz``,
+        ``paired_governing_mode``, ``paired_governing_freq_Hz``, ``paired_governing_description``,
+        ``paired_governing_measured_order``, ``f_at_min_Hz``, ``governing_freq_Hz``,
+        ``governing_description``, ``governing_measured_order``, ``damping_model``,
+        ``damping_ratio_governing``, ``drive_point``, ``patch_diameter_m``.
     """
     p = paper.set_index("state") if len(paper) else pd.DataFrame()
     rows = []
     for d in stiffness:
-        g = d["governing_mode"]
-        s = d["state"]
+        g, s, pm = d["governing_mode"], d["state"], d.get("paired_minimum") or {}
+        status = d.get("status") or (IDENTIFIED if g.get("measured_order") else "not identified")
+        k = d["dynamic_stiffness_N_per_m"] * 1e-3
         rows.append({
-            "state": s,
-            "dynamic_stiffness_N_per_mm": d["dynamic_stiffness_N_per_m"] * 1e-3,
+            "state": s, "status": status,
+            "dynamic_stiffness_N_per_mm": k if status == IDENTIFIED else math.nan,
             "paper_dynamic_stiffness_N_per_mm": float(p.loc[s, "paper_dynamic_stiffness_N_per_mm"])
             if s in p.index else math.nan,
             "governing_mode": int(g["fe_mode"]),
             "static_stiffness_N_per_mm": math.nan if d.get("static_stiffness_N_per_m") is None
             else d["static_stiffness_N_per_m"] * 1e-3,
+            "not_identified_dynamic_stiffness_N_per_mm": math.nan if status == IDENTIFIED else k,
+            "paired_dynamic_stiffness_N_per_mm": pm.get("dynamic_stiffness_N_per_m", math.nan) * 1e-3,
+            "paired_f_at_min_Hz": pm.get("f_at_min_Hz", math.nan),
+            "paired_governing_mode": pm.get("fe_mode"),
+            "paired_governing_freq_Hz": pm.get("freq_Hz", math.nan),
+            "paired_governing_description": pm.get("description", ""),
+            "paired_governing_measured_order": pm.get("measured_order"),
             "f_at_min_Hz": d["f_at_min_Hz"],
             "governing_freq_Hz": g["freq_Hz"],
             "governing_description": g["description"],
@@ -114,40 +138,83 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
             "damping_model": d["damping"]["config"].get("model", "modal"),
             "damping_ratio_governing": g["damping_ratio"],
             "drive_point": f"{d['drive_point']}:{d['direction']}",
+            "patch_diameter_m": d.get("patch_diameter_m", 0.0),
         })
     df = pd.DataFrame(rows)
-    ref = reference_state(list(df["state"]))
-    k_ref = float(df.loc[df.state == ref, "dynamic_stiffness_N_per_mm"].iloc[0])
+    ref = df.state == reference_state(list(df["state"]))
     pk = df["paper_dynamic_stiffness_N_per_mm"]
-    pk_ref = float(pk[df.state == ref].iloc[0])
-    df.insert(5, "increase_pct", np.where(df.state == ref, np.nan, 100 * (df.dynamic_stiffness_N_per_mm / k_ref - 1)))
-    df.insert(6, "paper_increase_pct", np.where(df.state == ref, np.nan, 100 * (pk / pk_ref - 1)))
-    df["governing_measured_order"] = df["governing_measured_order"].astype("Int64")
+
+    def increase(col):
+        return np.where(ref, np.nan, 100 * (df[col] / float(df.loc[ref, col].iloc[0]) - 1))
+
+    df.insert(6, "increase_pct", increase("dynamic_stiffness_N_per_mm"))
+    df.insert(7, "paper_increase_pct", np.where(ref, np.nan, 100 * (pk / float(pk[ref].iloc[0]) - 1)))
+    df.insert(10, "paired_increase_pct", increase("paired_dynamic_stiffness_N_per_mm"))
+    for c in ("governing_measured_order", "paired_governing_mode", "paired_governing_measured_order"):
+        df[c] = df[c].astype("Int64")
     return df
 
 
+def _num(v, fmt: str, empty: str = "—") -> str:
+    return empty if pd.isna(v) else format(v, fmt)
+
+
 def _table1_cells(r) -> dict:
-    ratio = r.dynamic_stiffness_N_per_mm / r.paper_dynamic_stiffness_N_per_mm
-    order = "" if pd.isna(r.governing_measured_order) else f", measured mode {int(r.governing_measured_order)}"
+    order = lambda v: "" if pd.isna(v) else f", measured mode {int(v)}"  # noqa: E731
     static = "n/a (K singular)" if pd.isna(r.static_stiffness_N_per_mm) else f"{r.static_stiffness_N_per_mm:,.0f}"
-    return {"state": r.state, "dynamic stiffness (N/mm)": f"{r.dynamic_stiffness_N_per_mm:,.0f}",
-            "paper (N/mm)": f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}", "ratio to paper": f"{ratio:.2f}",
+    unpaired = ("" if pd.isna(r.not_identified_dynamic_stiffness_N_per_mm)
+                else f" (not identified: {r.not_identified_dynamic_stiffness_N_per_mm:,.0f})")
+    paired = ("none" if pd.isna(r.paired_governing_mode) else
+              f"{r.paired_dynamic_stiffness_N_per_mm:,.0f} (FE mode {r.paired_governing_mode}, "
+              f"{r.paired_governing_freq_Hz:.0f} Hz, {r.paired_governing_description}"
+              f"{order(r.paired_governing_measured_order)})")
+    return {"state": r.state, "status": r.status,
+            "dynamic stiffness (N/mm)": _num(r.dynamic_stiffness_N_per_mm, ",.0f") + unpaired,
+            "paper (N/mm)": f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}",
             "governing mode": f"FE mode {r.governing_mode} ({r.governing_freq_Hz:.0f} Hz, "
-                              f"{r.governing_description}{order})",
+                              f"{r.governing_description}{order(r.governing_measured_order)})",
+            "lowest peak of a paired mode (N/mm)": paired,
             "static stiffness (N/mm)": static}
 
 
-def table1_markdown(df: pd.DataFrame) -> str:
-    """Markdown rendering of :func:`table1_frame` with the increase and a note on the damping."""
+def ranges_markdown(ranges: pd.DataFrame) -> list[str]:
+    """Markdown lines of ``table1_ranges.csv``: per basis and set of cases, the K_min and increase ranges."""
+    if ranges is None or ranges.empty:
+        return []
+    ref = ranges["reference_state"].iloc[0]
+    cells = pd.DataFrame([{
+        "state": r.state, "K_min of": r.basis, "over": r.over, "cases": str(r.n_cases),
+        f"{ref} (N/mm)": f"{_num(r.reference_k_min_low_N_per_mm, ',.0f')}–{_num(r.reference_k_min_high_N_per_mm, ',.0f')}",
+        f"{r.state} (N/mm)": f"{_num(r.k_min_low_N_per_mm, ',.0f')}–{_num(r.k_min_high_N_per_mm, ',.0f')}",
+        "increase (%)": f"{_num(r.increase_low_pct, '+.1f')} … {_num(r.increase_high_pct, '+.1f')}",
+        f"paper {_num(r.paper_increase_pct, '+.1f')} % inside": "yes" if r.paper_inside in (True, "True") else "no"}
+        for r in ranges.itertuples()]).fillna("")
+    return ["## Ranges over drive points and damping laws", "", _markdown(cells), "",
+            "Cases: the 18 table points (drive and response at the same point, in the drive direction) under each "
+            "damping law, and the three laws at the drive point; the increase is taken case by case. The laws are "
+            "calibrated so that the reference state's governing paired mode at the drive point has the configured "
+            "damping ratio; they differ only in how the damping changes between the states.", ""]
+
+
+def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None) -> str:
+    """Markdown rendering of :func:`table1_frame` (and of the ranges) with the increases and a note on
+    the damping."""
     drive = df["drive_point"].iloc[0]
-    lines = [f"# Table 1 — dynamic stiffness in {drive.split(':')[1].upper()} (drive point {drive.split(':')[0]})", "",
+    lines = [f"# Table 1 — dynamic stiffness in {drive.split(':')[1].upper()} (drive point {drive.split(':')[0]}, "
+             f"patch {1e3 * float(df['patch_diameter_m'].iloc[0]):g} mm)", "",
              _markdown(pd.DataFrame([_table1_cells(r) for _, r in df.iterrows()])), ""]
-    for _, r in df[df.increase_pct.notna()].iterrows():
-        lines.append(f"**Increase {r.state} vs {reference_state(list(df.state))}: this model {r.increase_pct:+.1f} %, "
-                     f"paper {r.paper_increase_pct:+.1f} %.**")
+    ref = reference_state(list(df.state))
+    for _, r in df[df.state != ref].iterrows():
+        inc = ("not available (a state is not identified)" if pd.isna(r.increase_pct) else f"{r.increase_pct:+.1f} %")
+        lines.append(f"**Increase {r.state} vs {ref}: this model {inc}; lowest peaks of paired modes "
+                     f"{_num(r.paired_increase_pct, '+.1f')} %; paper {r.paper_increase_pct:+.1f} %.**")
+        o_ref = df.loc[df.state == ref, "paired_governing_measured_order"].iloc[0]
+        if not (pd.isna(o_ref) or pd.isna(r.paired_governing_measured_order)) and o_ref != r.paired_governing_measured_order:
+            lines.append(f"The lowest paired peaks are of different measured modes ({ref}: mode {int(o_ref)}, {r.state}: "
+                         f"mode {int(r.paired_governing_measured_order)}), so their ratio is not the stiffening of one mode.")
     z = ", ".join(f"{r.state} {r.damping_ratio_governing:.3g}" for _, r in df.iterrows())
     lines += ["", f"Damping model: `{df.damping_model.iloc[0]}`; damping ratio of the governing mode: {z}. "
               "The minimum dynamic stiffness sits at a resonance, K_min ≈ 2 ζ_r k_r, so its absolute value scales "
               "with the assumed damping (the paper publishes none) and depends on the drive point and on which mode "
-              "is excited there; the increase between the states is the comparable number.", ""]
-    return "\n".join(lines)
+              "is excited there; a state is *identified* only when that mode is paired with a measured one.", ""]
+    return "\n".join(lines + ranges_markdown(ranges))

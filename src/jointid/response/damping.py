@@ -18,8 +18,12 @@ direct solve, :func:`damping_matrix`). The models:
 ``"measured"``
     ratios identified from the modal test, one per mode.
 
-Scaling note: between two joint states, ``K_min`` scales as ``(f_on/f_off)^2`` with
-constant ``zeta`` and as ``(f_on/f_off)^3`` with joint damping.
+Scaling note: at a resonance ``K_min ~ 2 zeta_r k_r`` (``k_r`` the modal stiffness at the drive point),
+so between two joint states ``K_min`` scales as ``k_r`` with constant ``zeta`` (``(f_on/f_off)^2`` if
+the mode's modal mass is unchanged) and as ``k_r w_r e_r`` with joint dashpots: the joint share
+``e_r`` changes with the joint stiffness too, so the ratio is ``(f_on/f_off)^3`` only when ``e_r ~ 1``
+(and the modal mass is unchanged).  A constant joint loss factor (hysteretic, frequency independent,
+:mod:`jointid.response.ranges`) gives ``zeta_r ~ gamma e_r / 2`` and ``K_min ~ k_r e_r``.
 """
 
 from __future__ import annotations

@@ -19,14 +19,17 @@ from jointid.config.datasets import dataset_folder
 from jointid.response.drive_point import (MODE_FACTOR, drive_vector, harmonic_response, joint_stiffness,
                                           modal_damping_ratios, solve_band_modes)
 from jointid.response.harmonic import RIGID_HZ, static_residual
+from jointid.response.ranges import band_minimum
 
 DAMPING_WHY = {  # why each damping model, for dynamic_stiffness.json
     "modal": ("constant modal damping ratio: the paper publishes no damping, so one ratio typical of bolted/"
-              "guided machine structures is assumed for every mode; K_min then scales as k_r, i.e. as "
-              "(f_on/f_off)^2 for a mode whose mass is unchanged"),
+              "guided machine structures is assumed for every mode; K_min = 2 zeta k_r then scales as the "
+              "modal stiffness k_r, i.e. as (f_on/f_off)^2 for a mode whose modal mass at the drive point is "
+              "unchanged"),
     "rayleigh": "Rayleigh damping C = alpha M + beta K with the configured coefficients",
-    "joint": ("joint dashpots proportional to the joint springs (c = eta k_joint): damping grows with the "
-              "joint stiffness, so K_min scales about as (f_on/f_off)^3"),
+    "joint": ("joint dashpots proportional to the joint springs (c = eta k_joint): zeta_r = eta w_r e_r / 2 with "
+              "e_r the share of the mode's strain energy in the joints, so K_min scales as k_r w_r e_r — as "
+              "(f_on/f_off)^3 only when e_r is about 1 in both states and the modal mass is unchanged"),
     "measured": "measured modal damping ratios of the dataset (mean measured ratio for unpaired modes)",
 }
 
@@ -67,7 +70,8 @@ def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
 
 
 def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv: str, out_json: str,
-                 out_modes: str | None = None, verify_csv: str | None = None, progress=print) -> dict:
+                 out_modes: str | None = None, verify_csv: str | None = None, out_points: str | None = None,
+                 progress=print) -> dict:
     """The ``harmonic`` workflow stage of one state.
 
     Reads the identified parameters and the cached model, writes the drive-point FRF (``out_csv``,
@@ -86,7 +90,10 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
         Identified parameters (identify stage) and the cached model (mesh stage).
     verify_csv : str, optional
         The verify stage's table; its ``fe_mode`` column pairs measured modes with FE modes (for the
-        measured damping ratios and the measured order of the governing mode).
+        measured damping ratios, the measured order of the governing mode and the paired minimum).
+    out_points : str, optional
+        ``drive_points.npz`` (:func:`point_data`): the modal data of every table measuring point for
+        the ranges of Table 1 (rule ``table1``).
 
     Returns
     -------
@@ -103,14 +110,17 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     band = [float(b) for b in h["band_Hz"]]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res, modes, desc, dcfg, mnote = _response(cfg, state, model, kc, mc, band, verify_csv, progress)
+        res, modes, desc, dcfg, mnote, pts = _response(cfg, state, model, kc, mc, band, verify_csv, progress)
     notes = [str(w.message) for w in caught]
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     io.write_csv(frf_frame(res), out_csv)
     order = _measured_order(verify_csv, res.governing)
     out = _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order)
+    out.update(_paired_summary(res, desc, pts["measured_order"], band))
     io.write_json(out_json, out)
+    if out_points:
+        io.write_npz(out_points, **pts)
     if out_modes:
         labels = dof_labels(pd.DataFrame(model.meta["points"]))
         io.write_npz(out_modes, freqs_Hz=res.freqs_Hz, shapes=model.probe @ modes.phi, labels=np.array(labels),
@@ -120,8 +130,36 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     static = out["static_stiffness_N_per_mm"]
     progress(f"harmonic[{state}]: K_dyn,min = {out['dynamic_stiffness_N_per_mm']:.5g} N/mm at "
              f"{out['f_at_min_Hz']:.1f} Hz (FE mode {g + 1}, {desc['description'][g]}), static "
-             f"{'n/a' if static is None else format(static, '.5g')} N/mm")
+             f"{'n/a' if static is None else format(static, '.5g')} N/mm; {out['status']}")
     return out
+
+
+def status_text(fe_mode: int, freq_Hz: float, description: str, measured_order) -> str:
+    """Table 1's status of a state: ``identified`` when the mode that sets the band minimum is paired
+    with a measured mode, else why not."""
+    if measured_order:
+        return "identified"
+    return (f"not identified: the governing mode (FE mode {fe_mode}, {freq_Hz:.1f} Hz, {description}) has no "
+            "measured partner")
+
+
+def _paired_summary(res, desc, measured_order, band) -> dict:
+    """``status``, ``paired_minimum`` (the lowest resonance peak of a paired mode, or None) and the
+    drive patch for ``dynamic_stiffness.json``."""
+    g = res.governing
+    order = np.asarray(measured_order, dtype=int)
+    m = band_minimum(band, res.freqs_Hz, res.zeta, np.zeros(res.zeta.size), res.participation,
+                     paired=order > 0, f_Hz=res.f_Hz, H=res.H)
+    paired = None
+    if m["mode_paired"] is not None:
+        r = m["mode_paired"]
+        paired = {"dynamic_stiffness_N_per_m": m["k_paired_N_per_m"],
+                  "dynamic_stiffness_N_per_mm": m["k_paired_N_per_m"] * 1e-3, "f_at_min_Hz": m["f_paired_Hz"],
+                  "fe_mode": r + 1, "freq_Hz": float(res.freqs_Hz[r]), "description": str(desc["description"][r]),
+                  "measured_order": int(order[r]), "damping_ratio": float(res.zeta[r]),
+                  "joint_share": float(desc["strain_joints"][r]) if "strain_joints" in desc else None}
+    return {"status": status_text(g + 1, float(res.freqs_Hz[g]), str(desc["description"][g]), int(order[g])),
+            "paired_minimum": paired}
 
 
 def _measured_order(verify_csv: str | None, g: int) -> int | None:
@@ -143,6 +181,7 @@ def _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order) -> d
     return {
         "state": state,
         "drive_point": h["drive_point"], "direction": h.get("direction", "y"),
+        "patch_diameter_m": float(h.get("patch_diameter_m", 0.0)),
         "band_Hz": band,
         "dynamic_stiffness_N_per_m": dyn["k_dyn_min_N_per_m"],
         "dynamic_stiffness_N_per_mm": dyn["k_dyn_min_N_per_m"] * 1e-3,
@@ -170,7 +209,8 @@ def _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order) -> d
 
 
 def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
-    """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`)."""
+    """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`), and
+    the modal data of every table point (:func:`point_data`)."""
     from jointid.fe.describe import describe_modes
 
     h, s = cfg["harmonic"], cfg["solver"]
@@ -178,23 +218,63 @@ def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
     modes, shifted = solve_band_modes(K, M, band[1], fixed=model.fixed, n_start=max(int(s["n_modes"]), 12),
                                       shift_Hz=s["shift_Hz"], backend=s["backend"], progress=progress,
                                       keep_factor=True, ordering=model.ordering)
+    direction = h.get("direction", "y")
     try:
-        p = drive_vector(model, h["drive_point"], h.get("direction", "y"))
-        R, H0, note = static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed, backend=s["backend"],
-                                      shifted=shifted)
+        names, P = drive_patches(model, h["drive_point"], direction, float(h.get("patch_diameter_m", 0.0)))
+        resid = [static_residual(K, np.asarray(P[k].toarray()).ravel(), modes.phi, modes.freqs_Hz, fixed=model.fixed,
+                                 backend=s["backend"], shifted=shifted) for k in range(len(names))]
     finally:
         shifted.free_memory()
+    k0 = names.index(h["drive_point"])
+    p = np.asarray(P[k0].toarray()).ravel()
+    R, H0, note = resid[k0]
     desc = describe_modes(model, modes.phi, kc, mc)
     progress(f"harmonic[{state}]: {note}")
     dcfg = dict(h.get("damping") or {"model": "modal", "damping_ratio": 0.03})
     measured, mnote = measured_damping(cfg, state, verify_csv)
-    share = None
-    if dcfg.get("model") == "joint":
-        elastic = modes.freqs_Hz >= RIGID_HZ
-        share = np.zeros(modes.freqs_Hz.size)
-        share[elastic] = dm.joint_energy_share(modes.phi[:, elastic], modes.freqs_Hz[elastic],
-                                               joint_stiffness(model, kc))
+    share = np.where(modes.freqs_Hz >= RIGID_HZ, desc["strain_joints"].to_numpy(float), 0.0)
     zeta, source = modal_damping_ratios(dcfg, modes.freqs_Hz, joint_share=share, measured=measured)
     res = harmonic_response(modes, p, zeta, band, n_freq=int(h["n_freq"]), residual=R, static_receptance=H0)
     res.damping_source, res.residual_note = source, note
-    return res, modes, desc, dcfg, mnote
+    pts = point_data(names, P @ modes.phi, resid, modes.freqs_Hz, share, _measured_orders(verify_csv, modes.freqs_Hz.size),
+                     desc, zeta, direction, float(h.get("patch_diameter_m", 0.0)))
+    return res, modes, desc, dcfg, mnote, pts
+
+
+def drive_patches(model, drive_point: str, direction: str, diameter_m: float):
+    """Load / response vectors (a hammer-tip patch of ``diameter_m``, :func:`jointid.fe.patch.patch_probe`)
+    in ``direction`` at every table measuring point and at the drive point: ``(names, P)`` with ``P``
+    of shape ``(len(names), n_dofs)``."""
+    from jointid.fe.patch import patch_probe
+
+    drive_vector(model, drive_point, direction)  # a clear error for an unknown point or direction
+    table = pd.DataFrame(model.meta["points"])
+    names = [str(p) for p in table.loc[table["part"] == "table", "point"]]
+    if drive_point not in names:
+        names.append(drive_point)
+    rows = patch_probe(model, names, diameter_m)
+    return names, rows[np.arange(len(names)) * 3 + "xyz".index(direction)]
+
+
+def _measured_orders(verify_csv: str | None, n_modes: int) -> np.ndarray:
+    """Per FE mode (0-based), the order of the measured mode paired with it in the verify table; 0 = none."""
+    out = np.zeros(n_modes, dtype=int)
+    if verify_csv:
+        ver = pd.read_csv(verify_csv)
+        for order, fe in zip(ver["order"], ver["fe_mode"]):
+            if 1 <= int(fe) <= n_modes:
+                out[int(fe) - 1] = int(order)
+    return out
+
+
+def point_data(names, pphi, resid, freqs_Hz, share, measured_order, desc, zeta, direction, diameter_m) -> dict:
+    """The content of ``drive_points.npz``: ``points (n_pts,)``, ``pphi (n_pts, n_modes)`` (patch
+    participation ``p^T phi_r``, m/sqrt(kg) per N), ``residual_m_per_N`` and ``static_receptance_m_per_N``
+    ``(n_pts,)`` (NaN where K is singular), ``freqs_Hz, joint_share, measured_order`` (0 = unpaired),
+    ``description, zeta`` (the configured damping) ``(n_modes,)``, ``direction``, ``patch_diameter_m``."""
+    nan = lambda v: np.nan if v is None else float(v)  # noqa: E731
+    return {"points": np.array(names), "pphi": np.asarray(pphi), "residual_m_per_N": np.array([nan(r[0]) for r in resid]),
+            "static_receptance_m_per_N": np.array([nan(r[1]) for r in resid]), "freqs_Hz": np.asarray(freqs_Hz),
+            "joint_share": np.asarray(share), "measured_order": np.asarray(measured_order),
+            "description": desc["description"].to_numpy().astype(str), "zeta": np.asarray(zeta),
+            "direction": np.array(direction), "patch_diameter_m": np.array(diameter_m)}

@@ -25,6 +25,7 @@ def load_inputs(inputs: dict) -> dict:
     by_state = lambda key, reader: {Path(p).parent.name: reader(p) for p in _as_list(inputs[key])}  # noqa: E731
     return {
         "table1": pd.read_csv(inputs["table1"]),
+        "table1_ranges": pd.read_csv(inputs["table1_ranges"]) if inputs.get("table1_ranges") else None,
         "tables": {"power_off": pd.read_csv(inputs["table2"]), "power_on": pd.read_csv(inputs["table3"])},
         "verify": by_state("verify", pd.read_csv),
         "params": by_state("params", io.read_json),
@@ -50,6 +51,7 @@ def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
         The whole configuration (shown, and hashed).
     inputs : dict
         Paths: ``table1, table2, table3, paper_table1, diagnostics, sheet, points`` (one each),
+        ``table1_ranges`` (optional),
         ``verify, params, frf, stiffness, modes`` (one per state; the state is the parent folder name)
         and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check) and ``rigidity``
         (one JSON per state, from the rule carriage_rigidity).

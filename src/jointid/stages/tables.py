@@ -42,19 +42,64 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
         io.write_csv(frame.reindex(columns=cols), unpaired_out)
 
 
-def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md: str):
-    """Rule ``table1``: read the harmonic results, write Table 1 (CSV and Markdown); returns its frame."""
+def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md: str, *,
+               points_npz: list[str] | None = None, cfg: dict | None = None, out_ranges: str | None = None,
+               out_cases: str | None = None):
+    """Rule ``table1``: read the harmonic results, write Table 1 (CSV and Markdown) and, given the
+    states' ``drive_points.npz`` (same order as ``stiffness_jsons``), its ranges over the table points
+    and the damping laws (``out_ranges``, ``out_cases``: one row per state, point and law); returns
+    Table 1's frame."""
     import pandas as pd
 
-    from jointid.reporting.tables import table1_frame, table1_markdown
+    from jointid.reporting.tables import reference_state, table1_frame, table1_markdown
 
     docs = [io.read_json(p) for p in stiffness_jsons]
     df = table1_frame(docs, pd.read_csv(paper_csv))
+    ranges = None
+    if points_npz:
+        ranges, cases = table1_ranges(docs, points_npz, reference_state(list(df.state)), cfg or {},
+                                      dict(zip(df.state, df.paper_increase_pct)))
+        io.write_csv(ranges, out_ranges)
+        if out_cases:
+            io.write_csv(cases, out_cases)
     io.write_csv(df, out_csv)
-    io.write_text(out_md, table1_markdown(df))
+    io.write_text(out_md, table1_markdown(df, ranges))
     for _, r in df.iterrows():
         inc = ("" if pd.isna(r.increase_pct)
                else f", increase {r.increase_pct:+.1f} % (paper {r.paper_increase_pct:+.1f} %)")
-        log(f"table1[{r.state}]: {r.dynamic_stiffness_N_per_mm:,.0f} N/mm (paper "
-            f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}){inc}")
+        pinc = "" if pd.isna(r.paired_increase_pct) else f", increase {r.paired_increase_pct:+.1f} %"
+        log(f"table1[{r.state}]: {r.status}; band minimum {r.dynamic_stiffness_N_per_mm:,.0f} N/mm (not identified: "
+            f"{r.not_identified_dynamic_stiffness_N_per_mm:,.0f}), lowest paired peak "
+            f"{r.paired_dynamic_stiffness_N_per_mm:,.0f} N/mm{pinc} (paper {r.paper_dynamic_stiffness_N_per_mm:,.0f}){inc}")
+    for r in (ranges.itertuples() if ranges is not None else []):
+        log(f"table1 range[{r.state}, {r.basis}, {r.over}]: increase {r.increase_low_pct:+.1f} … "
+            f"{r.increase_high_pct:+.1f} % (paper {r.paper_increase_pct:+.1f} % {'inside' if r.paper_inside else 'outside'})")
     return df
+
+
+def table1_ranges(docs: list[dict], points_npz: list[str], reference: str, cfg: dict, paper_increase: dict):
+    """The ranges of Table 1 (:func:`jointid.response.ranges.range_table`) and their cases.
+
+    The three damping laws are calibrated on the reference state's drive point: the mode that sets its
+    lowest paired resonance peak (else its band minimum) gets the damping ratio the configured model
+    gives it.  Returns ``(ranges, cases)``."""
+    import numpy as np
+    import pandas as pd
+
+    from jointid.response.ranges import LAWS, calibrate, case_table, range_table
+
+    data = {d["state"]: dict(np.load(p)) for d, p in zip(docs, points_npz)}
+    doc = next(d for d in docs if d["state"] == reference)
+    cal = doc.get("paired_minimum") or doc["governing_mode"]
+    r = int(cal["fe_mode"]) - 1
+    ref = data[reference]
+    laws = {law: calibrate(law, float(cal["damping_ratio"]), float(ref["freqs_Hz"][r]), float(ref["joint_share"][r]))
+            for law in LAWS}
+    h = cfg.get("harmonic", {})
+    band = h.get("band_Hz", doc["band_Hz"])
+    cases = {s: case_table(d, laws, band_Hz=band, n_freq=int(h.get("n_freq", 1601))) for s, d in data.items()}
+    ranges = range_table(cases, reference, doc["drive_point"], paper_increase)
+    for law, v in laws.items():
+        log(f"table1: damping law {law} calibrated on FE mode {r + 1} ({ref['freqs_Hz'][r]:.1f} Hz, joint share "
+            f"{ref['joint_share'][r]:.3f}) of {reference} at {doc['drive_point']}: parameter {v:.4g}")
+    return ranges, pd.concat([c.assign(state=s) for s, c in cases.items()], ignore_index=True)
