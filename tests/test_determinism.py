@@ -120,7 +120,10 @@ def test_every_result_table_has_a_matching_provenance_sidecar(coarse_run, cfg):
     # the hash is that of the config parts the rule takes: one state's settings for identify,
     # the union of the chain's parts for the tables (which have no settings of their own)
     ident = json.loads(provenance_path(wd / "results/identify/power_on/params.json").read_text())
-    assert ident["config_sections"] == ["identify", "joints", "measurements", "mesh", "rig", "solver", "states"]
+    # harmonic: the test band and drive point, which tell the identification which model modes the
+    # test would clearly have seen (identify.visible_threshold)
+    assert ident["config_sections"] == ["harmonic", "identify", "joints", "measurements", "mesh", "rig", "solver",
+                                        "states"]
     one_state = {k: cfg[k] for k in ("identify", "joints", "measurements", "rig")}
     one_state["mesh"] = {"extrapolate_edges": cfg["mesh"]["extrapolate_edges"]}
     one_state["solver"] = {k: cfg["solver"][k] for k in ("n_modes", "shift_Hz", "backend", "min_freq_Hz")}
