@@ -128,10 +128,13 @@ def test_every_result_table_has_a_matching_provenance_sidecar(coarse_run, cfg):
     one_state["mesh"] = {"extrapolate_edges": cfg["mesh"]["extrapolate_edges"]}
     one_state["solver"] = {k: cfg["solver"][k] for k in ("n_modes", "shift_Hz", "backend", "min_freq_Hz")}
     one_state["states"] = {"power_on": cfg["states"]["power_on"]}
+    one_state["harmonic"] = {k: cfg["harmonic"][k] for k in ("band_Hz", "drive_point")}
     assert ident["config_hash"] == config_hash(one_state)
     tab = json.loads(provenance_path(wd / TABLE2).read_text())
     assert {"materials", "mesh", "doe", "surface", "identify", "states"} <= set(tab["config_sections"])
-    assert sorted(tab["inputs"]) == ["data/paper/paper_tables.csv", "results/identify/power_off/verify.csv",
+    assert sorted(tab["inputs"]) == ["data/paper/paper_tables.csv", "results/identify/power_off/unpaired_visible.csv",
+                                     "results/identify/power_off/verify.csv",
+                                     "results/identify/power_on/unpaired_visible.csv",
                                      "results/identify/power_on/verify.csv"]
 
 
