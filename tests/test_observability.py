@@ -97,3 +97,21 @@ def test_skip_cost_assignment_is_the_brute_force_optimum():
         total = lambda c: cost[range(m), list(c)].sum() + skip[[j for j in range(n) if j not in c]].sum()  # noqa: E731
         best = min(total(c) for c in combinations(range(n), m))
         assert total(cols) == pytest.approx(best)
+
+
+def test_shared_state_pairing_sums_the_skip_costs_of_every_state_along_the_tracks():
+    from jointid.correlate.pairing import pair_states_by_frequency
+
+    f_meas = [np.array([100.0, 200.0]), np.array([110.0, 220.0])]
+    f_model = [np.array([100.0, 150.0, 203.0]), np.array([165.0, 110.0, 223.0])]  # state 2 reorders
+    tracks = [np.array([0, 1, 2]), np.array([1, 0, 2])]
+    free = pair_states_by_frequency(f_meas, f_model, tracks)
+    assert [list(p.model_index) for p in free] == [[0, 2], [1, 2]]
+    # the 150/165 Hz mode is clearly visible in both states: leaving it unpaired now costs its misfit
+    skips = [np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])]
+    costly = pair_states_by_frequency(f_meas, f_model, tracks, skip_cost=skips)
+    assert [list(p.model_index) for p in costly] == [[0, 1], [1, 0]]
+    # one state's cost alone (half as large) does not outweigh the pairing error of both states
+    small = [np.array([0.0, 0.01, 0.0]), np.zeros(3)]
+    assert [list(p.model_index) for p in pair_states_by_frequency(f_meas, f_model, tracks, skip_cost=small)] \
+        == [[0, 2], [1, 2]]

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MeasurementSetup", "VISIBLE_THRESHOLD", "clearly_visible", "nearest_measured", "visibility"]
+__all__ = ["MeasurementSetup", "VISIBLE_THRESHOLD", "clearly_visible", "nearest_measured", "test_band",
+           "visibility"]
 
 VISIBLE_THRESHOLD = 0.25
 """Default: a mode is clearly visible at a quarter of the weakest paired mode's visibility."""
@@ -80,6 +81,23 @@ class MeasurementSetup:
         return cls(excitation=excitation, response=response, note=note)
 
 
+def test_band(spec: dict | None, default_band_Hz, f_meas_Hz, margin: float = 0.02) -> tuple[float, float]:
+    """The band in which a test reports every mode it saw (Hz).
+
+    The dataset's ``test_setup.band_Hz`` when given.  Otherwise the default band (``harmonic.band_Hz``)
+    capped at the highest measured mode plus ``margin``: a test that lists the first N modes says
+    nothing about the modes above its N-th, so a model mode there is not a misfit.
+    """
+    band = (spec or {}).get("band_Hz")
+    if band is not None:
+        return float(band[0]), float(band[1])
+    lo, hi = (float(b) for b in default_band_Hz)
+    f = np.asarray(f_meas_Hz, float)
+    if f.size:
+        hi = min(hi, float(f.max()) * (1.0 + margin))
+    return lo, hi
+
+
 def visibility(shapes: np.ndarray, freqs_Hz: np.ndarray, labels: list[str], setup: MeasurementSetup,
                zeta: float | np.ndarray = 0.03) -> np.ndarray:
     """Peak that each mode adds to the summed FRF magnitude of the test (m/N).
@@ -110,7 +128,8 @@ def visibility(shapes: np.ndarray, freqs_Hz: np.ndarray, labels: list[str], setu
         return np.zeros(shapes.shape[1])
     w2 = (2 * np.pi * np.asarray(freqs_Hz, float)) ** 2
     summed = np.abs(shapes[exc]).sum(axis=0) * np.abs(shapes[resp]).sum(axis=0)
-    return summed / (2 * np.asarray(zeta, float) * w2)
+    with np.errstate(divide="ignore"):  # a rigid-body mode (0 Hz) is infinitely visible, and outside every band
+        return summed / (2 * np.asarray(zeta, float) * w2)
 
 
 def clearly_visible(vis: np.ndarray, paired: np.ndarray, threshold: float = VISIBLE_THRESHOLD) -> np.ndarray:
@@ -136,5 +155,6 @@ def nearest_measured(f_model: np.ndarray, f_meas: np.ndarray) -> np.ndarray:
     """
     f_model = np.atleast_1d(np.asarray(f_model, float))
     f_meas = np.asarray(f_meas, float)
-    d = np.abs(np.log(f_model)[:, None] - np.log(f_meas)[None, :])
-    return f_meas[np.argmin(d, axis=1)]
+    with np.errstate(divide="ignore"):  # a rigid-body mode (0 Hz) is nearest to the lowest measured one
+        d = np.abs(np.log(f_model)[:, None] - np.log(f_meas)[None, :])
+    return f_meas[np.argmin(np.nan_to_num(d, nan=np.inf), axis=1)]

@@ -203,7 +203,8 @@ def pair_modes(f_meas, f_model, meas_shapes=None, model_shapes=None, *, threshol
                    unpaired_model=unpaired_model)
 
 
-def pair_states_by_frequency(f_meas: list, f_model: list, tracks: list, *, min_freq_Hz: float = 0.0) -> list:
+def pair_states_by_frequency(f_meas: list, f_model: list, tracks: list, *, min_freq_Hz: float = 0.0,
+                             skip_cost: list | None = None) -> list:
     """Frequency-only pairing of several states with one mode identity across the states.
 
     Measured mode ``i`` is taken to be the same physical mode in every state (same count of modes,
@@ -220,6 +221,10 @@ def pair_states_by_frequency(f_meas: list, f_model: list, tracks: list, *, min_f
         of the first state (-1 if lost); ``tracks[0]`` is the identity.
     min_freq_Hz : float
         First-state model modes below this are never paired.
+    skip_cost : list of (n,) arrays, optional
+        Per state, the cost (squared log frequency, the units of the assignment) of leaving each
+        model mode unpaired (the observability rule's misfits); summed over the states along the
+        tracks.  Default: skipping is free.
 
     Returns
     -------
@@ -232,7 +237,12 @@ def pair_states_by_frequency(f_meas: list, f_model: list, tracks: list, *, min_f
     for fm, fs, tr in zip(f_meas, f_model, tracks):
         fs = np.asarray(fs, float)
         cost += (np.log(np.asarray(fm, float))[:, None] - np.log(fs[np.asarray(tr)[ok]])[None, :]) ** 2
-    cols = ordered_assignment(cost) if len(ok) >= m else None
+    skip = None
+    if skip_cost is not None:
+        skip = np.zeros(len(ok))
+        for sc, tr in zip(skip_cost, tracks):
+            skip += np.asarray(sc, float)[np.asarray(tr)[ok]]
+    cols = ordered_assignment(cost, skip_cost=skip) if len(ok) >= m else None
     out = []
     for fm, fs, tr in zip(f_meas, f_model, tracks):
         fm, fs = np.asarray(fm, float), np.asarray(fs, float)

@@ -18,7 +18,7 @@ from jointid.yamlio import number_from_text
 __all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "SETUP_KEYS", "check_conditions"]
 
 TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "test_setup", "notes")
-SETUP_KEYS = ("excitation", "response_points", "response_directions", "note")
+SETUP_KEYS = ("excitation", "response_points", "response_directions", "note", "band_Hz")
 STATE_KEYS = ("em_force_N", "currents", "motor_position_m", "frf_drive_point",
               "frf_drive_direction", "notes")
 CURRENT_KEYS = ("exciting_current_A", "eddy_current_A")
@@ -231,6 +231,12 @@ def _check_setup(problems, where, setup, points) -> None:
                 if str(name) not in points:
                     problems.add(f"{where}.response_points", f"{name!r} is not a measuring point",
                                  f"use names from the measuring-point table ({few(points)})")
+    band = setup.get("band_Hz")
+    if band is not None and not (isinstance(band, list) and len(band) == 2
+                                 and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in band)
+                                 and 0 <= band[0] < band[1]):
+        problems.add(f"{where}.band_Hz", f"band_Hz = {band!r} is not [low, high] in Hz with low < high",
+                     "write e.g. band_Hz: [300.0, 3500.0] (the band the test analysed for modes)")
     dirs = setup.get("response_directions")
     if dirs is not None and (not isinstance(dirs, list) or not dirs or any(d not in DIRECTIONS for d in dirs)):
         problems.add(f"{where}.response_directions", f"response_directions = {dirs!r} is not a list of x, y, z",

@@ -59,6 +59,7 @@ class Evaluation:
     index: list  # per state: model mode index per measured mode (-1 unpaired)
     rows: list  # per residual: (state number, measured mode number)
     f_model: list  # per state: model frequency per measured mode (NaN unpaired)
+    misfits: list = None  # per state: (model modes, nearest measured Hz, model Hz) of the unpaired visible modes
 
 
 class Diagnoser:
@@ -118,17 +119,58 @@ class Diagnoser:
         if len(freq_only) >= 2 and len({len(self.data[k].f_meas) for k in freq_only}) == 1:
             ref = sols[freq_only[0]]
             tracks = [self._track_model(ref, sols[k]) for k in freq_only]
-            pairs = correlate.pair_states_by_frequency([self.data[k].f_meas for k in freq_only],
-                                                       [sols[k].freqs_Hz for k in freq_only], tracks,
-                                                       min_freq_Hz=self.min_freq)
+            args = ([self.data[k].f_meas for k in freq_only], [sols[k].freqs_Hz for k in freq_only], tracks)
+            pairs = correlate.pair_states_by_frequency(*args, min_freq_Hz=self.min_freq)
+            if any(self.data[k].rule is not None for k in freq_only):
+                # leaving a clearly visible mode unpaired costs its misfit: pairing and costs in turn
+                seen = set()
+                for _ in range(6):
+                    key = tuple(tuple(p.model_index) for p in pairs)
+                    skip = [self._skip_cost(self.data[k], sols[k], p.model_index) for k, p in zip(freq_only, pairs)]
+                    new = correlate.pair_states_by_frequency(*args, min_freq_Hz=self.min_freq, skip_cost=skip)
+                    if tuple(tuple(p.model_index) for p in new) == key or key in seen:
+                        break
+                    seen.add(key)
+                    pairs = new
             for k, p in zip(freq_only, pairs):
                 out[k] = p
         for k, (d, s) in enumerate(zip(self.data, sols)):
+            if out[k] is None and d.shapes is None and d.rule is not None:
+                cand = np.flatnonzero(s.freqs_Hz >= self.min_freq)
+                if len(cand) >= len(d.f_meas):
+                    index = d.rule.pair_by_frequency(d.f_meas, s.freqs_Hz, self._vis(d, s), cand)
+                    out[k] = correlate.Pairing(model_index=np.asarray(index, int), mac=np.full(len(index), np.nan),
+                                               method="frequency", unpaired_measured=[], unpaired_model=[])
             if out[k] is None:
                 out[k] = correlate.pair_modes(d.f_meas, s.freqs_Hz, d.shapes,
                                               s.shapes if d.shapes is not None else None,
                                               threshold=self.mac_threshold, min_freq_Hz=self.min_freq)
         return out
+
+    @staticmethod
+    def _vis(d: StateData, s: Solution) -> np.ndarray:
+        return d.rule.visibility(s.shapes, s.freqs_Hz)
+
+    def _skip_cost(self, d: StateData, s: Solution, index) -> np.ndarray:
+        if d.rule is None:
+            return np.zeros(len(s.freqs_Hz))
+        cost = d.rule.skip_costs(index, s.freqs_Hz, self._vis(d, s), d.f_meas)
+        return np.where(s.freqs_Hz >= self.min_freq, cost, 0.0)
+
+    def misfit_sets(self, sols: list[Solution], index: list) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per state, the clearly visible model modes in the band that ``index`` leaves unpaired and
+        the nearest measured frequency of each (Hz): ``(modes, targets)`` (empty without a rule)."""
+        out = []
+        for d, s, ix in zip(self.data, sols, index):
+            out.append(self._misfits(d, s, ix))
+        return out
+
+    def _misfits(self, d: StateData, s: Solution, index) -> tuple[np.ndarray, np.ndarray]:
+        if d.rule is None:
+            return np.zeros(0, int), np.zeros(0)
+        cols, tgt = d.rule.misfits(index, s.freqs_Hz, self._vis(d, s), d.f_meas)
+        keep = s.freqs_Hz[cols] >= self.min_freq
+        return np.asarray(cols, int)[keep], np.asarray(tgt, float)[keep]
 
     def _track_model(self, ref: Solution, sol: Solution) -> np.ndarray:
         """Model mode of ``sol`` continuing each mode of ``ref`` (reduced-space MAC, -1 below 0.5)."""
@@ -142,40 +184,55 @@ class Diagnoser:
         return out
 
     def evaluate(self, variant: Variant, x, index: list, track: list | None = None, *,
-                 refine: bool = True) -> Evaluation:
+                 refine: bool = True, misfits: list | None = None) -> Evaluation:
         """Residuals ``ln(f_model / f_meas) / sigma`` and Jacobian at ``x``.
 
         ``index`` gives the model mode of each measured mode; with ``track`` (reference reduced
         vectors per state, columns = measured modes) each measured mode follows the model mode of
-        largest mass-weighted MAC instead (mode crossings during a fit).
+        largest mass-weighted MAC instead (mode crossings during a fit).  The unpaired, clearly
+        visible model modes (misfits, :meth:`misfit_sets`) add residuals ``ln(f_u / f_near) / sigma``
+        after each state's measured modes, rows ``(state, 0)``; ``misfits`` (per state ``(modes,
+        targets, reference reduced vectors or None)``) holds that set fixed and follows its modes,
+        else it is found at ``x``.
         """
         x = np.asarray(x, float)
         sols = self.solve_states(variant, x, refine=refine)
-        r, J, rows, new_index, fmod = [], [], [], [], []
+        r, J, rows, new_index, fmod, mis = [], [], [], [], [], []
         for si, (d, sol) in enumerate(zip(self.data, sols)):
             idx = np.array(index[si])
             if track is not None and track[si] is not None:
                 idx = self._follow(sol, track[si], idx)
             new_index.append(idx)
+            if misfits is None:
+                cols, tgt = self._misfits(d, sol, idx)
+            else:
+                cols, tgt, ref = misfits[si]
+                cols = np.asarray(cols, int)
+                if ref is not None and len(cols):
+                    cols = self._follow(sol, ref, np.arange(len(cols)))
             ok = np.flatnonzero(idx >= 0)
             bad = np.flatnonzero(idx < 0)
             f = sol.freqs_Hz[idx[ok]]
             fm = d.f_meas[ok]
             r.append(np.log(f / fm) / d.sigma_rel)
             r.append(np.full(len(bad), np.log1p(UNPAIRED_ERROR) / d.sigma_rel))
+            r.append(np.log(sol.freqs_Hz[cols] / tgt) / d.sigma_rel)
             fm_all = np.full(len(d.f_meas), np.nan)
             fm_all[ok] = f
             fmod.append(fm_all)
+            mis.append((np.asarray(cols, int), np.asarray(tgt, float), sol.freqs_Hz[cols]))
             dc = variant.dcoefficients(x, d.info)
-            Jb = np.zeros((len(ok) + len(bad), variant.n_params))
-            sub = Solution(sol.freqs_Hz[idx[ok]], sol.lam[idx[ok]], sol.Y[:, idx[ok]], sol.lam_all, sol.Y_all,
-                           sol.kc, sol.mc, sol.shapes[:, idx[ok]], sol.generation)
+            Jb = np.zeros((len(ok) + len(bad) + len(cols), variant.n_params))
+            use = np.concatenate([idx[ok], cols]).astype(int)
+            sub = Solution(sol.freqs_Hz[use], sol.lam[use], sol.Y[:, use], sol.lam_all, sol.Y_all,
+                           sol.kc, sol.mc, sol.shapes[:, use], sol.generation)
+            at = np.concatenate([np.arange(len(ok)), len(ok) + len(bad) + np.arange(len(cols))]).astype(int)
             for j, (dkc, dmc) in enumerate(dc):
                 dlam = self.solver.sensitivity(sub, dkc, dmc)
-                Jb[: len(ok), j] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
+                Jb[at, j] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
             J.append(Jb)
-            rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad]
-        return Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod)
+            rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad] + [(si, 0)] * len(cols)
+        return Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis)
 
     def _follow(self, sol: Solution, ref_Y: np.ndarray, idx: np.ndarray) -> np.ndarray:
         r = self.solver.V.shape[1]
@@ -199,13 +256,14 @@ class Diagnoser:
         for loop in range(max_loops + 3):
             sols = self.solve_states(variant, x0)
             track = [s.Y[:, np.clip(ix, 0, None)] for s, ix in zip(sols, index)]
+            held = [(c, t, s.Y[:, c]) for (c, t), s in zip(self.misfit_sets(sols, index), sols)]
             cache = {}
 
             def ev_at(x):
                 key = np.asarray(x, float).tobytes()
                 if key not in cache:
                     cache.clear()
-                    cache[key] = self.evaluate(variant, x, index, track, refine=False)
+                    cache[key] = self.evaluate(variant, x, index, track, refine=False, misfits=held)
                 return cache[key]
 
             if variant.n_params:
@@ -218,10 +276,13 @@ class Diagnoser:
             else:
                 x_opt = x0
             size = (self.solver.generation, self.solver.V.shape[1])
-            ev = self.evaluate(variant, x_opt, index, track, refine=True)
+            ev = self.evaluate(variant, x_opt, index, track, refine=True, misfits=held)
             changed_space = (self.solver.generation, self.solver.V.shape[1]) != size
             new = [p.model_index for p in self.pair(ev.solutions)]
             same_pairs = all(np.array_equal(a, b) for a, b in zip(new, ev.index))
+            now = self.misfit_sets(ev.solutions, ev.index)
+            same_pairs = same_pairs and all(np.array_equal(a[0], m[0]) and np.allclose(a[1], m[1])
+                                            for a, m in zip(now, ev.misfits))
             if not same_pairs:
                 index = new
             x0 = x_opt
@@ -292,14 +353,32 @@ class Fit:
         """Frequency error (%) per measured mode and state (NaN unpaired)."""
         return [100 * (fm - d.f_meas) / d.f_meas for fm, d in zip(self.ev.f_model, data)]
 
-    def state_summary(self, data: list[StateData]) -> list[dict]:
-        """Per state: number of paired modes, max and RMS error (%)."""
+    def misfits_pct(self) -> list[np.ndarray]:
+        """Per state: the signed misfit (%) of each unpaired, clearly visible model mode (model minus
+        the nearest measured mode)."""
+        return [100 * (fm - t) / t for _, t, fm in (self.ev.misfits or [])]
+
+    def unpaired_visible(self, data: list[StateData]) -> list[dict]:
+        """The unpaired, clearly visible model modes of every state: state, model mode (1-based),
+        model and nearest measured frequency (Hz), misfit (%)."""
         out = []
-        for d, e in zip(data, self.errors_pct(data)):
+        for d, (cols, tgt, fm) in zip(data, self.ev.misfits or []):
+            for c, t, f in zip(cols, tgt, fm):
+                out.append({"state": d.name, "model_mode": int(c) + 1, "freq_Hz": float(f),
+                            "nearest_measured_Hz": float(t), "misfit_pct": float(100 * (f - t) / t)})
+        return out
+
+    def state_summary(self, data: list[StateData]) -> list[dict]:
+        """Per state: number of paired modes, max and RMS error (%) over the paired modes and the
+        misfits (unpaired, clearly visible model modes, counted as errors), and the misfit count."""
+        out = []
+        mis = self.misfits_pct() or [np.zeros(0)] * len(data)
+        for d, e, m in zip(data, self.errors_pct(data), mis):
             e = e[np.isfinite(e)]
-            out.append({"state": d.name, "n_paired": len(e),
-                        "max_abs_error_pct": float(np.abs(e).max()) if len(e) else np.nan,
-                        "rms_error_pct": float(np.sqrt(np.mean(e ** 2))) if len(e) else np.nan})
+            a = np.concatenate([e, m])
+            out.append({"state": d.name, "n_paired": len(e), "n_unpaired_visible": len(m),
+                        "max_abs_error_pct": float(np.abs(a).max()) if len(a) else np.nan,
+                        "rms_error_pct": float(np.sqrt(np.mean(a ** 2))) if len(a) else np.nan})
         return out
 
 

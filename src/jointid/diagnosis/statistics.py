@@ -55,13 +55,16 @@ def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -
     for si, (d, sol) in enumerate(zip(diag.data, ev.solutions)):
         idx = np.asarray(ev.index[si])
         ok = np.flatnonzero(idx >= 0)
-        sub = Solution(sol.freqs_Hz[idx[ok]], sol.lam[idx[ok]], sol.Y[:, idx[ok]], sol.lam_all, sol.Y_all,
-                       sol.kc, sol.mc, sol.shapes[:, idx[ok]], sol.generation)
+        mis = ev.misfits[si][0] if ev.misfits else np.zeros(0, int)
+        use = np.concatenate([idx[ok], mis]).astype(int)
+        sub = Solution(sol.freqs_Hz[use], sol.lam[use], sol.Y[:, use], sol.lam_all, sol.Y_all,
+                       sol.kc, sol.mc, sol.shapes[:, use], sol.generation)
+        at = np.concatenate([np.arange(len(ok)), len(idx) + np.arange(len(mis))]).astype(int)
         dc = variant.dcoefficients(x, d.info)
-        Jb = np.zeros((len(idx), len(cols)))
+        Jb = np.zeros((len(idx) + len(mis), len(cols)))
         for k, j in enumerate(cols):
             dlam = diag.solver.sensitivity(sub, *dc[j])
-            Jb[: len(ok), k] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
+            Jb[at, k] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
         out.append(Jb)
     return np.vstack(out)
 
@@ -135,7 +138,7 @@ def state_contrasts(ev: Evaluation, n_states: int) -> np.ndarray:
         return np.zeros((0, len(ev.r)))
     paired = {}
     for k, (si, mode) in enumerate(ev.rows):
-        if ev.index[si][mode - 1] >= 0:
+        if mode >= 1 and ev.index[si][mode - 1] >= 0:  # mode 0: a misfit row
             paired.setdefault(mode, {})[si] = k
     H = np.zeros((n_states - 1, n_states))
     for j in range(1, n_states):

@@ -15,9 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointid.correlate import pairing as correlate
+from jointid.correlate.observability import VISIBLE_THRESHOLD, MeasurementSetup, test_band
 from jointid.diagnosis.effects import Effect, apply_effects
 from jointid.diagnosis.terms import StateInfo, System, baseline_coefficients
 from jointid.errors import DataError
+from jointid.identification.visibility import VisibilityRule
 
 
 @dataclass
@@ -29,6 +31,7 @@ class StateData:
     f_meas: np.ndarray
     shapes: np.ndarray | None
     sigma_rel: float
+    rule: object = None  # VisibilityRule of the test (None: unpaired model modes are skipped free)
 
 
 def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = None) -> list[StateData]:
@@ -36,7 +39,8 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
 
     The motor force comes from the dataset's ``conditions.yaml`` (the measured input), else from
     ``cfg['states']``.  The frequency uncertainty is the dataset's ``frequency_uncertainty_pct``,
-    else ``identify.frequency_uncertainty_pct``.
+    else ``identify.frequency_uncertainty_pct``.  Each state carries the observability rule of its
+    test (:func:`state_rule`) unless ``identify.visible_threshold`` is null.
     """
     names = list(states or ds.states)
     missing = [s for s in names if s not in ds.states]
@@ -56,8 +60,29 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
         shapes = None
         if ds.shapes is not None and s in set(ds.shapes["state"]):
             shapes = ds.shape_matrix(s, system.labels)
-        out.append(StateData(s, StateInfo(s, float(force)), ds.freqs(s), shapes, sigma))
+        out.append(StateData(s, StateInfo(s, float(force)), ds.freqs(s), shapes, sigma,
+                             state_rule(ds, s, system, cfg, shapes)))
     return out
+
+
+def state_rule(ds, state: str, system: System, cfg: dict, shapes: np.ndarray | None):
+    """The observability rule (:class:`jointid.identification.visibility.VisibilityRule`) of ``state``:
+    the dataset's ``test_setup`` (default: the hammer at ``harmonic.drive_point`` in x, y and z, the
+    responses where shapes were measured, else every point in x, y and z), the test band
+    (:func:`jointid.correlate.observability.test_band`) and the threshold ``identify.visible_threshold`` (None when that is null)."""
+    threshold = cfg.get("identify", {}).get("visible_threshold", VISIBLE_THRESHOLD)
+    if threshold is None:
+        return None
+    harmonic = cfg.get("harmonic", {})
+    measured = None
+    if shapes is not None:
+        measured = [lab for lab, ok in zip(system.labels, np.isfinite(shapes).any(axis=1)) if ok]
+    drive = harmonic.get("drive_point", "T05")
+    setup = MeasurementSetup.from_spec(ds.conditions.get("test_setup"), list(system.meta["points"]["point"]),
+                                       [f"{drive}:{d}" for d in "xyz"], measured_labels=measured,
+                                       where=f"{ds.name}/conditions.yaml")
+    band = test_band(ds.conditions.get("test_setup"), harmonic.get("band_Hz", (300.0, 3500.0)), ds.freqs(state))
+    return VisibilityRule(setup, tuple(system.labels), band, float(threshold))
 
 
 @dataclass

@@ -68,7 +68,8 @@ class VisibilityRule:
         index = np.asarray(index, int)
         seen = clearly_visible(vis, index, self.threshold)
         inside = (freqs_Hz >= self.band_Hz[0]) & (freqs_Hz <= self.band_Hz[1])
-        cost = np.log(freqs_Hz / nearest_measured(freqs_Hz, f_meas)) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):  # 0-Hz rigid-body modes: outside the band
+            cost = np.log(freqs_Hz / nearest_measured(freqs_Hz, f_meas)) ** 2
         return np.where(seen & inside, cost, 0.0)
 
     def pair_by_frequency(self, f_meas, freqs_Hz, vis, candidates: np.ndarray, max_rounds: int = 6) -> np.ndarray:

@@ -24,7 +24,8 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
                   history_csv: str | None = None, model=None, log=print_log) -> Diagnosis:
     """Workflow stage: diagnose one dataset and write ``out_dir`` (+ a row of ``history_csv``).
 
-    ``cfg`` holds the sections ``rig, joints, solver, identify, effects, states`` and ``dataset``
+    ``cfg`` holds the sections ``rig, joints, solver, identify, effects, states, harmonic`` (the test
+    band and drive point of the observability rule) and ``dataset``
     (the ``datasets.<name>`` entry: ``path``, ``states``); the model comes from ``matrices`` (the
     cached ``results/model/matrices.npz``) or ``model``.
     """

@@ -63,7 +63,7 @@ def visibility_rule(cfg: dict, state: str, pts):
     the responses where shapes were measured, else at every point in x, y and z); None when
     ``identify.visible_threshold`` is null."""
     from jointid.config.datasets import dataset_folder
-    from jointid.correlate.observability import MeasurementSetup
+    from jointid.correlate.observability import MeasurementSetup, test_band
     from jointid.data.dataset import read_dataset
     from jointid.geometry.points import dof_labels
     from jointid.identification.visibility import VisibilityRule
@@ -82,7 +82,8 @@ def visibility_rule(cfg: dict, state: str, pts):
     setup = MeasurementSetup.from_spec(ds.conditions.get("test_setup"), list(pts["point"]),
                                        [f"{drive}:{d}" for d in "xyz"], measured_labels=measured,
                                        where=f"{folder}/conditions.yaml")
-    return VisibilityRule(setup, tuple(labels), tuple(float(b) for b in cfg["harmonic"]["band_Hz"]), float(threshold))
+    band = test_band(ds.conditions.get("test_setup"), cfg["harmonic"]["band_Hz"], ds.freqs(state))
+    return VisibilityRule(setup, tuple(labels), band, float(threshold))
 
 
 def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:

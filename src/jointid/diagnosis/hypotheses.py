@@ -1,0 +1,246 @@
+"""Reconstruction hypotheses: the rig's uncertain choices compared on the measured data.
+
+The rig is a reconstruction from a paper, so several of its choices are guesses: how the base is
+supported, what the first measured mode is, the table's material and thickness, the motor mass, the
+rail spacing, the joint law.  Each *hypothesis* (``hypotheses:`` in config.yaml) is one set of such
+choices, written as config overrides plus optional library effects (``jointid.diagnosis.effects``)
+and fixed joint parameters.  Every hypothesis is fitted to the same data by the same machinery as the
+diagnosis (:class:`jointid.diagnosis.fitting.Diagnoser`: reduced full-FE solves, one pairing for all
+states, the observability rule's misfits counted) under the linked two-state law, and the
+hypotheses are ranked by AICc (docs/reconstruction.md, "Hypotheses").
+
+The linked two-state law
+------------------------
+One joint law for both states: the joint stiffness per area of carriage c in the contact
+directions (``linked.directions``, default X and Y) is
+
+    k = k0 * ((P + F_c) / (P + F_c,0)) ** beta
+
+with F_c the carriage's load from the statics load share of the motor attraction plus the carried
+weight, F_c,0 the weight-only load (power off: k = k0) and P the block preload.  This is the library
+effect ``em_preload``; beta is fitted in 0..1 and P is chosen among the catalogue preload classes
+``linked.preload_classes_N`` (the best class is reported; P and beta are nearly collinear with two
+force levels, so the profile over the classes is reported too).  The feed direction (Z) is not a
+contact direction of a guide: ``k_feed`` is one constant for both states, the servo or brake term.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from jointid.diagnosis.effects import EFFECTS, enabled_effects
+from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
+from jointid.diagnosis.statistics import aicc
+from jointid.diagnosis.variants import EffectSpec, StateData, Variant
+from jointid.errors import ConfigError
+from jointid.yamlio import deep_merge
+
+__all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "LinkedLaw", "hypothesis_config", "needs_own_model",
+           "linked_variant", "fit_hypothesis", "rank_hypotheses"]
+
+HYPOTHESIS_KEYS = ("description", "overrides", "fixed", "effects")
+MODEL_SECTIONS = ("materials", "rig", "mesh")
+"""Overrides of these sections change the FE model itself: the hypothesis builds its own."""
+
+
+@dataclass(frozen=True)
+class LinkedLaw:
+    """The linked two-state law of the ``linked`` config section."""
+
+    preload_classes_N: tuple = (0.0,)
+    directions: tuple = ("x", "y")
+    beta_start: float = 0.3
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "LinkedLaw":
+        """The law of ``cfg['linked']`` (defaults where absent)."""
+        sec = dict(cfg.get("linked") or {})
+        classes = tuple(float(p) for p in sec.get("preload_classes_N", (0.0,)))
+        return cls(classes or (0.0,), tuple(sec.get("directions", ("x", "y"))),
+                   float(sec.get("beta_start", 0.3)))
+
+
+def hypothesis_config(cfg: dict, name: str, hyp: dict) -> dict:
+    """The configuration of hypothesis ``name``: ``cfg`` with its overrides merged, its fixed joint
+    parameters moved from ``joints.parameters`` to ``joints.fixed`` and its effects added to
+    ``effects``.  Raise :class:`ConfigError` on an unknown key or a fixed name that is no joint
+    parameter."""
+    where = f"config.yaml: hypotheses.{name}"
+    unknown = [k for k in hyp if k not in HYPOTHESIS_KEYS]
+    if unknown:
+        raise ConfigError([f"{where}.{k}: unknown key — allowed keys: {', '.join(HYPOTHESIS_KEYS)}" for k in unknown])
+    out = deep_merge(copy.deepcopy(cfg), copy.deepcopy(hyp.get("overrides") or {}))
+    joints = out["joints"]
+    params = dict(joints["parameters"])
+    fixed = dict(joints.get("fixed") or {})
+    for k, v in (hyp.get("fixed") or {}).items():
+        if k not in params and k not in fixed:
+            raise ConfigError(f"{where}.fixed.{k}: not a joint parameter — use one of {', '.join(params)}")
+        params.pop(k, None)
+        fixed[k] = float(v)
+    joints["parameters"], joints["fixed"] = params, fixed
+    effects = dict(out.get("effects") or {})
+    effects.update(copy.deepcopy(hyp.get("effects") or {}))
+    out["effects"] = effects
+    return out
+
+
+def needs_own_model(hyp: dict) -> bool:
+    """Whether the hypothesis changes the FE model itself (materials, rig or mesh overrides)."""
+    return any(k in MODEL_SECTIONS for k in (hyp.get("overrides") or {}))
+
+
+def _effect_specs(cfg: dict) -> list[EffectSpec]:
+    """The hypothesis's effects (``effects`` of its config, the linked law's own effect left out)."""
+    specs = []
+    for en in enabled_effects(cfg.get("effects")):
+        if en.effect.name != "em_preload":  # the linked law is this effect
+            specs.append(EffectSpec(en.effect, dict(en.values), dict(en.options),
+                                    [p.name for p in en.effect.params] if en.fit else []))
+    return specs
+
+
+def linked_variant(system, cfg: dict, law: LinkedLaw | None, preload_N: float = 0.0) -> Variant:
+    """The variant of a hypothesis: its effects, plus the contact law at ``preload_N`` unless ``law``
+    is None (one force level: the law cannot act)."""
+    specs = _effect_specs(cfg)
+    if law is not None:
+        em = EFFECTS["em_preload"]
+        opts = {**em.options, "preload_N": float(preload_N), "directions": list(law.directions)}
+        specs.append(EffectSpec(em, {"beta": law.beta_start}, opts, ["beta"]))
+    return Variant(system, cfg, specs, theta_fixed=dict(cfg["joints"].get("fixed") or {}))
+
+
+def _forces_differ(data: list[StateData]) -> bool:
+    return len({round(d.info.em_force_N, 6) for d in data}) > 1
+
+
+def fit_hypothesis(system, cfg: dict, data: list[StateData], *, log=print_log) -> dict:
+    """Fit one hypothesis (its configuration ``cfg``, :func:`hypothesis_config`) to ``data`` under the
+    linked law; the best preload class by chi-square.
+
+    Returns a JSON-ready record: chi-square, counts, AICc, parameters with 95 % intervals scaled by
+    ``max(1, sqrt(chi2 / dof))``, per-state errors (misfits counted), the unpaired visible modes, the
+    pairing and the profile over the preload classes.
+    """
+    law = LinkedLaw.from_config(cfg)
+    linked = _forces_differ(data)
+    classes = law.preload_classes_N if linked else (law.preload_classes_N[0],)
+    diag = Diagnoser(system, cfg, data, log=log)
+    profile, best = [], None
+    x_prev = None
+    index = None
+    for P in classes:  # continuation: each class starts at the optimum (and pairing) of the one before
+        var = linked_variant(system, cfg, law if linked else None, P)
+        if x_prev is None:  # the configured start and the hypothesis's effects at their null, best kept
+            fit = min((diag.fit(var, x0) for x0 in _starts(var)), key=lambda f: f.chi2)
+        else:
+            fit = diag.fit(var, x_prev, index=index)
+        x_prev, index = fit.x, fit.ev.index
+        beta = fit.variant.physical(fit.x).get("em_preload.beta", float("nan"))
+        profile.append({"preload_N": float(P), "beta": float(beta), "chi2": fit.chi2})
+        log(f"hypotheses: preload {P:g} N: chi2 {fit.chi2:.2f}, beta {beta:.3f}")
+        if best is None or fit.chi2 < best[0].chi2 - 1e-9:
+            best = (fit, P)
+    fit, P = best
+    fit = diag.fit(fit.variant, fit.x, index=fit.ev.index, verify=True)  # checked against the full model
+    return fit_record(fit, data, P if linked else None, profile, n_choices=len(classes))
+
+
+def _starts(var: Variant) -> list[np.ndarray]:
+    """Start vectors: the configured start, and (when the variant has effects beyond the contact
+    law) the same with those effects at their null — a fit from a strong effect can lock onto a
+    pairing of its own."""
+    x0 = var.x_start()
+    x1 = x0.copy()
+    for k, (i, p) in enumerate(var.slots):
+        if var.effects[i].effect.name != "em_preload":
+            x1[var.p + k] = float(np.clip(p.to_t(p.null), var.lower[var.p + k], var.upper[var.p + k]))
+    return [x0] if np.array_equal(x0, x1) else [x0, x1]
+
+
+def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile: list, *, n_choices: int) -> dict:
+    """The JSON-ready record of a fitted hypothesis (see :func:`fit_hypothesis`)."""
+    n_data = sum(len(d.f_meas) for d in data)
+    k = fit.k + (1 if n_choices > 1 else 0)  # the preload class chosen from the data counts
+    chi2 = fit.chi2
+    dof = max(n_data - k, 1)
+    scale = max(1.0, math.sqrt(chi2 / dof))
+    cov = fit.covariance() * scale ** 2
+    params = []
+    for j, label in enumerate(fit.variant.labels):
+        value = fit.variant.physical(fit.x)[label]
+        sd = math.sqrt(max(cov[j, j], 0.0))
+        if j < fit.variant.p:  # log-parametrised joint stiffness
+            lo, hi = value * math.exp(-1.96 * sd), value * math.exp(1.96 * sd)
+        else:
+            p = fit.variant.slots[j - fit.variant.p][1]
+            a, b = p.from_t(fit.x[j] - 1.96 * sd), p.from_t(fit.x[j] + 1.96 * sd)
+            lo, hi = min(a, b), max(a, b)
+        at_bound = bool(np.isclose(fit.x[j], fit.variant.lower[j], atol=1e-6)
+                        or np.isclose(fit.x[j], fit.variant.upper[j], atol=1e-6))
+        params.append({"parameter": label, "value": float(value), "ci95_low": float(lo),
+                       "ci95_high": float(hi), "at_bound": at_bound})
+    for name, v in fit.variant.theta_fixed.items():
+        params.append({"parameter": name, "value": float(v), "ci95_low": float(v), "ci95_high": float(v),
+                       "at_bound": False, "fixed": True})
+    errors = fit.errors_pct(data)
+    states = []
+    for d, e, s, p, fm in zip(data, errors, fit.state_summary(data), fit.pairings, fit.ev.f_model):
+        states.append({**s, "em_force_N": d.info.em_force_N,
+                       "f_meas_Hz": [float(v) for v in d.f_meas],
+                       "f_model_Hz": [float(v) for v in fm],
+                       "error_pct": [float(v) for v in e],
+                       "model_mode": [int(i) + 1 if i >= 0 else 0 for i in p.model_index]})
+    return {"chi2": chi2, "n_data": n_data, "n_params": k, "aicc": aicc(chi2, n_data, k),
+            "dof": dof, "interval_scale": scale, "preload_N": preload_N, "preload_profile": profile,
+            "parameters": params, "states": states, "unpaired_visible": fit.unpaired_visible(data),
+            "variant": fit.variant.name}
+
+
+def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], list[dict]]:
+    """Rank fitted hypotheses (name -> :func:`fit_record` plus ``description``) by AICc.
+
+    Returns ``(ranking rows, spread rows)``: per hypothesis rank, AICc, delta AICc, Akaike weight,
+    chi-square, per-state max error and misfit count, joint parameters, beta and preload; and per
+    parameter the range of values and of 95 % intervals over the hypotheses within ``delta`` of the
+    best (the reconstruction uncertainty).
+    """
+    names = sorted(records, key=lambda n: (records[n]["aicc"], n))
+    best = records[names[0]]["aicc"]
+    w = np.array([math.exp(-0.5 * (records[n]["aicc"] - best)) for n in names])
+    w = w / w.sum()
+    rows = []
+    for rank, (n, wi) in enumerate(zip(names, w), start=1):
+        rec = records[n]
+        row = {"rank": rank, "hypothesis": n, "description": rec.get("description", ""),
+               "aicc": rec["aicc"], "delta_aicc": rec["aicc"] - best, "akaike_weight": float(wi),
+               "chi2": rec["chi2"], "n_data": rec["n_data"], "n_params": rec["n_params"]}
+        for s in rec["states"]:
+            row[f"max_abs_error_{s['state']}_pct"] = s["max_abs_error_pct"]
+            row[f"unpaired_visible_{s['state']}"] = s["n_unpaired_visible"]
+        for p in rec["parameters"]:
+            row[p["parameter"]] = p["value"]
+        row["preload_N"] = rec.get("preload_N")
+        rows.append(row)
+    admissible = [n for n in names if records[n]["aicc"] - best < delta]
+    spread = {}
+    for n in admissible:
+        for p in records[n]["parameters"]:
+            s = spread.setdefault(p["parameter"], {"parameter": p["parameter"], "values": [], "lo": [], "hi": [],
+                                                   "hypotheses": []})
+            s["values"].append(p["value"])
+            s["lo"].append(p["ci95_low"])
+            s["hi"].append(p["ci95_high"])
+            s["hypotheses"].append(n)
+    out = []
+    for s in spread.values():
+        out.append({"parameter": s["parameter"], "n_hypotheses": len(s["values"]),
+                    "hypotheses": " ".join(s["hypotheses"]), "value_min": min(s["values"]),
+                    "value_max": max(s["values"]), "combined_ci95_low": min(s["lo"]),
+                    "combined_ci95_high": max(s["hi"])})
+    return rows, out

@@ -1,0 +1,66 @@
+# Reconstruction hypotheses (docs/reconstruction.md, "Hypotheses"): each `hypotheses.<name>` of
+# config.yaml fitted to the run's measured states under the linked two-state law, then ranked by AICc.
+#   results/hypotheses/<name>/fit.json      one hypothesis (parameters, intervals, errors, misfits)
+#   results/hypotheses/ranking.csv          ranked by AICc (+ spread.csv, ranking.md)
+# A hypothesis that overrides materials, rig or mesh builds its own model inside its job.
+
+from jointid.stages import hypotheses as hyp_stage
+
+HYPOTHESES = hyp_stage.hypothesis_names(config)
+
+
+def _hypothesis_cfg(wc):
+    cfg = sections(config, *[k for k in hyp_stage.CONFIG if k != "hypotheses"])
+    cfg["hypotheses"] = {wc.name: config["hypotheses"][wc.name]}
+    return cfg
+
+
+def _hypothesis_data(wc):
+    import os
+
+    from jointid.config.datasets import dataset_folder
+
+    folders = {dataset_folder(config, s) for s in config["states"]}
+    names = ("modes.csv", "shapes.csv", "conditions.yaml")
+    return sorted(os.path.join(f, n) for f in folders for n in names if os.path.exists(os.path.join(f, n)))
+
+
+if HYPOTHESES:
+
+    rule hypothesis:
+        input:
+            matrices=rules.mesh.output.matrices,
+            dataset=_hypothesis_data,
+        output:
+            fit=f"{R}/hypotheses/{{name}}/fit.json",
+        params:
+            cfg=_hypothesis_cfg,
+        wildcard_constraints:
+            name="|".join(HYPOTHESES),
+        log:
+            "logs/hypotheses/{name}.log",
+        benchmark:
+            "benchmarks/out/hypotheses/{name}.tsv"
+        threads: 1
+        resources:
+            mem_mb=4500,
+            runtime=20,
+        script:
+            "../scripts/hypothesis.py"
+
+    rule hypotheses:
+        input:
+            fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=HYPOTHESES),
+        output:
+            ranking=f"{R}/hypotheses/ranking.csv",
+            spread=f"{R}/hypotheses/spread.csv",
+            md=f"{R}/hypotheses/ranking.md",
+        params:
+            cfg={},
+        log:
+            "logs/hypotheses/ranking.log",
+        threads: 1
+        script:
+            "../scripts/rank_hypotheses.py"
+
+    EXTRA_TARGETS.append(f"{R}/hypotheses/ranking.csv")

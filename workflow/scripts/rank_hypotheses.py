@@ -1,0 +1,5 @@
+"""Snakemake adapter: rank the fitted reconstruction hypotheses by AICc."""
+from jointid.stages.hypotheses import run_ranking
+from jointid.stages.runner import run_script
+
+run_script(snakemake, lambda cfg, inp, out: run_ranking(list(inp.fits), out.ranking, out.spread, out.md))
