@@ -2,6 +2,8 @@
 # config.yaml fitted to the run's measured states under the linked two-state law, then ranked by AICc.
 #   results/hypotheses/<name>/fit.json      one hypothesis (parameters, intervals, errors, misfits)
 #   results/hypotheses/ranking.csv          ranked by AICc (+ spread.csv, ranking.md)
+#   results/hypotheses/linked.json          the best hypothesis's linked fit per state, with the
+#                                           rigidity of a carriage on its rail under its joints
 # A hypothesis that overrides materials, rig or mesh builds its own model inside its job.
 
 from jointid.stages import hypotheses as hyp_stage
@@ -55,8 +57,9 @@ if HYPOTHESES:
             ranking=f"{R}/hypotheses/ranking.csv",
             spread=f"{R}/hypotheses/spread.csv",
             md=f"{R}/hypotheses/ranking.md",
+            linked=f"{R}/hypotheses/linked.json",
         params:
-            cfg={},
+            cfg=sections(config, *hyp_stage.RANKING_CONFIG),
         log:
             "logs/hypotheses/ranking.log",
         threads: 1

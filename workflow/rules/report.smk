@@ -6,6 +6,7 @@
 
 from jointid.config.datasets import dataset_folder as _dataset_folder
 from jointid.stages import harmonic as harmonic_stage
+from jointid.stages.hypotheses import hypothesis_names as _hypothesis_names
 
 FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
 
@@ -85,6 +86,8 @@ rule report:
         sheet=SURFACE_SHEET,
         points=rules.mesh.output.points,
         mesh_check=expand(f"{R}/mesh_check/{{state}}.json", state=STATES) if config["mesh_check"]["enabled"] else [],
+        hypotheses=f"{R}/hypotheses/ranking.csv" if _hypothesis_names(config) else [],  # rules/hypotheses.smk
+        hypothesis_fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=_hypothesis_names(config)),
     output:
         html=report(f"{R}/report/index.html", caption="../report/index.rst", category="Report"),
         frf=report(f"{R}/report/figures/frf.png", caption="../report/frf.rst", category="Harmonic response"),

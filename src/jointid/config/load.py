@@ -129,7 +129,27 @@ def check_config(cfg: Mapping, source: str = DEFAULT_SOURCE, schema: Mapping | N
         line = f"{source}: {dotted(path)}: {message}"
         if line not in lines:
             lines.append(line)
+    lines += _hypothesis_problems(normal, source, schema)
     return normal, lines
+
+
+def _hypothesis_problems(normal: Mapping, source: str, schema: Mapping) -> list[str]:
+    """Each reconstruction hypothesis's overrides merged into the configuration must validate too."""
+    out = []
+    hyps = normal.get("hypotheses") if isinstance(normal, Mapping) else None
+    for name, hyp in (hyps or {}).items() if isinstance(hyps, Mapping) else ():
+        over = hyp.get("overrides") if isinstance(hyp, Mapping) else None
+        if not isinstance(over, Mapping) or not over:
+            continue
+        if "hypotheses" in over:
+            out.append(f"{source}: hypotheses.{name}.overrides.hypotheses: a hypothesis cannot override the "
+                       "hypotheses — remove that key")
+            continue
+        base = {k: v for k, v in normal.items() if k != "hypotheses"}
+        _, probs = check_config(deep_merge(copy.deepcopy(base), copy.deepcopy(dict(over))),
+                                source=f"{source}: hypotheses.{name}.overrides", schema=schema)
+        out += probs
+    return out
 
 
 def load_config(path_or_dict: str | os.PathLike | Mapping,

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from jointid.diagnosis.effects import EFFECTS, enabled_effects
+from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
 from jointid.diagnosis.statistics import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
@@ -40,7 +40,8 @@ from jointid.errors import ConfigError
 from jointid.yamlio import deep_merge
 
 __all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "LinkedLaw", "hypothesis_config", "needs_own_model",
-           "linked_variant", "fit_hypothesis", "rank_hypotheses"]
+           "linked_variant", "fit_hypothesis", "rank_hypotheses",
+           "state_joints"]
 
 HYPOTHESIS_KEYS = ("description", "overrides", "fixed", "effects")
 MODEL_SECTIONS = ("materials", "rig", "mesh")
@@ -191,7 +192,7 @@ def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile
     errors = fit.errors_pct(data)
     states = []
     for d, e, s, p, fm in zip(data, errors, fit.state_summary(data), fit.pairings, fit.ev.f_model):
-        states.append({**s, "em_force_N": d.info.em_force_N,
+        states.append({**s, "em_force_N": d.info.em_force_N, "joints_N_per_m3": state_joints(fit, d),
                        "f_meas_Hz": [float(v) for v in d.f_meas],
                        "f_model_Hz": [float(v) for v in fm],
                        "error_pct": [float(v) for v in e],
@@ -200,6 +201,22 @@ def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile
             "dof": dof, "interval_scale": scale, "preload_N": preload_N, "preload_profile": profile,
             "parameters": params, "states": states, "unpaired_visible": fit.unpaired_visible(data),
             "variant": fit.variant.name}
+
+
+def state_joints(fit: Fit, d: StateData) -> dict:
+    """The joint stiffness per area in state ``d`` (N/m^3): each joint parameter times the contact law's
+    factor ``((P + F_c)/(P + F_c,0))^beta`` averaged over the carriages, for the law's directions."""
+    theta, vals = fit.variant.unpack(fit.x)
+    out = dict(theta)
+    for spec, v in zip(fit.variant.effects, vals):
+        if spec.effect.name != "em_preload" or v["beta"] == 0.0 or d.info.em_force_N == 0.0:
+            continue
+        scale = float(np.mean(pressure_ratio(fit.variant.system, d.info, spec.options) ** v["beta"]))
+        dirs = set(spec.options.get("directions") or ("x", "y"))
+        for name in out:
+            if fit.variant.cfg["joints"]["parameters"].get(name, {}).get("direction") in dirs:
+                out[name] *= scale
+    return out
 
 
 def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], list[dict]]:

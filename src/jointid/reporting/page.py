@@ -310,6 +310,13 @@ def _diag_html(data: dict) -> str:
                               text_cols=("description",))
 
 
+def _hypotheses_html(data: dict) -> str:
+    from jointid.reporting.hypotheses import hypotheses_html
+
+    h = data["hypotheses"]
+    return hypotheses_html(h["ranking"], h["records"], h["spread"], html_table, data["tables"])
+
+
 def _provenance_html(cfg: dict, prov: dict) -> str:
     import yaml
 
@@ -355,6 +362,8 @@ def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str
            "points: table 3×6 grid on top, base lines below; the scale is arbitrary.</p>"),
         ("params", "Identified joint parameters", _img(figs["parameters"], "identified parameters")
          + _params_html(data) + _rigidity_html(data) + _mesh_check_html(data)),
+        *([("hypotheses", "Reconstruction hypotheses — the linked two-state fit", _hypotheses_html(data))]
+          if data.get("hypotheses") else []),
         ("surface", "DOE and response-surface diagnostics", _img(figs["doe"], "DOE")
          + _img(figs["surface"], "surface diagnostics") + _diag_html(data)),
         ("prov", "Configuration and provenance", _provenance_html(cfg, prov)),

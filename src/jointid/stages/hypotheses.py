@@ -75,21 +75,63 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
     return rec
 
 
-def run_ranking(fit_jsons: list[str], out_csv: str, spread_csv: str, out_md: str) -> pd.DataFrame:
-    """Rank the fitted hypotheses by AICc and write the ranking, the parameter spread and a summary."""
+RANKING_CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "hypotheses")
+"""Config keys of rule ``hypotheses`` (the best hypothesis's joints in the catalogue-style block test)."""
+CREDIBLE_RATIO = (0.6, 1.5)
+"""Lateral/normal rigidity ratio of a carriage on its rail that a guide catalogue makes credible."""
+
+
+def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv: str, out_md: str,
+                linked_json: str | None = None, *, log=print_log) -> pd.DataFrame:
+    """Rank the fitted hypotheses by AICc and write the ranking, the parameter spread and a summary;
+    with ``linked_json`` (and ``cfg``, :data:`RANKING_CONFIG`) also the best hypothesis's linked fit
+    per state with the rigidity of one carriage on its rail under its joints."""
     records = {}
     for path in fit_jsons:
         rec = io.read_json(path)
         records[rec["hypothesis"]] = rec
     rows, spread = rank_hypotheses(records, delta=ADMISSIBLE_DELTA_AICC)
     ranking = pd.DataFrame(rows)
+    linked = None
+    if linked_json:
+        linked = linked_summary(cfg, records[rows[0]["hypothesis"]], log)
     io.write_csv(ranking, out_csv)
     io.write_csv(pd.DataFrame(spread), spread_csv)
-    io.write_text(out_md, ranking_markdown(ranking, pd.DataFrame(spread), records))
+    io.write_text(out_md, ranking_markdown(ranking, pd.DataFrame(spread), records, linked))
+    if linked_json:
+        io.write_json(linked_json, linked)
     return ranking
 
 
-def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict) -> str:
+def linked_summary(cfg: dict, rec: dict, log=print_log) -> dict:
+    """The best hypothesis's linked fit per state: joint stiffness per area and the lateral, normal
+    and feed rigidity of one carriage on its rail (:class:`jointid.response.carriage.BlockTest`),
+    with the lateral/normal ratio and whether it lies in :data:`CREDIBLE_RATIO`."""
+    from jointid.response.carriage import BlockTest
+
+    name = rec["hypothesis"]
+    cfg_h = hypothesis_config(cfg, name, (cfg.get("hypotheses") or {}).get(name) or {})
+    test = BlockTest(cfg_h, cfg_h["carriage_rigidity"]["cell_size_m"])
+    states = {}
+    for s in rec["states"]:
+        res = test.rigidity(s["joints_N_per_m3"])
+        a = {d: res.assembly_N_per_m[d] * 1e-6 for d in res.assembly_N_per_m}
+        ratio = a["lateral"] / a["normal"]
+        states[s["state"]] = {"joints_N_per_m3": s["joints_N_per_m3"], "assembly_N_per_um": a,
+                              "lateral_over_normal": ratio,
+                              "credible": bool(CREDIBLE_RATIO[0] <= ratio <= CREDIBLE_RATIO[1]),
+                              "max_abs_error_pct": s["max_abs_error_pct"],
+                              "n_unpaired_visible": s["n_unpaired_visible"]}
+        log(f"linked fit [{s['state']}]: carriage lateral {a['lateral']:,.0f}, normal {a['normal']:,.0f} N/um, "
+            f"ratio {ratio:.2f}")
+    params = {p["parameter"]: p for p in rec["parameters"]}
+    return {"hypothesis": name, "description": rec.get("description", ""), "preload_N": rec.get("preload_N"),
+            "preload_profile": rec.get("preload_profile", []), "parameters": params,
+            "interval_scale": rec["interval_scale"], "credible_ratio": list(CREDIBLE_RATIO), "states": states,
+            "all_parameters_inside_bounds": not any(p.get("at_bound") for p in rec["parameters"])}
+
+
+def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict, linked: dict | None = None) -> str:
     """The ranking as a short Markdown page (report and README)."""
     lines = ["# Reconstruction hypotheses ranked by AICc", "",
              "Each hypothesis is fitted to both states at once under the linked contact law "
@@ -111,12 +153,23 @@ def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict)
     for _, s in spread.iterrows():
         lines.append(f"| {s['parameter']} | {s['n_hypotheses']} | {s['value_min']:.4g} … {s['value_max']:.4g} | "
                      f"{s['combined_ci95_low']:.4g} … {s['combined_ci95_high']:.4g} |")
+    if linked:
+        lines += ["", f"The linked fit of the best hypothesis ({linked['hypothesis']}): a carriage on its rail under "
+                  "its joints (rule carriage_rigidity's test):", "",
+                  "| state | max error (%) | unpaired visible | lateral (N/µm) | normal (N/µm) | lateral/normal | "
+                  f"credible ({linked['credible_ratio'][0]:g}–{linked['credible_ratio'][1]:g}) |",
+                  "|---|---:|---:|---:|---:|---:|---|"]
+        for st, v in linked["states"].items():
+            a = v["assembly_N_per_um"]
+            lines.append(f"| {st} | {v['max_abs_error_pct']:.2f} | {v['n_unpaired_visible']} | {a['lateral']:,.0f} | "
+                         f"{a['normal']:,.0f} | {v['lateral_over_normal']:.2f} | {'yes' if v['credible'] else 'no'} |")
     return "\n".join(lines) + "\n"
 
 
 def hypothesis_names(cfg: dict) -> list[str]:
-    """The configured hypotheses, in config order."""
-    return list((cfg.get("hypotheses") or {}))
+    """The configured hypotheses, in config order (an entry set to null in a later config file is
+    switched off)."""
+    return [n for n, h in (cfg.get("hypotheses") or {}).items() if h is not None]
 
 
 def fit_path(results: str, name: str) -> str:

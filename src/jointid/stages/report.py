@@ -39,7 +39,21 @@ def load_inputs(inputs: dict) -> dict:
         "mesh_check": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("mesh_check") or []))},
         "rigidity": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("rigidity") or []))},
         "table1_problems": check_table1(inputs["table1"]),
+        "hypotheses": _hypotheses(inputs),
     }
+
+
+def _hypotheses(inputs: dict):
+    """The hypotheses' ranking, records and spread (None when the run has no hypotheses)."""
+    import pandas as pd
+
+    if not inputs.get("hypotheses"):
+        return None
+    ranking = pd.read_csv(inputs["hypotheses"])
+    records = {r["hypothesis"]: r for r in map(io.read_json, _as_list(inputs.get("hypothesis_fits") or []))}
+    spread = Path(inputs["hypotheses"]).with_name("spread.csv")
+    return {"ranking": ranking, "records": records,
+            "spread": pd.read_csv(spread) if spread.exists() and spread.stat().st_size > 1 else None}
 
 
 def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:

@@ -1,0 +1,79 @@
+"""The report section of the reconstruction hypotheses and the linked two-state fit.
+
+Reads the records of :mod:`jointid.stages.hypotheses` (``results/hypotheses/``): the AICc ranking,
+the best hypothesis's linked fit (contact law parameters with intervals, frequencies of both states
+beside the measurement and the paper's per-state method) and the spread of the joint parameters over
+the admissible hypotheses.
+"""
+
+from __future__ import annotations
+
+import html
+
+import pandas as pd
+
+__all__ = ["hypotheses_html", "linked_frequency_table", "LAW_TEXT"]
+
+LAW_TEXT = ("k = k0·((P + F_c)/(P + F_c,0))^β per carriage in X and Y, F_c the carriage load (statics load share "
+            "of the motor attraction and the carried weight), P the block preload (best catalogue class); the "
+            "feed stiffness k_feed is one servo/brake term for both states")
+
+
+def linked_frequency_table(rec: dict, paper_tables: dict | None = None) -> pd.DataFrame:
+    """Measured and linked-fit frequencies of every state of a hypothesis record, with the paper's
+    per-state method beside them when ``paper_tables`` (state -> Table 2/3 frame) is given."""
+    rows = []
+    for s in rec["states"]:
+        paper = (paper_tables or {}).get(s["state"])
+        for i, (fm, f, e) in enumerate(zip(s["f_meas_Hz"], s["f_model_Hz"], s["error_pct"]), start=1):
+            row = {"state": s["state"], "mode": i, "test_Hz": fm, "linked_Hz": f, "linked_error_pct": e}
+            if paper is not None and "simulation_Hz" in paper and i <= len(paper):
+                row["paper_method_Hz"] = paper["simulation_Hz"].iloc[i - 1]
+                row["paper_method_error_pct"] = paper["relative_error_pct"].iloc[i - 1]
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame | None, html_table,
+                    paper_tables: dict | None = None) -> str:
+    """The section's HTML: one-line calibration statement, ranking, the best hypothesis's linked fit
+    and the parameter spread (``html_table`` renders a frame)."""
+    esc = html.escape
+    best = ranking.iloc[0]["hypothesis"]
+    rec = records[best]
+    out = [f"<p class='note'>Calibration: every hypothesis fitted to both states at once under one contact law ({esc(LAW_TEXT)}); "
+           "pairing: one for both states, unpaired clearly visible model modes counted as misfits (in χ² and in the "
+           "errors). Ranked by AICc = χ² + 2k + 2k(k+1)/(n−k−1), n the measured frequencies.</p>"]
+    cols = ["rank", "hypothesis", "description", "delta_aicc", "akaike_weight", "chi2"]
+    cols += [c for c in ranking.columns if c.startswith("max_abs_error_") or c.startswith("unpaired_visible_")]
+    cols += [c for c in ("em_preload.beta", "preload_N") if c in ranking.columns]
+    fm = {c: ".2f" for c in cols}
+    fm.update({"rank": "d", "akaike_weight": ".3f", "chi2": ".1f", "delta_aicc": ".1f", "em_preload.beta": ".3f",
+               "preload_N": ".0f"})
+    fm.update({c: "d" for c in cols if c.startswith("unpaired_visible_")})
+    out.append(html_table(ranking[cols], fm, {"delta_aicc": "ΔAICc", "akaike_weight": "weight", "chi2": "χ²",
+                                              "em_preload.beta": "β", "preload_N": "P (N)"},
+                          text_cols=("hypothesis", "description")))
+    par = pd.DataFrame(rec["parameters"])[["parameter", "value", "ci95_low", "ci95_high", "at_bound"]]
+    out.append(f"<p class='note'>Best hypothesis <b>{esc(best)}</b> ({esc(rec.get('description', ''))}): "
+               f"χ² = {rec['chi2']:.1f} for {rec['n_data']} frequencies and {rec['n_params']} parameters; "
+               f"preload class P = {rec['preload_N'] if rec['preload_N'] is not None else '—'} N "
+               f"(χ² per class: " + ", ".join(f"{p['preload_N']:g} N → {p['chi2']:.1f} (β {p['beta']:.2f})"
+                                               for p in rec.get("preload_profile", [])) + "). 95 % intervals "
+               f"scaled by max(1, √(χ²/dof)) = {rec['interval_scale']:.2f}.</p>")
+    out.append(html_table(par, {"value": ".4g", "ci95_low": ".4g", "ci95_high": ".4g"},
+                          {"ci95_low": "95 % low", "ci95_high": "95 % high"}, text_cols=("parameter",)))
+    freq = linked_frequency_table(rec, paper_tables)
+    out.append("<p class='note'>Tables 2 and 3 under the linked fit, beside the paper's method (each state "
+               "fitted alone, the Tables 2–3 section above).</p>")
+    out.append(html_table(freq, {c: ".2f" for c in freq.columns if c not in ("state", "mode")}, text_cols=("state",)))
+    if rec.get("unpaired_visible"):
+        out.append(html_table(pd.DataFrame(rec["unpaired_visible"]),
+                              {"freq_Hz": ".1f", "nearest_measured_Hz": ".1f", "misfit_pct": ".2f"},
+                              text_cols=("state",)))
+    if spread is not None and len(spread):
+        out.append("<p class='note'>Joint parameters over the hypotheses within ΔAICc &lt; 4 (the reconstruction "
+                   "uncertainty) with the union of their 95 % intervals.</p>")
+        out.append(html_table(spread, {"value_min": ".4g", "value_max": ".4g", "combined_ci95_low": ".4g",
+                                       "combined_ci95_high": ".4g"}, text_cols=("parameter", "hypotheses")))
+    return "".join(out)
