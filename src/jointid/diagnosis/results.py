@@ -1,0 +1,114 @@
+"""Results of evaluating and fitting a model variant (docs/effects.md).
+
+* :class:`Evaluation` — residuals, Jacobian, solutions and pairing of a variant at a parameter vector;
+* :class:`Fit` — a fitted variant: chi-square, p-value, AICc, covariance, per-state errors and the
+  unpaired, clearly visible model modes (misfits).
+
+Produced by :class:`jointid.diagnosis.fitting.Diagnoser`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from jointid.diagnosis.statistics import aicc, chi2_p_value
+from jointid.diagnosis.variants import StateData, Variant
+
+__all__ = ["Evaluation", "Fit"]
+
+
+@dataclass
+class Evaluation:
+    """Residuals and Jacobian of a variant at ``x`` over all states."""
+
+    x: np.ndarray
+    r: np.ndarray
+    J: np.ndarray
+    solutions: list
+    index: list  # per state: model mode index per measured mode (-1 unpaired)
+    rows: list  # per residual: (state number, measured mode number)
+    f_model: list  # per state: model frequency per measured mode (NaN unpaired)
+    misfits: list = None  # per state: (model modes, nearest measured Hz, model Hz) of the unpaired visible modes
+
+
+@dataclass
+class Fit:
+    """A fitted variant: parameters, residuals, chi-square, AICc, covariance, per-state errors."""
+
+    variant: Variant
+    ev: Evaluation
+    pairings: list
+
+    @property
+    def x(self):
+        """The fitted parameter vector."""
+        return self.ev.x
+
+    @property
+    def chi2(self) -> float:
+        """Chi-square ``r^T r`` of the sigma-normalised residuals."""
+        return float(self.ev.r @ self.ev.r)
+
+    @property
+    def n(self) -> int:
+        """Number of residuals."""
+        return len(self.ev.r)
+
+    @property
+    def k(self) -> int:
+        """Number of fitted parameters."""
+        return self.variant.n_params
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom ``n - k`` (at least 1)."""
+        return max(self.n - self.k, 1)
+
+    @property
+    def p_value(self) -> float:
+        """Probability of a chi-square at least this large if the variant were true (noise only)."""
+        return chi2_p_value(self.chi2, self.dof)
+
+    @property
+    def aicc(self) -> float:
+        """Corrected Akaike criterion of the fit (sigma known), :func:`statistics.aicc`."""
+        return aicc(self.chi2, self.n, self.k)
+
+    def covariance(self) -> np.ndarray:
+        """Covariance of ``x``: ``(J^T J)^+`` (residuals in units of sigma)."""
+        J = self.ev.J
+        return np.linalg.pinv(J.T @ J)
+
+    def errors_pct(self, data: list[StateData]) -> list[np.ndarray]:
+        """Frequency error (%) per measured mode and state (NaN unpaired)."""
+        return [100 * (fm - d.f_meas) / d.f_meas for fm, d in zip(self.ev.f_model, data)]
+
+    def misfits_pct(self) -> list[np.ndarray]:
+        """Per state: the signed misfit (%) of each unpaired, clearly visible model mode (model minus
+        the nearest measured mode)."""
+        return [100 * (fm - t) / t for _, t, fm in (self.ev.misfits or [])]
+
+    def unpaired_visible(self, data: list[StateData]) -> list[dict]:
+        """The unpaired, clearly visible model modes of every state: state, model mode (1-based),
+        model and nearest measured frequency (Hz), misfit (%)."""
+        out = []
+        for d, (cols, tgt, fm) in zip(data, self.ev.misfits or []):
+            for c, t, f in zip(cols, tgt, fm):
+                out.append({"state": d.name, "model_mode": int(c) + 1, "freq_Hz": float(f),
+                            "nearest_measured_Hz": float(t), "misfit_pct": float(100 * (f - t) / t)})
+        return out
+
+    def state_summary(self, data: list[StateData]) -> list[dict]:
+        """Per state: number of paired modes, max and RMS error (%) over the paired modes and the
+        misfits (unpaired, clearly visible model modes, counted as errors), and the misfit count."""
+        out = []
+        mis = self.misfits_pct() or [np.zeros(0)] * len(data)
+        for d, e, m in zip(data, self.errors_pct(data), mis):
+            e = e[np.isfinite(e)]
+            a = np.concatenate([e, m])
+            out.append({"state": d.name, "n_paired": len(e), "n_unpaired_visible": len(m),
+                        "max_abs_error_pct": float(np.abs(a).max()) if len(a) else np.nan,
+                        "rms_error_pct": float(np.sqrt(np.mean(a ** 2))) if len(a) else np.nan})
+        return out
