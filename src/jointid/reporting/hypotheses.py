@@ -47,7 +47,7 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
     cols = ["rank", "hypothesis", "description", "delta_aicc", "akaike_weight", "chi2"]
     cols += [c for c in ranking.columns if c.startswith("max_abs_error_") or c.startswith("unpaired_visible_")]
     cols += [c for c in ("em_preload.beta", "preload_N") if c in ranking.columns]
-    fm = {c: ".2f" for c in cols}
+    fm = {c: ".2f" for c in cols if c not in ("hypothesis", "description")}
     fm.update({"rank": "d", "akaike_weight": ".3f", "chi2": ".1f", "delta_aicc": ".1f", "em_preload.beta": ".3f",
                "preload_N": ".0f"})
     fm.update({c: "d" for c in cols if c.startswith("unpaired_visible_")})
