@@ -51,6 +51,18 @@ def test_hypothesis_config_moves_fixed_parameters_and_adds_effects():
         hypothesis_config(cfg, "bad", {"fixed": {"k_shear_N_per_m3": 1.0}})
 
 
+def test_a_bad_override_is_reported_with_its_hypothesis_when_the_config_is_loaded():
+    raw = coarse_config_dict()
+    raw["hypotheses"] = {"thin": {"overrides": {"rig": {"table": {"thicknes_m": 0.03}}}},
+                         "loop": {"overrides": {"hypotheses": {}}}}
+    with pytest.raises(ConfigError) as err:
+        load_config(raw)
+    lines = err.value.problems if hasattr(err.value, "problems") else str(err.value).splitlines()
+    text = "\n".join(lines)
+    assert "hypotheses.thin.overrides: rig.table.thicknes_m: unknown key — did you mean 'thickness_m'?" in text
+    assert "hypotheses.loop.overrides.hypotheses: a hypothesis cannot override the hypotheses" in text
+
+
 def test_linked_law_from_config():
     law = LinkedLaw.from_config({"linked": {"preload_classes_N": [0, 700.0], "directions": ["y"]}})
     assert law.preload_classes_N == (0.0, 700.0) and law.directions == ("y",)

@@ -129,7 +129,8 @@ def check_config(cfg: Mapping, source: str = DEFAULT_SOURCE, schema: Mapping | N
         line = f"{source}: {dotted(path)}: {message}"
         if line not in lines:
             lines.append(line)
-    lines += _hypothesis_problems(normal, source, schema)
+    if not lines:  # the hypotheses are checked on a valid configuration (else each repeats its problems)
+        lines += _hypothesis_problems(normal, source, schema)
     return normal, lines
 
 

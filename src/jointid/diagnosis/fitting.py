@@ -306,8 +306,10 @@ def term_directions(system: System) -> list[tuple[dict, dict]]:
 
 
 def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
-    """Start values of a one-parameter candidate: its linearised estimate and a bracket above it
-    (effects saturate, so the linearised estimate tends to be low), inside the bounds."""
+    """Start values of a one-parameter candidate: its linearised estimate, a bracket above it
+    (effects saturate, so the linearised estimate tends to be low), inside the bounds, and the
+    effect at (almost) its null: the refit of a nested model then never ends worse than the model
+    it extends (a strong start can lock onto a pairing of its own)."""
     p = spec.effect.params[0]
     lo, hi = p.t_bounds
     hi = hi if math.isfinite(hi) else 1e6
@@ -320,6 +322,9 @@ def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
             out.append(s)
         if len(out) == 2:
             break
+    near_null = float(np.clip(p.to_t(p.null), lo, hi)) + 1e-4 * span
+    if all(abs(near_null - o) > 0.05 * max(abs(o), 1e-3 * span) for o in out):
+        out.append(near_null)
     return out
 
 
