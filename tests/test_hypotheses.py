@@ -63,6 +63,18 @@ def test_a_bad_override_is_reported_with_its_hypothesis_when_the_config_is_loade
     assert "hypotheses.loop.overrides.hypotheses: a hypothesis cannot override the hypotheses" in text
 
 
+def test_an_unknown_effect_of_a_hypothesis_is_named_before_any_job():
+    from jointid.stages.hypotheses import check_hypotheses
+
+    cfg = load_config(coarse_config_dict())
+    cfg["hypotheses"] = {"ok": {}, "soft": {"effects": {"base_suport": {}}}}
+    with pytest.raises(ConfigError) as err:
+        check_hypotheses(cfg)
+    assert "config.yaml: hypotheses.soft.effects.base_suport: unknown effect — did you mean 'base_support'?" in str(err.value)
+    cfg["hypotheses"]["soft"] = {"effects": {"base_support": {}}}
+    assert check_hypotheses(cfg) == ["ok", "soft"]
+
+
 def test_linked_law_from_config():
     law = LinkedLaw.from_config({"linked": {"preload_classes_N": [0, 700.0], "directions": ["y"]}})
     assert law.preload_classes_N == (0.0, 700.0) and law.directions == ("y",)

@@ -8,7 +8,7 @@
 
 from jointid.stages import hypotheses as hyp_stage
 
-HYPOTHESES = hyp_stage.hypothesis_names(config)
+HYPOTHESES = hyp_stage.check_hypotheses(config)  # a bad hypothesis stops the run before any job
 
 
 def _hypothesis_cfg(wc):

@@ -87,6 +87,11 @@ def hypothesis_config(cfg: dict, name: str, hyp: dict) -> dict:
     effects = dict(out.get("effects") or {})
     effects.update(copy.deepcopy(hyp.get("effects") or {}))
     out["effects"] = effects
+    try:
+        enabled_effects(hyp.get("effects"))
+    except ConfigError as exc:  # name the hypothesis, not the run's effects section
+        raise ConfigError([str(line).replace("config.yaml: effects.", f"{where}.effects.")
+                           for line in exc.problems]) from None
     return out
 
 

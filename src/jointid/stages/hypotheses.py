@@ -166,6 +166,20 @@ def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict,
     return "\n".join(lines) + "\n"
 
 
+def check_hypotheses(cfg: dict) -> list[str]:
+    """Every configured hypothesis's configuration built and its effects parsed (before any job runs);
+    returns the names, raises :class:`ConfigError` with one line per problem of any of them."""
+    names, problems = hypothesis_names(cfg), []
+    for name in names:
+        try:
+            hypothesis_config(cfg, name, cfg["hypotheses"][name])
+        except ConfigError as exc:
+            problems += exc.problems
+    if problems:
+        raise ConfigError(problems)
+    return names
+
+
 def hypothesis_names(cfg: dict) -> list[str]:
     """The configured hypotheses, in config order (an entry set to null in a later config file is
     switched off)."""
