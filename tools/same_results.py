@@ -1,8 +1,8 @@
 """Are two runs' results the same?  ``python tools/same_results.py RUN_A RUN_B``
 
 Compares, byte for byte, the files a user reads as results: every ``results/tables/*.csv``,
-``results/identify/*/params.json`` and ``results/diagnosis/*/ranking.csv`` (plus ladder.csv and
-verify.csv), in two run folders (each the folder holding ``results/``).  A JSON file that differs only
+``results/identify/*/params.json``, ``results/diagnosis/*/ranking.csv`` (plus ladder.csv and
+verify.csv) and the hypotheses' ``ranking.csv`` and ``fit.json``, in two run folders (each the folder holding ``results/``).  A JSON file that differs only
 in a provenance field naming the code (``git_commit``, ``git_dirty``, ``jointid_version``, ``code``) counts
 as the same, and is reported as such.  Prints one line per file and exits 1 if any differs.
 """
@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 PATTERNS = ("results/tables/*.csv", "results/identify/*/params.json", "results/identify/*/verify.csv",
-            "results/diagnosis/*/ranking.csv", "results/diagnosis/*/ladder.csv")
+            "results/diagnosis/*/ranking.csv", "results/diagnosis/*/ladder.csv",
+            "results/hypotheses/ranking.csv", "results/hypotheses/*/fit.json")
 CODE_FIELDS = {"git_commit", "git_dirty", "git_describe", "jointid_version", "code", "commit", "dirty"}
 
 
