@@ -108,6 +108,14 @@ class Param:
             return max(1e-6 * abs(t), 1e-4 * self.nominal / BONDED_N_PER_M3)
         return 1e-6 * max(abs(t), 1.0)
 
+    def t_near_null(self, offset: float = 1e-4) -> float:
+        """Test variable of the effect at its null (inside the bounds, an infinite upper bound taken as
+        1e6), moved ``offset`` times the span towards the effect: the start of a fit that continues
+        from the model without the effect."""
+        lo, hi = self.t_bounds
+        hi = hi if math.isfinite(hi) else 1e6
+        return float(np.clip(self.to_t(self.null), lo, hi)) + offset * (hi - lo)
+
     @property
     def t_bounds(self) -> tuple[float, float]:
         """Bounds of ``t`` (from the physical range), low first."""

@@ -322,7 +322,7 @@ def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
             out.append(s)
         if len(out) == 2:
             break
-    near_null = float(np.clip(p.to_t(p.null), lo, hi)) + 1e-4 * span
+    near_null = p.t_near_null()
     if all(abs(near_null - o) > 0.05 * max(abs(o), 1e-3 * span) for o in out):
         out.append(near_null)
     return out

@@ -165,7 +165,7 @@ def _starts(var: Variant) -> list[np.ndarray]:
     x1 = x0.copy()
     for k, (i, p) in enumerate(var.slots):
         if var.effects[i].effect.name != "em_preload":
-            x1[var.p + k] = float(np.clip(p.to_t(p.null), var.lower[var.p + k], var.upper[var.p + k]))
+            x1[var.p + k] = p.t_near_null(0.0)
     return [x0] if np.array_equal(x0, x1) else [x0, x1]
 
 

@@ -166,7 +166,7 @@ def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log
         log(f"diagnosis: calibrating {var.name}")
         # from the configured values and from the effect at (almost) its null: a strong start can lock
         # onto a pairing of its own, with the new modes it brings into the band as misfits
-        near = np.concatenate([current.x, [_near_null(en.effect.param(n)) for n in spec.free]])
+        near = np.concatenate([current.x, [en.effect.param(n).t_near_null() for n in spec.free]])
         starts = [x0] if np.allclose(near, x0) else [x0, near]
         tried = [diag.fit(var, x, index=current.ev.index) for x in starts]
         best = min(tried, key=lambda f: f.chi2)
@@ -175,13 +175,6 @@ def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log
         fits[label] = current
         ladder_rows += state_errors_table(diag, current, label)
     return fits, current, ladder_rows
-
-
-def _near_null(p) -> float:
-    """The test variable of parameter ``p`` just off its null, inside its bounds."""
-    lo, hi = p.t_bounds
-    hi = hi if np.isfinite(hi) else 1e6
-    return float(np.clip(p.to_t(p.null), lo, hi)) + 1e-4 * (hi - lo)
 
 
 def score_candidates(diag: Diagnoser, current: Fit, enabled: list[Enabled], candidates: list[str] | None,

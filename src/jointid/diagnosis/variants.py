@@ -15,11 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointid.correlate import pairing as correlate
-from jointid.correlate.observability import VISIBLE_THRESHOLD, MeasurementSetup, test_band
 from jointid.diagnosis.effects import Effect, apply_effects
 from jointid.diagnosis.terms import StateInfo, System, baseline_coefficients
 from jointid.errors import DataError
-from jointid.identification.visibility import VisibilityRule
+from jointid.identification.visibility import dataset_rule
 
 
 @dataclass
@@ -66,23 +65,10 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
 
 
 def state_rule(ds, state: str, system: System, cfg: dict, shapes: np.ndarray | None):
-    """The observability rule (:class:`jointid.identification.visibility.VisibilityRule`) of ``state``:
-    the dataset's ``test_setup`` (default: the hammer at ``harmonic.drive_point`` in x, y and z, the
-    responses where shapes were measured, else every point in x, y and z), the test band
-    (:func:`jointid.correlate.observability.test_band`) and the threshold ``identify.visible_threshold`` (None when that is null)."""
-    threshold = cfg.get("identify", {}).get("visible_threshold", VISIBLE_THRESHOLD)
-    if threshold is None:
-        return None
-    harmonic = cfg.get("harmonic", {})
-    measured = None
-    if shapes is not None:
-        measured = [lab for lab, ok in zip(system.labels, np.isfinite(shapes).any(axis=1)) if ok]
-    drive = harmonic.get("drive_point", "T05")
-    setup = MeasurementSetup.from_spec(ds.conditions.get("test_setup"), list(system.meta["points"]["point"]),
-                                       [f"{drive}:{d}" for d in "xyz"], measured_labels=measured,
-                                       where=f"{ds.name}/conditions.yaml")
-    band = test_band(ds.conditions.get("test_setup"), harmonic.get("band_Hz", (300.0, 3500.0)), ds.freqs(state))
-    return VisibilityRule(setup, tuple(system.labels), band, float(threshold))
+    """The observability rule of ``state`` at the system's probe labels
+    (:func:`jointid.identification.visibility.dataset_rule`)."""
+    return dataset_rule(ds, state, system.labels, system.meta["points"]["point"], shapes, cfg,
+                        f"{ds.name}/conditions.yaml")
 
 
 @dataclass

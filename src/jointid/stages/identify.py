@@ -63,27 +63,19 @@ def visibility_rule(cfg: dict, state: str, pts):
     the responses where shapes were measured, else at every point in x, y and z); None when
     ``identify.visible_threshold`` is null."""
     from jointid.config.datasets import dataset_folder
-    from jointid.correlate.observability import MeasurementSetup, test_band
     from jointid.data.dataset import read_dataset
     from jointid.geometry.points import dof_labels
-    from jointid.identification.visibility import VisibilityRule
+    from jointid.identification.visibility import dataset_rule
 
-    threshold = cfg["identify"].get("visible_threshold", 0.25)
-    if threshold is None:
+    if cfg["identify"].get("visible_threshold", 0.25) is None:
         return None
     folder = dataset_folder(cfg, state)
     ds = read_dataset(folder, measuring_points=pts)
     labels = dof_labels(pts)
-    measured = None
+    shapes = None
     if ds.shapes is not None and state in set(ds.shapes["state"]):
-        rows = np.isfinite(ds.shape_matrix(state, labels)).any(axis=1)
-        measured = [lab for lab, ok in zip(labels, rows) if ok]
-    drive = cfg["harmonic"]["drive_point"]
-    setup = MeasurementSetup.from_spec(ds.conditions.get("test_setup"), list(pts["point"]),
-                                       [f"{drive}:{d}" for d in "xyz"], measured_labels=measured,
-                                       where=f"{folder}/conditions.yaml")
-    band = test_band(ds.conditions.get("test_setup"), cfg["harmonic"]["band_Hz"], ds.freqs(state))
-    return VisibilityRule(setup, tuple(labels), band, float(threshold))
+        shapes = ds.shape_matrix(state, labels)
+    return dataset_rule(ds, state, labels, list(pts["point"]), shapes, cfg, f"{folder}/conditions.yaml")
 
 
 def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:
