@@ -299,7 +299,7 @@ BAD = [
      "use a negative shift, e.g. -10"),
     ("unknown top-level key", lambda c: c.update(reprot={}),
      "reprot: unknown key — did you mean 'report'? (allowed: materials, rig, mesh, mesh_check, carriage_rigidity, joints, states, measurements, "
-     "datasets, doe, surface, identify, solver, harmonic, effects, linked, hypotheses, report)"),
+     "datasets, doe, surface, identify, solver, harmonic, diagnosis, effects, linked, hypotheses, report)"),
     ("non-finite", lambda c: c["rig"]["base"].update(width_m=float("inf")),
      "rig.base.width_m: inf is not a finite number — give a finite value"),
 ]

@@ -19,7 +19,9 @@ def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
     ----------
     phi_a, phi_b : array_like, shape (n_locations, n_a) and (n_locations, n_b), or (n_locations,)
         Mode shapes (any unit, real or complex) at the same locations; a 1-D array is one shape.
-        Locations that are NaN in either set are ignored (for every pair).
+        A NaN value is a location not measured for that mode: each pair uses the locations finite in
+        both of its shapes (a mode whose shape is missing altogether has MAC 0 with every mode, and a
+        location missing for one mode does not remove it from the others' pairs).
 
     Returns
     -------
@@ -32,10 +34,14 @@ def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
         a = a[:, None]
     if b.ndim == 1:
         b = b[:, None]
-    ok = ~(np.isnan(a).any(axis=1) | np.isnan(b).any(axis=1))
-    a, b = a[ok], b[ok]
-    num = np.abs(a.conj().T @ b) ** 2
-    den = np.outer(np.einsum("ij,ij->j", a.conj(), a).real, np.einsum("ij,ij->j", b.conj(), b).real)
+    ma, mb = ~np.isnan(a), ~np.isnan(b)
+    if ma.all() and mb.all():
+        num = np.abs(a.conj().T @ b) ** 2
+        den = np.outer(np.einsum("ij,ij->j", a.conj(), a).real, np.einsum("ij,ij->j", b.conj(), b).real)
+    else:  # per pair, only the locations finite in both shapes
+        a0, b0 = np.where(ma, a, 0), np.where(mb, b, 0)
+        num = np.abs(a0.conj().T @ b0) ** 2
+        den = ((np.abs(a0) ** 2).T @ mb) * (ma.T.astype(float) @ np.abs(b0) ** 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(den > 0, num / den, 0.0)
     return out

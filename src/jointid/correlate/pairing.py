@@ -28,7 +28,7 @@ from scipy.optimize import linear_sum_assignment
 from jointid.correlate.mac import mac
 
 __all__ = ["Pairing", "below_band", "pair_by_mac", "pair_by_shapes", "pair_by_frequency", "ordered_assignment",
-           "pair_modes", "pair_states_by_frequency", "frequency_errors", "shape_residuals", "point_residuals",
+           "pair_modes", "pair_shapeless", "pair_states_by_frequency", "frequency_errors", "shape_residuals", "point_residuals",
            "error_summary"]
 
 
@@ -184,10 +184,12 @@ def pair_modes(f_meas, f_model, meas_shapes=None, model_shapes=None, *, threshol
     index = -np.ones(m, dtype=int)
     macs = np.full(m, np.nan)
     if meas_shapes is not None and model_shapes is not None and np.isfinite(meas_shapes).any():
-        M = mac(np.asarray(meas_shapes, float), np.asarray(model_shapes, float)[:, usable])
+        meas_shapes = np.asarray(meas_shapes, float)
+        M = mac(meas_shapes, np.asarray(model_shapes, float)[:, usable])
         for r, c, v in pair_by_mac(M, threshold):
             index[r], macs[r] = usable[c], v
         method = "mac"
+        pair_shapeless(f_meas, f_model, usable, index, ~np.isfinite(meas_shapes).any(axis=0))
     else:
         if len(usable) >= m:
             index = usable[pair_by_frequency(f_meas, f_model[usable])]
@@ -201,6 +203,22 @@ def pair_modes(f_meas, f_model, meas_shapes=None, model_shapes=None, *, threshol
     return Pairing(model_index=index, mac=macs, method=method,
                    unpaired_measured=[int(i) for i in np.flatnonzero(index < 0)],
                    unpaired_model=unpaired_model)
+
+
+def pair_shapeless(f_meas, f_model, usable, index: np.ndarray, shapeless: np.ndarray) -> None:
+    """Pair, in place, the measured modes whose shape is missing (``shapeless``) by frequency.
+
+    Their partners are chosen among the ``usable`` model modes that no shape took, by the
+    order-preserving log-frequency assignment (:func:`pair_by_frequency`); a missing shape only
+    removes that mode's shape information, its frequency still counts.
+    """
+    rows = np.flatnonzero(np.asarray(shapeless) & (index < 0))
+    free = np.array([j for j in usable if j not in set(index[index >= 0].tolist())], int)
+    if not len(rows) or not len(free):
+        return
+    n = min(len(rows), len(free))
+    rows = rows[np.argsort(f_meas[rows])][:n] if len(rows) > len(free) else rows
+    index[rows] = free[pair_by_frequency(f_meas[rows], f_model[free])]
 
 
 def pair_states_by_frequency(f_meas: list, f_model: list, tracks: list, *, min_freq_Hz: float = 0.0,

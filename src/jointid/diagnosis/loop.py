@@ -13,6 +13,7 @@ reduced solver's subspace grows with every solve, so the order is part of the re
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -20,13 +21,18 @@ import numpy as np
 import pandas as pd
 
 from jointid.correlate import pairing as correlate
+from jointid.diagnosis import ambiguity
+from jointid.diagnosis.combine import combine_candidates
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log, refit
+from jointid.diagnosis.preload import identify_preload, profile_candidate
+from jointid.diagnosis.results import refit_row
 from jointid.diagnosis.statistics import extra_jacobian, identifiability, score_test, state_contrasts
 from jointid.diagnosis.tables import (compare_tables, drift_table, parameter_table, ranking_frame,
                                       state_errors_table)
 from jointid.diagnosis.terms import System
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
+from jointid.diagnosis.verdict import Findings, verdict_text
 from jointid.errors import DataError
 from jointid.fe.reduced import ReducedSolver
 
@@ -51,28 +57,36 @@ class Diagnosis:
     parameters: pd.DataFrame | None = None
     timing_s: float = 0.0
     solver: ReducedSolver | None = None
+    combinations: pd.DataFrame = field(default_factory=pd.DataFrame)
+    next_measurements: pd.DataFrame = field(default_factory=pd.DataFrame)
+    preload_curve: pd.DataFrame = field(default_factory=pd.DataFrame)
+    identifiable: dict = field(default_factory=dict)
+
+
+OPTIONS = {"alpha": 0.01, "n_refit": 5, "max_effects": 2, "n_combine": 5, "tie_delta_aicc": 4.0,
+           "absorption_shift_pct": 3.0}
+"""Defaults of the ``diagnosis`` config section (the schema holds the same)."""
 
 
 def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: dict | None = None,
-             candidates: list[str] | None = None, n_refit: int = 5, alpha: float = 0.01,
+             candidates: list[str] | None = None, n_refit: int | None = None, alpha: float | None = None,
              reference_state: str | None = None, solver: ReducedSolver | None = None,
              compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
-    """Run the whole loop on measured states: compare, calibrate, score, refit, rank, ladder, drift.
+    """Run the whole loop on measured states: compare, calibrate, score, refit, combine, rank, ladder, drift.
 
     Parameters
     ----------
     system : System
     cfg : dict
-        Validated configuration (joints, solver, identify ...).
+        Validated configuration (joints, solver, identify, diagnosis ...).
     data : list of StateData
     effects_cfg : dict, optional
         Effects enabled in the model (the ``effects`` config section); default ``cfg['effects']``.
     candidates : list of str, optional
         Library effects to test (default: all not enabled).
-    n_refit : int
-        Number of leading candidates refitted.
-    alpha : float
-        Significance level: a variant explains the data when its chi-square p-value >= alpha.
+    n_refit, alpha : optional
+        Override ``diagnosis.n_refit`` (leading candidates refitted) and ``diagnosis.alpha`` (a variant
+        explains the data when its chi-square p-value >= alpha).
     reference_state : str, optional
         State the baseline is calibrated on for the comparison step (default: the state with the
         smallest motor force, first in order).
@@ -88,6 +102,9 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     Diagnosis
     """
     t_start = time.time()
+    opt = {**OPTIONS, **(cfg.get("diagnosis") or {})}
+    opt.update({k: v for k, v in (("n_refit", n_refit), ("alpha", alpha)) if v is not None})
+    alpha = float(opt["alpha"])
     enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
     diag = Diagnoser(system, cfg, data, solver=solver, log=log)
     notes = []
@@ -100,19 +117,38 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     fits, current, ladder_rows = calibrate_ladder(diag, fit_base, enabled, log)
     current_table = compare_tables(diag, current.variant, current.x)[0]
     current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects_cfg)
-    refit_candidates(diag, current, rows, fits, n_refit, alpha, log)
+    refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log)
+    profile_candidate(diag, current, rows, fits, alpha, log)
+    needed = current.p_value < alpha
+    for row, _, _ in rows:  # nothing needs explaining when the current model fits within the noise
+        if "explains" in row:
+            row["explains"] = bool(row["explains"] and needed)
     ranking = ranking_frame([r[0] for r in rows])
-    verdict, explained_by = verdict_text(current, ranking, diag.data, alpha, between_share)
-    if explained_by not in ("none needed", "unexplained"):
-        ladder_rows += state_errors_table(diag, fits["+" + explained_by], f"+{explained_by} (suggested)")
+    ranking.attrs["tie_delta_aicc"] = float(opt["tie_delta_aicc"])
+    ranking["indistinguishable_from"] = ambiguity.tie_groups(ranking, float(opt["tie_delta_aicc"]))
+    absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]))
+    combos = pd.DataFrame()
+    if needed and not ranking["explains"].any() and int(opt["max_effects"]) >= 2:
+        singles = {r[0]["effect"]: fits["+" + r[0]["effect"]] for r in rows if "+" + r[0]["effect"] in fits}
+        if len(singles) >= 2:
+            combo_rows, combo_fits = combine_candidates(diag, current, singles, int(opt["n_combine"]), alpha, log)
+            combos = pd.DataFrame(combo_rows)
+            fits.update(combo_fits)
+    tie_detail, nxt = explain_tie(diag, ranking, fits)
+    ident, curve = identifiable(diag, current, fits, ranking, combos, log)
+    findings = Findings(current, ranking, alpha, between_share, combos, absorbed, tie_detail, nxt, ident,
+                        int(opt["max_effects"]))
+    verdict, explained_by = verdict_text(findings, diag.data)
+    ladder_rows += suggested_ladder(diag, fits, explained_by, ranking)
     drift_tab = drift_table(diag, current, log, skip=not drift)
-    notes += model_notes(current, data)
+    notes += model_notes(current, data) + absorbed
     return Diagnosis(ranking=ranking, ladder=pd.DataFrame(ladder_rows), compare=compare_tab,
                      compare_summary=correlate.error_summary(compare_tab), current=current_table,
                      drift=drift_tab, shape_residuals=shape_res,
                      point_residuals=correlate.point_residuals(shape_res), mac=mac_mats, verdict=verdict,
                      explained_by=explained_by, fits=fits, notes=notes, parameters=parameter_table(fits),
-                     timing_s=time.time() - t_start, solver=diag.solver)
+                     timing_s=time.time() - t_start, solver=diag.solver, combinations=combos,
+                     next_measurements=nxt, preload_curve=curve, identifiable=ident)
 
 
 def check_enough_data(data: list[StateData], base: Variant) -> None:
@@ -216,6 +252,7 @@ def score_candidate(diag: Diagnoser, current: Fit, spec: EffectSpec, C: np.ndarr
     Jt = extra_jacobian(diag, var, x_ext, ev, cols)
     lower = np.array([var.lower[c] for c in cols])
     st = score_test(ev.r, ev.J, Jt, lower)
+    st["Jt"] = Jt
     p0 = spec.effect.params[0]
     row.update({"explained_fraction": st["explained_fraction"], "score": st["score"],
                 "p_value": st["p_value"], "linear_estimate": p0.from_t(float(st["t_hat"][0])),
@@ -241,81 +278,87 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
     for i, (row, spec, st) in enumerate(order[:n_refit]):
         log(f"diagnosis: refitting {current.variant.name} + {row['effect']}")
         f = refit(diag, current, spec, st["t_hat"], verify=i == 0)
-        cov = f.covariance()
-        j = f.variant.n_params - 1
-        t, sd = float(f.x[j]), float(np.sqrt(max(cov[j, j], 0.0)))
-        p0 = spec.effect.params[0]
-        lo_t, hi_t = max(t - 1.96 * sd, p0.t_bounds[0]), t + 1.96 * sd
-        vals = sorted([p0.from_t(lo_t) if lo_t != 0 else p0.null, p0.from_t(hi_t)])
-        summ = f.state_summary(diag.data)
-        row.update({"delta_aicc": f.aicc - current.aicc, "fit_chi2": f.chi2, "fit_p_value": f.p_value,
-                    "explains": bool(f.p_value >= alpha), "estimate": p0.from_t(t), "ci95_low": vals[0],
-                    "ci95_high": vals[1],
-                    "max_abs_error_pct_after": max(s["max_abs_error_pct"] for s in summ),
-                    "rms_error_pct_after": float(np.sqrt(np.mean([s["rms_error_pct"] ** 2 for s in summ])))})
+        row.update(refit_row(f, current, diag.data, alpha))
         fits["+" + row["effect"]] = f
 
 
-def verdict_text(current: Fit, ranking: pd.DataFrame, data: list[StateData], alpha: float,
-                 between_share: float) -> tuple[str, str]:
-    """Step 5: the verdict in words and its short form (``none needed``, the effect, ``unexplained``)."""
-    summ_cur = current.state_summary(data)
-    cur_txt = ", ".join(f"{s['state']} max {s['max_abs_error_pct']:.2f} % rms {s['rms_error_pct']:.2f} %"
-                        for s in summ_cur)
-    explaining = ranking[ranking["explains"]]
-    if current.p_value >= alpha:
-        verdict = (f"The current model ({current.variant.name}) explains the data within the noise "
-                   f"(chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, p = {current.p_value:.2g}; "
-                   f"{cur_txt}); no effect is missing.")
-        return verdict, "none needed"
-    if len(explaining):
-        best = explaining.iloc[0]
-        verdict = missing_effect_text(best, max(s["max_abs_error_pct"] for s in summ_cur))
-        explained_by = str(best["effect"])
-    else:
-        verdict = unexplained_text(current, ranking, cur_txt)
-        explained_by = "unexplained"
-    return verdict + between_states_text(ranking, between_share), explained_by
+def absorption_notes(diag: Diagnoser, current: Fit, rows: list, ranking: pd.DataFrame, shift_pct: float) -> list[str]:
+    """Step 5: the candidates the fitted parameters could be hiding (:func:`ambiguity.absorption`);
+    fills the ranking's ``absorbed`` and ``absorbed_bias_pct`` columns and returns one sentence each."""
+    out = []
+    ranking["absorbed"] = False
+    ranking["absorbed_bias_pct"] = np.nan
+    for row, spec, st in rows:
+        if spec is None or st is None:
+            continue
+        info = ambiguity.absorption(current, st["Jt"], diag.data, shift_pct)
+        if not info["absorbed"]:
+            continue
+        p0 = spec.effect.params[0]
+        at = ranking.index[ranking["effect"] == row["effect"]]
+        joint = [v for k, v in info["bias_pct"].items() if k in current.variant.joint_names]
+        ranking.loc[at, "absorbed"] = True
+        ranking.loc[at, "absorbed_bias_pct"] = max(joint, key=abs) if joint else np.nan
+        out.append(ambiguity.absorption_text(row["effect"], p0.from_t(info["size_t"]), p0.unit, p0.name, info,
+                                             shift_pct, current.variant.p))
+    return out
 
 
-def missing_effect_text(best: pd.Series, max_error_pct: float) -> str:
-    """The verdict naming the missing effect ``best`` (a ranking row) and what enabling it achieves."""
-    return (f"Missing effect: {best['effect']} ({best['title']}), {best['parameter']} = "
-            f"{best['estimate']:.4g} {best['unit']} (95 % CI {best['ci95_low']:.3g} .. {best['ci95_high']:.3g}). "
-            f"It explains {100 * best['explained_fraction']:.0f} % of the residual to first order; refitted, "
-            f"the error falls from max {max_error_pct:.2f} % to "
-            f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
-            f"(p = {best['fit_p_value']:.2g}, delta AICc = {best['delta_aicc']:.1f}). Enable it with "
-            f"effects: {{{best['effect']}: {{}}}} in config.yaml.")
+def explain_tie(diag: Diagnoser, ranking: pd.DataFrame, fits: dict) -> tuple[str, pd.DataFrame]:
+    """Step 6: for explaining candidates the data cannot tell apart, how far their refits differ and
+    the measurements that would decide (:func:`ambiguity.next_measurements`); ("", empty) otherwise."""
+    explaining = ranking[ranking["explains"].astype(bool)]
+    if not len(explaining) or not explaining.iloc[0]["indistinguishable_from"]:
+        return "", pd.DataFrame()
+    names = [str(explaining.iloc[0]["effect"])] + str(explaining.iloc[0]["indistinguishable_from"]).split(";")
+    tied = {n: fits["+" + n] for n in names}
+    joints = tied[names[0]].variant.joint_names
+    spread = []
+    for j, lab in enumerate(joints):
+        v = [math.exp(float(f.x[j])) for f in tied.values()]
+        spread.append(f"{lab} {min(v):.3g} .. {max(v):.3g} ({100 * (max(v) / min(v) - 1):.0f} %)")
+    dmax = 0.0
+    for si, d in enumerate(diag.data):
+        fm = np.array([f.ev.f_model[si] for f in tied.values()])
+        with np.errstate(invalid="ignore"):
+            dmax = max(dmax, float(np.nanmax(np.abs(np.log(fm.max(0) / fm.min(0)))) * 100) if fm.size else 0.0)
+    detail = (f"Their refitted joint parameters differ ({'; '.join(spread)}) and their predictions of the "
+              f"measured modes by at most {dmax:.2f} %.")
+    return detail, ambiguity.next_measurements(diag, {n: tied[n] for n in names}, names)
 
 
-def unexplained_text(current: Fit, ranking: pd.DataFrame, cur_txt: str) -> str:
-    """The verdict when no listed effect explains the residual (with the closest candidate)."""
-    lead = ranking.iloc[0] if len(ranking) else None
-    part = ""
-    if lead is not None and lead.get("score", 0) > 0:
-        part = (f" The closest candidate, {lead['effect']}, explains {100 * lead['explained_fraction']:.0f} % "
-                f"of the residual to first order")
-        if isinstance(lead.get("fit_p_value"), float) and np.isfinite(lead.get("fit_p_value", np.nan)):
-            part += (f" but leaves max {lead['max_abs_error_pct_after']:.2f} % error "
-                     f"(refit p = {lead['fit_p_value']:.2g})")
-        part += "."
-    return ("No listed effect explains the residual: the current model misses something outside the "
-            f"library ({cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
-            f"p = {current.p_value:.2g})." + part)
+def identifiable(diag: Diagnoser, current: Fit, fits: dict, ranking: pd.DataFrame, combos: pd.DataFrame,
+                 log) -> tuple[dict, pd.DataFrame]:
+    """Step 7: what the data identify of a fitted em_preload (:func:`identify_preload`) in every fit the
+    verdict may name: ``{fit label: sentence}`` (labels ``current``, ``+A``, ``+A+B``) and the beta-P
+    curve of the first one."""
+    labels = ["current"] + [f"+{n}" for n in ranking["effect"] if f"+{n}" in fits]
+    if len(combos):
+        labels += [f"+{e}" for e in combos[combos["explains"]]["effects"]]
+    out, curve = {}, pd.DataFrame()
+    for lab in labels:
+        text, c = identify_preload(diag, current if lab == "current" else fits[lab], log)
+        if text:
+            out[lab] = text
+            curve = c if curve.empty else curve
+    if "+em_preload" in out:
+        ranking.loc[ranking["effect"] == "em_preload", "identifiable"] = out["+em_preload"]
+    return out, curve
 
 
-def between_states_text(ranking: pd.DataFrame, between_share: float) -> str:
-    """The sentence on the between-state part of the residual ("" when it is 5 % or less)."""
-    if not (between_share > 0.05 and ranking["between_states_fraction"].notna().any()):
-        return ""
-    b = ranking.sort_values("between_states_fraction", ascending=False, kind="stable").iloc[0]
-    if b["between_states_fraction"] > 0.5:
-        return (f" Of the residual, {100 * between_share:.0f} % differs between the states; "
-                f"{b['effect']} explains {100 * b['between_states_fraction']:.0f} % of that "
-                f"between-state part (p = {b['between_states_p_value']:.2g}).")
-    return (f" Of the residual, {100 * between_share:.0f} % differs between the states; no listed "
-            "effect explains that between-state part.")
+def suggested_ladder(diag: Diagnoser, fits: dict, explained_by: str, ranking: pd.DataFrame) -> list[dict]:
+    """Ladder rows of the suggested model: ``+A (suggested)``, or ``+A`` then ``+A+B (suggested)``
+    for a combination (forward selection); one row per tied candidate."""
+    if explained_by in ("none needed", "unexplained"):
+        return []
+    rows = []
+    if "+" in explained_by:
+        a, b = explained_by.split("+")
+        rows += state_errors_table(diag, fits["+" + a], f"+{a}")
+        return rows + state_errors_table(diag, fits[f"+{a}+{b}"], f"+{a}+{b} (suggested)")
+    for name in explained_by.split(" or "):
+        rows += state_errors_table(diag, fits["+" + name], f"+{name} (suggested)")
+    return rows
 
 
 def model_notes(current: Fit, data: list[StateData]) -> list[str]:

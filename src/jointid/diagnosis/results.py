@@ -16,7 +16,7 @@ import numpy as np
 from jointid.diagnosis.statistics import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
 
-__all__ = ["Evaluation", "Fit"]
+__all__ = ["Evaluation", "Fit", "refit_row"]
 
 
 @dataclass
@@ -40,6 +40,7 @@ class Fit:
     variant: Variant
     ev: Evaluation
     pairings: list
+    preload_profile: dict | None = None  # em_preload's block preload when profiled (jointid.diagnosis.preload)
 
     @property
     def x(self):
@@ -112,3 +113,27 @@ class Fit:
                         "max_abs_error_pct": float(np.abs(a).max()) if len(a) else np.nan,
                         "rms_error_pct": float(np.sqrt(np.mean(a ** 2))) if len(a) else np.nan})
         return out
+
+
+def refit_row(f: Fit, current: Fit, data: list[StateData], alpha: float, extra_params: int = 0) -> dict:
+    """Ranking columns of a candidate's refit ``f`` (its one parameter is the last of ``x``) against
+    the ``current`` model: delta AICc, chi-square and p-value, whether it explains the data, the
+    estimate with its 95 % interval (physical units) and the errors after.
+
+    ``extra_params`` counts parameters profiled outside ``x`` (e.g. a preload chosen on a grid): they
+    enter the AICc and the degrees of freedom.
+    """
+    cov = f.covariance()
+    j = f.variant.n_params - 1
+    p0 = f.variant.slots[-1][1]
+    t, sd = float(f.x[j]), float(np.sqrt(max(cov[j, j], 0.0)))
+    lo_t, hi_t = max(t - 1.96 * sd, p0.t_bounds[0]), min(t + 1.96 * sd, p0.t_bounds[1])
+    vals = sorted([p0.from_t(lo_t) if lo_t != 0 else p0.null, p0.from_t(hi_t)])
+    summ = [s for s in f.state_summary(data) if np.isfinite(s["max_abs_error_pct"])]
+    k = f.k + extra_params
+    p_value = chi2_p_value(f.chi2, max(f.n - k, 1))
+    return {"delta_aicc": aicc(f.chi2, f.n, k) - current.aicc, "fit_chi2": f.chi2, "fit_p_value": p_value,
+            "explains": bool(p_value >= alpha), "estimate": p0.from_t(t), "ci95_low": vals[0],
+            "ci95_high": vals[1],
+            "max_abs_error_pct_after": max(s["max_abs_error_pct"] for s in summ) if summ else np.nan,
+            "rms_error_pct_after": float(np.sqrt(np.mean([s["rms_error_pct"] ** 2 for s in summ]))) if summ else np.nan}

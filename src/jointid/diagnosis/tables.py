@@ -39,7 +39,7 @@ def ranking_frame(rows: list[dict]) -> pd.DataFrame:
     cols = ["rank", "effect", "explained_fraction", "score", "p_value", "delta_aicc", "explains", "parameter",
             "unit", "estimate", "ci95_low", "ci95_high", "linear_estimate", "fit_chi2", "fit_p_value",
             "max_abs_error_pct_after", "rms_error_pct_after", "between_states_fraction",
-            "between_states_p_value", "collinearity", "title", "note"]
+            "between_states_p_value", "collinearity", "title", "note", "identifiable", "enable_with"]
     df = pd.DataFrame(rows)
     for c in cols:
         if c not in df:
@@ -50,6 +50,8 @@ def ranking_frame(rows: list[dict]) -> pd.DataFrame:
     out = pd.concat([a, b], ignore_index=True)
     out["rank"] = np.arange(1, len(out) + 1)
     out["explains"] = out["explains"].astype(object).where(out["explains"].notna(), False).astype(bool)
+    for c in ("note", "identifiable", "enable_with"):  # text columns: empty, never NaN
+        out[c] = out[c].astype(object).where(out[c].notna(), "")
     return out[cols]
 
 

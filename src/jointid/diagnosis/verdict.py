@@ -1,0 +1,188 @@
+"""The verdict of the diagnosis in words (docs/effects.md, "Reading the verdict").
+
+:func:`verdict_text` turns the findings into one paragraph and its short form (``explained_by``):
+
+* ``none needed`` — the current model fits within the noise (with the effects the fitted joints
+  could be hiding, if any);
+* ``<effect>`` — one library effect brings the model to the noise level;
+* ``<a> or <b>`` — several do, within ``tie_delta_aicc``: the data cannot tell them apart; how far
+  their refits differ and which measurement would decide are said;
+* ``<a>+<b>`` — no single effect does, a combination does;
+* ``unexplained`` — no listed effect nor combination up to ``max_effects`` does.
+
+No number is printed as NaN: a state with no paired mode says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from jointid.diagnosis.results import Fit
+
+__all__ = ["Findings", "verdict_text", "state_errors_text"]
+
+
+@dataclass
+class Findings:
+    """What the verdict is made of."""
+
+    current: Fit
+    ranking: pd.DataFrame
+    alpha: float
+    between_share: float = 0.0
+    combinations: pd.DataFrame = field(default_factory=pd.DataFrame)
+    absorbed: list = field(default_factory=list)  # sentences
+    tie_detail: str = ""
+    next_measurements: pd.DataFrame = field(default_factory=pd.DataFrame)
+    identifiable: dict = field(default_factory=dict)  # fit label (current, +A, +A+B) -> sentence
+    max_effects: int = 2
+
+
+def state_errors_text(summary: list[dict]) -> str:
+    """Per state ``max .. % rms .. %`` (``no paired mode`` where there is none)."""
+    out = []
+    for s in summary:
+        if not np.isfinite(s["max_abs_error_pct"]):
+            out.append(f"{s['state']}: no paired mode")
+        else:
+            out.append(f"{s['state']} max {s['max_abs_error_pct']:.2f} % rms {s['rms_error_pct']:.2f} %")
+    return ", ".join(out)
+
+
+def _max_error(summary: list[dict]) -> float:
+    vals = [s["max_abs_error_pct"] for s in summary if np.isfinite(s["max_abs_error_pct"])]
+    return max(vals) if vals else float("nan")
+
+
+def verdict_text(f: Findings, data) -> tuple[str, str]:
+    """The verdict in words and its short form (see the module doc)."""
+    summ = f.current.state_summary(data)
+    cur_txt = state_errors_text(summ)
+    if f.current.p_value >= f.alpha:
+        verdict = (f"The current model ({f.current.variant.name}) explains the data within the noise "
+                   f"(chi2 = {f.current.chi2:.1f} for {f.current.dof} degrees of freedom, "
+                   f"p = {f.current.p_value:.2g}; {cur_txt}); no effect is needed to explain them.")
+        if f.absorbed:
+            verdict += " But " + "; and ".join(f.absorbed) + "."
+        return verdict + _identifiable(f, ["current"]), "none needed"
+    explaining = f.ranking[f.ranking["explains"].astype(bool)]
+    if len(explaining):
+        best = explaining.iloc[0]
+        tied = [str(best["effect"])] + [n for n in str(best.get("indistinguishable_from") or "").split(";") if n]
+        if len(tied) > 1:
+            verdict, short = _tie_text(f, explaining, tied, _max_error(summ)), " or ".join(tied)
+        else:
+            verdict, short = missing_effect_text(best, _max_error(summ)), str(best["effect"])
+        return (verdict + _identifiable(f, ["+" + n for n in tied]) + between_states_text(f.ranking, f.between_share),
+                short)
+    combos = f.combinations
+    if len(combos) and combos["explains"].any():
+        best = combos[combos["explains"]].iloc[0]
+        verdict = combination_text(best, combos, _max_error(summ), f.ranking)
+        return verdict + _identifiable(f, ["+" + str(best["effects"])]), str(best["effects"])
+    verdict = unexplained_text(f.current, f.ranking, cur_txt, combos, f.max_effects)
+    return (verdict + between_states_text(f.ranking, f.between_share)
+            + _identifiable(f, ["current"] + ["+" + str(e) for e in f.ranking["effect"]]), "unexplained")
+
+
+def _identifiable(f: Findings, labels: list) -> str:
+    """What the data identify of em_preload in the first of the fits ``labels`` that has it."""
+    key = next((lab for lab in labels if lab in f.identifiable), None)
+    if key is None:
+        return ""
+    where = "the current model" if key == "current" else f"the refit with {key[1:].replace('+', ' + ')}"
+    return f" Of em_preload in {where}, the data identify the {f.identifiable[key]}"
+
+
+def missing_effect_text(best: pd.Series, max_error_pct: float) -> str:
+    """The verdict naming the missing effect ``best`` (a ranking row) and what enabling it achieves."""
+    return (f"Missing effect: {best['effect']} ({best['title']}), {best['parameter']} = "
+            f"{best['estimate']:.4g} {best['unit']} (95 % CI {best['ci95_low']:.3g} .. {best['ci95_high']:.3g}). "
+            f"It explains {100 * best['explained_fraction']:.0f} % of the residual to first order; refitted, "
+            f"the error falls from max {max_error_pct:.2f} % to "
+            f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
+            f"(p = {best['fit_p_value']:.2g}, delta AICc = {best['delta_aicc']:.1f}). Enable it with "
+            f"effects: {{{_enable(best)}}} in config.yaml.")
+
+
+def _enable(row: pd.Series) -> str:
+    """The ``effects:`` entry that enables a candidate (with a profiled option, if any)."""
+    e = row.get("enable_with")
+    return str(e) if isinstance(e, str) and e else f"{row['effect']}: {{}}"
+
+
+def _tie_text(f: Findings, explaining: pd.DataFrame, tied: list[str], max_error_pct: float) -> str:
+    rows = explaining.set_index("effect").loc[tied]
+    each = "; ".join(f"{n}: {r['parameter']} = {r['estimate']:.4g} {r['unit']} (delta AICc {r['delta_aicc']:.1f}, "
+                     f"p = {r['fit_p_value']:.2g}, max error {r['max_abs_error_pct_after']:.2f} %)"
+                     for n, r in rows.iterrows())
+    txt = (f"Missing effect: {' or '.join(tied)} (the data cannot tell them apart). Each refitted brings the "
+           f"error from max {max_error_pct:.2f} % to the noise level, within delta AICc < "
+           f"{f.ranking.attrs.get('tie_delta_aicc', 4.0):g} of each other: {each}.")
+    if f.tie_detail:
+        txt += f" {f.tie_detail}"
+    nm = f.next_measurements
+    if len(nm):
+        items = "; ".join(f"({i + 1}) {r.measurement}, expected chi-square difference {r.expected_delta_chi2:.1f} "
+                          f"[{r.predictions}]" for i, r in enumerate(nm.itertuples()))
+        txt += f" The measurements that would best decide: {items}."
+    else:
+        txt += " No further mode or force level of this test separates them by more than the noise."
+    return txt
+
+
+def combination_text(best: pd.Series, combos: pd.DataFrame, max_error_pct: float, ranking: pd.DataFrame) -> str:
+    """The verdict naming a combination of effects that explains the data (no single one does)."""
+    names = str(best["effects"]).split("+")
+    others = combos[combos["explains"] & (combos["effects"] != best["effects"])
+                    & ((combos["delta_aicc"] - best["delta_aicc"]).abs() < ranking.attrs.get("tie_delta_aicc", 4.0))]
+    lead = ranking[ranking["delta_aicc"].notna()]
+    single = (f"the best single one, {lead.iloc[0]['effect']}, leaves max {lead.iloc[0]['max_abs_error_pct_after']:.2f} % "
+              f"(p = {lead.iloc[0]['fit_p_value']:.2g})" if len(lead) else "")
+    txt = (f"Missing effects: {' and '.join(names)} together ({best['estimates']}). No single library effect "
+           f"explains the residual ({single}); together the error falls from max {max_error_pct:.2f} % to "
+           f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
+           f"(p = {best['fit_p_value']:.2g}, delta AICc = {best['delta_aicc']:.1f}). Enable them with effects: "
+           f"{{{', '.join(n + ': {}' for n in names)}}} in config.yaml.")
+    if len(others):
+        txt += (" Within the same AICc, " + " or ".join(str(e) for e in others["effects"])
+                + " explain the data as well: the data cannot tell these combinations apart.")
+    return txt
+
+
+def unexplained_text(current: Fit, ranking: pd.DataFrame, cur_txt: str, combos: pd.DataFrame,
+                     max_effects: int) -> str:
+    """The verdict when no listed effect (nor combination) explains the residual."""
+    lead = ranking.iloc[0] if len(ranking) else None
+    part = ""
+    if lead is not None and lead.get("score", 0) > 0:
+        part = (f" The closest candidate, {lead['effect']}, explains {100 * lead['explained_fraction']:.0f} % "
+                f"of the residual to first order")
+        if np.isfinite(float(lead.get("fit_p_value", np.nan))):
+            part += (f" but leaves max {lead['max_abs_error_pct_after']:.2f} % error "
+                     f"(refit p = {lead['fit_p_value']:.2g})")
+        part += "."
+    if len(combos):
+        c = combos.iloc[0]
+        part += (f" No pair of the leading candidates does either: the best, {c['effects']}, leaves max "
+                 f"{c['max_abs_error_pct_after']:.2f} % (p = {c['fit_p_value']:.2g}).")
+    scope = "library" if max_effects <= 1 or len(combos) else "library (single effects tried)"
+    return (f"No listed effect explains the residual: the current model misses something outside the {scope} "
+            f"({cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
+            f"p = {current.p_value:.2g})." + part)
+
+
+def between_states_text(ranking: pd.DataFrame, between_share: float) -> str:
+    """The sentence on the between-state part of the residual ("" when it is 5 % or less)."""
+    if not (between_share > 0.05 and ranking["between_states_fraction"].notna().any()):
+        return ""
+    b = ranking.sort_values("between_states_fraction", ascending=False, kind="stable").iloc[0]
+    if b["between_states_fraction"] > 0.5:
+        return (f" Of the residual, {100 * between_share:.0f} % differs between the states; "
+                f"{b['effect']} explains {100 * b['between_states_fraction']:.0f} % of that "
+                f"between-state part (p = {b['between_states_p_value']:.2g}).")
+    return (f" Of the residual, {100 * between_share:.0f} % differs between the states; no listed "
+            "effect explains that between-state part.")
