@@ -56,6 +56,27 @@ TABLE_COLUMNS = ["order", "experimental_Hz", "simulation_Hz", "relative_error_pc
 RUN_TIMEOUT_S = 900
 
 
+# ------------------------------------------------------------------ diagnosis on synthetic data
+def diagnosis_rig() -> dict:
+    """The rig of the synthetic diagnosis tests: coarse mesh, normal and lateral joint stiffness
+    identified, feed stiffness fixed (so the feed effect is not absorbed by an identified parameter).
+    Returns ``{"cfg", "model", "system", "solver"}`` (solver None: the first diagnosis makes it)."""
+    from jointid.config import load_config
+    from jointid.diagnosis.terms import build_system
+    from jointid.fe.model import build_model
+    from jointid.threads import limit_threads
+
+    limit_threads(1)
+    cfg = coarse_config_dict()
+    cfg["joints"]["parameters"] = {
+        "k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
+        "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}}
+    cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
+    cfg = load_config(cfg)
+    model = build_model(cfg)
+    return {"cfg": cfg, "model": model, "system": build_system(model, cfg), "solver": None}
+
+
 # ------------------------------------------------------------------ workflow copies
 def coarse_config_dict() -> dict:
     """The default ``config.yaml`` with the sections of ``tests/coarse_config.yaml`` merged over it

@@ -13,16 +13,13 @@ import pandas as pd
 import pytest
 
 from jointid.diagnosis import effects as E
-from jointid.diagnosis import terms as T
 from jointid.diagnosis import synth
-from jointid.config import load_config
 from jointid.diagnosis.history import history_row
 from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.variants import dataset_states
-from jointid.threads import limit_threads
 from jointid.data.dataset import read_dataset
-from conftest import coarse_config_dict
+from conftest import diagnosis_rig
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = sorted((ROOT / "tests" / "hidden").glob("*.yaml"))
@@ -31,19 +28,8 @@ SUMMARY: dict = {}
 
 @pytest.fixture(scope="module")
 def rig():
-    """Identification config of the tests: coarse mesh, normal and lateral joint stiffness identified,
-    feed stiffness fixed (so the feed effect is not absorbed by an identified parameter)."""
-    from jointid.fe.model import build_model
-
-    limit_threads(1)
-    cfg = coarse_config_dict()
-    cfg["joints"]["parameters"] = {
-        "k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
-        "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}}
-    cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
-    cfg = load_config(cfg)
-    model = build_model(cfg)
-    return {"cfg": cfg, "model": model, "system": T.build_system(model, cfg), "solver": None}
+    """The coarse rig of the synthetic diagnosis tests (:func:`conftest.diagnosis_rig`)."""
+    return diagnosis_rig()
 
 
 def _true_effect(truth: dict):

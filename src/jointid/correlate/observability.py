@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MeasurementSetup", "VISIBLE_THRESHOLD", "clearly_visible", "nearest_measured", "test_band",
+__all__ = ["MeasurementSetup", "VISIBLE_THRESHOLD", "clearly_visible", "misfit_target", "nearest_measured", "test_band",
            "visibility"]
 
 VISIBLE_THRESHOLD = 0.25
@@ -158,3 +158,20 @@ def nearest_measured(f_model: np.ndarray, f_meas: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore"):  # a rigid-body mode (0 Hz) is nearest to the lowest measured one
         d = np.abs(np.log(f_model)[:, None] - np.log(f_meas)[None, :])
     return f_meas[np.argmin(np.nan_to_num(d, nan=np.inf), axis=1)]
+
+
+def misfit_target(f_model: np.ndarray, f_meas: np.ndarray, band_Hz: tuple) -> np.ndarray:
+    """For each unpaired model frequency inside the test band, what it is scored against (Hz): the
+    nearest measured frequency or the nearer band edge, whichever is nearer in log distance.
+
+    A mode just inside the band edge that the test did not list is explained as well by moving out
+    of the band as by merging with a measured mode: its misfit is the smaller of the two distances
+    (a mode mid-band, far from every measured mode and edge, stays a large misfit).
+    """
+    f_model = np.atleast_1d(np.asarray(f_model, float))
+    near = nearest_measured(f_model, f_meas)
+    lo, hi = float(band_Hz[0]), float(band_Hz[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        edge = np.where(np.abs(np.log(f_model / lo)) < np.abs(np.log(hi / f_model)), lo, hi)
+        use_edge = np.abs(np.log(f_model / edge)) < np.abs(np.log(f_model / near))
+    return np.where(use_edge & (f_model > 0), edge, near)

@@ -74,7 +74,8 @@ def absorption_text(effect: str, value: float, unit: str, pname: str, info: dict
 
 def tie_groups(ranking: pd.DataFrame, tie_delta_aicc: float) -> list[str]:
     """Per ranking row, the other candidates indistinguishable from it (";"-joined, "" for none):
-    both explain the data and their AICc differ by less than ``tie_delta_aicc``."""
+    both explain the data and their AICc differ by less than ``tie_delta_aicc`` (or cannot be
+    compared: AICc is infinite when there are no more residuals than parameters + 1)."""
     out = []
     ok = ranking["explains"].astype(bool).to_numpy()
     a = ranking["delta_aicc"].to_numpy(float)
@@ -83,8 +84,9 @@ def tie_groups(ranking: pd.DataFrame, tie_delta_aicc: float) -> list[str]:
         if not ok[i]:
             out.append("")
             continue
-        out.append(";".join(names[j] for j in range(len(ranking))
-                            if j != i and ok[j] and abs(a[j] - a[i]) < tie_delta_aicc))
+        # a non-finite AICc (no more residuals than parameters + 1) cannot separate anything
+        out.append(";".join(names[j] for j in range(len(ranking)) if j != i and ok[j]
+                            and (not np.isfinite(a[j] - a[i]) or abs(a[j] - a[i]) < tie_delta_aicc)))
     return out
 
 
@@ -116,7 +118,8 @@ def _further_modes(diag, fits: dict, names: list[str]) -> list[dict]:
                     f[n] = float(sb.freqs_Hz[m[j]])
             if len(f) < len(names):
                 continue
-            rows.append({"measurement": f"{d.name}: the model mode near {sa.freqs_Hz[j]:.0f} Hz (not measured)",
+            rows.append({"measurement": f"{d.name}: the mode near {sa.freqs_Hz[j]:.0f} Hz, not measured today "
+                                        "(extend the measured band to it)",
                          "kind": "further mode", "state": d.name, "em_force_N": d.info.em_force_N,
                          "predictions_Hz": f, "sigma_rel": d.sigma_rel})
     return rows

@@ -23,6 +23,7 @@ def history_row(res: Diagnosis, dataset: str, cfg_hash: str) -> dict:
     cur = res.current[res.current.status == "paired"]
     summ = correlate.error_summary(res.current)
     errs = "; ".join(f"{r.state}: max {r.max_abs_error_pct:.3f} % rms {r.rms_error_pct:.3f} %"
+                     if np.isfinite(r.max_abs_error_pct) else f"{r.state}: no paired mode"
                      for r in summ.itertuples())
     variant = res.ladder["variant"].iloc[-1] if len(res.ladder) else "baseline"
     non_sugg = [v for v in dict.fromkeys(res.ladder["variant"]) if "suggested" not in v]
@@ -30,8 +31,8 @@ def history_row(res: Diagnosis, dataset: str, cfg_hash: str) -> dict:
     e = cur["error_pct"].to_numpy(float)
     return {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": cfg_hash,
             "dataset": dataset, "variant": variant,
-            "max_abs_error_pct": float(np.abs(e).max()) if len(e) else np.nan,
-            "rms_error_pct": float(np.sqrt(np.mean(e ** 2))) if len(e) else np.nan,
+            "max_abs_error_pct": float(np.abs(e).max()) if len(e) else "",
+            "rms_error_pct": float(np.sqrt(np.mean(e ** 2))) if len(e) else "",
             "errors": errs, "verdict": res.explained_by}
 
 

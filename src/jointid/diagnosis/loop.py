@@ -61,6 +61,7 @@ class Diagnosis:
     next_measurements: pd.DataFrame = field(default_factory=pd.DataFrame)
     preload_curve: pd.DataFrame = field(default_factory=pd.DataFrame)
     identifiable: dict = field(default_factory=dict)
+    absorbed: list = field(default_factory=list)
 
 
 OPTIONS = {"alpha": 0.01, "n_refit": 5, "max_effects": 2, "n_combine": 5, "tie_delta_aicc": 4.0,
@@ -148,7 +149,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
                      point_residuals=correlate.point_residuals(shape_res), mac=mac_mats, verdict=verdict,
                      explained_by=explained_by, fits=fits, notes=notes, parameters=parameter_table(fits),
                      timing_s=time.time() - t_start, solver=diag.solver, combinations=combos,
-                     next_measurements=nxt, preload_curve=curve, identifiable=ident)
+                     next_measurements=nxt, preload_curve=curve, identifiable=ident, absorbed=absorbed)
 
 
 def check_enough_data(data: list[StateData], base: Variant) -> None:
@@ -271,10 +272,19 @@ def score_candidate(diag: Diagnoser, current: Fit, spec: EffectSpec, C: np.ndarr
 
 def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_refit: int, alpha: float,
                      log) -> None:
-    """Step 4: refit the ``n_refit`` leading candidates (by score); fills their ranking rows and ``fits``."""
+    """Step 4: refit the ``n_refit`` leading candidates (by score); fills their ranking rows and ``fits``.
+
+    A measured mode that no model mode pairs with is a residual without a sensitivity: the score test
+    cannot see that a candidate would bring the missing mode.  With such modes every applicable
+    candidate is refitted (the score-led ones first), its pairing re-done during the fit.
+    """
     order = sorted([r for r in rows if r[1] is not None and r[2]["sign_ok"] and r[0]["score"] > 0
                     and r[2]["collinearity"] >= 1e-3 and r[0]["explained_fraction"] >= 0.01],
                    key=lambda r: -r[0]["score"])
+    if any(p.unpaired_measured for p in current.pairings):
+        rest = [r for r in rows if r[1] is not None and r not in order and r[2]["collinearity"] >= 1e-3]
+        order = order[:n_refit] + sorted(rest, key=lambda r: -r[0]["score"])
+        n_refit = len(order)
     for i, (row, spec, st) in enumerate(order[:n_refit]):
         log(f"diagnosis: refitting {current.variant.name} + {row['effect']}")
         f = refit(diag, current, spec, st["t_hat"], verify=i == 0)

@@ -14,7 +14,8 @@ from jointid.diagnosis.page import html_page
 
 def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
     """Write ranking.csv, ladder.csv, compare.csv, current.csv, parameters.csv, drift.csv,
-    shape_residuals.csv, point_residuals.csv, mac_<state>.csv, verdict.json and index.html."""
+    shape_residuals.csv, point_residuals.csv, mac_<state>.csv, combinations.csv, next_measurements.csv,
+    preload_curve.csv, verdict.json and index.html."""
     out = Path(out_dir)
     page = html_page(res, dataset, run)  # figures first: a failure there leaves no partial set behind
     io.write_csv(res.ranking, out / "ranking.csv")
@@ -29,6 +30,27 @@ def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
         df = pd.DataFrame(M, columns=[f"model_{j + 1}" for j in range(M.shape[1])])
         df.insert(0, "measured_mode", np.arange(1, M.shape[0] + 1))
         io.write_csv(df, out / f"mac_{state}.csv")
-    io.write_json(out / "verdict.json", {"dataset": dataset, "verdict": res.verdict, "explained_by": res.explained_by,
-                                         "notes": res.notes, "run": run, "timing_s": res.timing_s})
+    io.write_csv(res.combinations, out / "combinations.csv")
+    io.write_csv(res.next_measurements, out / "next_measurements.csv")
+    io.write_csv(res.preload_curve, out / "preload_curve.csv")
+    io.write_json(out / "verdict.json", verdict_record(res, dataset, run))
     io.write_text(out / "index.html", page)
+
+
+def verdict_record(res: Diagnosis, dataset: str, run: dict) -> dict:
+    """The content of ``verdict.json``: the verdict, its short form, the effects it names (several
+    when the data cannot tell them apart or a combination is needed), what the data identify, the
+    absorbed candidates, the measurements that would decide and the notes."""
+    short = res.explained_by
+    if short in ("none needed", "unexplained"):
+        named, kind = [], short
+    elif " or " in short:
+        named, kind = short.split(" or "), "indistinguishable"
+    elif "+" in short:
+        named, kind = short.split("+"), "combination"
+    else:
+        named, kind = [short], "single"
+    return {"dataset": dataset, "verdict": res.verdict, "explained_by": short, "kind": kind, "effects": named,
+            "identifiable": res.identifiable, "absorbed": res.absorbed,
+            "next_measurements": res.next_measurements.to_dict(orient="records"),
+            "notes": res.notes, "run": run, "timing_s": res.timing_s}

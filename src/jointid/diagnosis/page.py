@@ -17,7 +17,8 @@ from jointid.diagnosis.effects import effect_table
 from jointid.diagnosis.loop import Diagnosis
 
 RANK_COLUMNS = ["rank", "effect", "explained_fraction", "score", "p_value", "delta_aicc", "explains",
-                "parameter", "estimate", "ci95_low", "ci95_high", "unit", "max_abs_error_pct_after", "note"]
+                "indistinguishable_from", "parameter", "estimate", "ci95_low", "ci95_high", "unit",
+                "max_abs_error_pct_after", "absorbed", "absorbed_bias_pct", "note"]
 TEMPLATE = "diagnosis.html"
 
 
@@ -157,11 +158,14 @@ def html_page(res: Diagnosis, dataset: str, run: dict) -> str:
     tables = {"compare_summary": res.compare_summary, "compare": res.compare,
               "point_residuals": res.point_residuals.head(12),
               "ranking": res.ranking[[c for c in RANK_COLUMNS if c in res.ranking]], "ladder": res.ladder,
-              "parameters": res.parameters, "drift": res.drift, "library": lib}
+              "parameters": res.parameters, "drift": res.drift, "library": lib,
+              "combinations": res.combinations, "next_measurements": res.next_measurements,
+              "preload_curve": res.preload_curve}
     env = Environment(loader=PackageLoader("jointid.diagnosis", "templates"),
                       autoescape=select_autoescape(["html"]), keep_trailing_newline=True)
     return env.get_template(TEMPLATE).render(
         figs=figures(res), dataset=dataset, verdict=res.verdict, notes=res.notes, mac_states=list(res.mac),
+        absorbed=res.absorbed, identifiable=res.identifiable,
         time_utc=run.get("time_utc", ""), config_hash=run.get("config_hash", ""),
         n_dofs=str(run.get("n_dofs", "")), timing=f"{res.timing_s:.0f}",
         tables={k: html_table(v) for k, v in tables.items()})

@@ -98,7 +98,7 @@ class Fit:
         for d, (cols, tgt, fm) in zip(data, self.ev.misfits or []):
             for c, t, f in zip(cols, tgt, fm):
                 out.append({"state": d.name, "model_mode": int(c) + 1, "freq_Hz": float(f),
-                            "nearest_measured_Hz": float(t), "misfit_pct": float(100 * (f - t) / t)})
+                            "target_Hz": float(t), "misfit_pct": float(100 * (f - t) / t)})
         return out
 
     def state_summary(self, data: list[StateData]) -> list[dict]:

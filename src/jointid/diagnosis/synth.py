@@ -140,6 +140,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
     keep_rows = [i for i, lab in enumerate(labels) if lab.split(":")[1] in meas["directions"]]
     lo, hi = map(float, meas["band_Hz"])
     modes_rows, shape_rows, frf_rows, conds, clean = [], [], [], {}, {}
+    truncated = False
     for sname, scfg in truth["states"].items():
         state = StateInfo(sname, float((scfg or {}).get("em_force_N", 0.0)))
         kc, mc = baseline_coefficients(system, cfg, theta)
@@ -148,7 +149,9 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         n = int(meas["max_modes"]) + 8
         modes = solve_model(system, kc, mc, n, shift_Hz=cfg["solver"]["shift_Hz"],
                             backend=cfg["solver"]["backend"])
-        sel = np.flatnonzero((modes.freqs_Hz >= lo) & (modes.freqs_Hz <= hi))[: int(meas["max_modes"])]
+        in_band = np.flatnonzero((modes.freqs_Hz >= lo) & (modes.freqs_Hz <= hi))
+        sel = in_band[: int(meas["max_modes"])]
+        truncated = truncated or len(in_band) > len(sel)
         f_true = modes.freqs_Hz[sel]
         clean[sname] = f_true
         f_noisy = f_true * (1 + noise["frequency_pct"] / 100 * rng.standard_normal(len(sel)))
@@ -174,6 +177,8 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         conds[sname] = cond
     conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
                   "frequency_uncertainty_pct": float(noise["frequency_pct"]), "states": conds}
+    if not truncated:  # every mode in the band was measured: the test declares its band
+        conditions["test_setup"] = {"band_Hz": [lo, hi]}
     return {"modes": pd.DataFrame(modes_rows),
             "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
             "frf": pd.DataFrame(frf_rows) if frf_rows else None,

@@ -22,7 +22,7 @@ import pandas as pd
 
 from jointid.diagnosis.results import Fit
 
-__all__ = ["Findings", "verdict_text", "state_errors_text"]
+__all__ = ["Findings", "verdict_text", "state_errors_text", "daicc"]
 
 
 @dataclass
@@ -39,6 +39,12 @@ class Findings:
     next_measurements: pd.DataFrame = field(default_factory=pd.DataFrame)
     identifiable: dict = field(default_factory=dict)  # fit label (current, +A, +A+B) -> sentence
     max_effects: int = 2
+
+
+def daicc(value: float) -> str:
+    """A delta AICc for the text: ``-12.3``, or why there is none."""
+    v = float(value)
+    return f"{v:.1f}" if np.isfinite(v) else "undefined: too few residuals for the parameters"
 
 
 def state_errors_text(summary: list[dict]) -> str:
@@ -85,7 +91,7 @@ def verdict_text(f: Findings, data) -> tuple[str, str]:
         return verdict + _identifiable(f, ["+" + str(best["effects"])]), str(best["effects"])
     verdict = unexplained_text(f.current, f.ranking, cur_txt, combos, f.max_effects)
     return (verdict + between_states_text(f.ranking, f.between_share)
-            + _identifiable(f, ["current"] + ["+" + str(e) for e in f.ranking["effect"]]), "unexplained")
+            + _identifiable(f, ["current"]), "unexplained")
 
 
 def _identifiable(f: Findings, labels: list) -> str:
@@ -104,7 +110,7 @@ def missing_effect_text(best: pd.Series, max_error_pct: float) -> str:
             f"It explains {100 * best['explained_fraction']:.0f} % of the residual to first order; refitted, "
             f"the error falls from max {max_error_pct:.2f} % to "
             f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
-            f"(p = {best['fit_p_value']:.2g}, delta AICc = {best['delta_aicc']:.1f}). Enable it with "
+            f"(p = {best['fit_p_value']:.2g}, delta AICc = {daicc(best['delta_aicc'])}). Enable it with "
             f"effects: {{{_enable(best)}}} in config.yaml.")
 
 
@@ -116,7 +122,7 @@ def _enable(row: pd.Series) -> str:
 
 def _tie_text(f: Findings, explaining: pd.DataFrame, tied: list[str], max_error_pct: float) -> str:
     rows = explaining.set_index("effect").loc[tied]
-    each = "; ".join(f"{n}: {r['parameter']} = {r['estimate']:.4g} {r['unit']} (delta AICc {r['delta_aicc']:.1f}, "
+    each = "; ".join(f"{n}: {r['parameter']} = {r['estimate']:.4g} {r['unit']} (delta AICc {daicc(r['delta_aicc'])}, "
                      f"p = {r['fit_p_value']:.2g}, max error {r['max_abs_error_pct_after']:.2f} %)"
                      for n, r in rows.iterrows())
     txt = (f"Missing effect: {' or '.join(tied)} (the data cannot tell them apart). Each refitted brings the "
@@ -145,7 +151,7 @@ def combination_text(best: pd.Series, combos: pd.DataFrame, max_error_pct: float
     txt = (f"Missing effects: {' and '.join(names)} together ({best['estimates']}). No single library effect "
            f"explains the residual ({single}); together the error falls from max {max_error_pct:.2f} % to "
            f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
-           f"(p = {best['fit_p_value']:.2g}, delta AICc = {best['delta_aicc']:.1f}). Enable them with effects: "
+           f"(p = {best['fit_p_value']:.2g}, delta AICc = {daicc(best['delta_aicc'])}). Enable them with effects: "
            f"{{{', '.join(n + ': {}' for n in names)}}} in config.yaml.")
     if len(others):
         txt += (" Within the same AICc, " + " or ".join(str(e) for e in others["effects"])
@@ -169,9 +175,10 @@ def unexplained_text(current: Fit, ranking: pd.DataFrame, cur_txt: str, combos: 
         c = combos.iloc[0]
         part += (f" No pair of the leading candidates does either: the best, {c['effects']}, leaves max "
                  f"{c['max_abs_error_pct_after']:.2f} % (p = {c['fit_p_value']:.2g}).")
-    scope = "library" if max_effects <= 1 or len(combos) else "library (single effects tried)"
-    return (f"No listed effect explains the residual: the current model misses something outside the {scope} "
-            f"({cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
+    tried = "single effects" if max_effects <= 1 or not len(combos) else f"up to {min(max_effects, 2)} effects at once"
+    return (f"No listed effect explains the residual: the current model misses something outside the library "
+            f"({tried} tried; "
+            f"{cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
             f"p = {current.p_value:.2g})." + part)
 
 

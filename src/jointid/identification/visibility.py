@@ -5,8 +5,8 @@ assignment when only frequencies are measured).  A model mode inside the test ba
 mode is paired with, but that the test would clearly have seen
 (:func:`jointid.correlate.observability.clearly_visible`), is a **misfit** of the model: it enters
 the objective as a residual ``(f_u - f_near) / f_near``, its distance to the nearest measured mode
-(a mode near a measured one may have merged with it in the test; one far from every measured mode is
-a peak the test does not show), and the frequency-only pairing pays that residual, squared, for
+or band edge (a mode near a measured one may have merged with it in the test; one just inside the
+band edge would be unseen just outside it; one far from both is a peak the test does not show), and the frequency-only pairing pays that residual, squared, for
 leaving it unpaired.  The same rule serves the surfaces, the FE polish and the verification.
 """
 
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointid.correlate.observability import (VISIBLE_THRESHOLD, MeasurementSetup, clearly_visible,
-                                             nearest_measured, test_band, visibility)
+                                             misfit_target, test_band, visibility)
 from jointid.correlate.pairing import pair_by_frequency
 
 __all__ = ["VisibilityRule", "dataset_rule", "misfit_table"]
@@ -50,7 +50,8 @@ class VisibilityRule:
 
     def misfits(self, index, freqs_Hz, vis, f_meas) -> tuple[np.ndarray, np.ndarray]:
         """``(modes, targets)``: the clearly visible modes in the band that ``index`` (the model mode of
-        each measured mode) leaves unpaired, and the nearest measured frequency of each (Hz)."""
+        each measured mode) leaves unpaired, and what each is scored against (Hz): the nearest measured
+        frequency or band edge (:func:`jointid.correlate.observability.misfit_target`)."""
         freqs_Hz = np.asarray(freqs_Hz, float)
         index = np.asarray(index, int)
         seen = clearly_visible(vis, index, self.threshold)
@@ -58,18 +59,18 @@ class VisibilityRule:
         taken = np.zeros(freqs_Hz.size, bool)
         taken[index[index >= 0]] = True
         cols = np.flatnonzero(seen & inside & ~taken)
-        return cols, nearest_measured(freqs_Hz[cols], f_meas) if cols.size else np.zeros(0)
+        return cols, misfit_target(freqs_Hz[cols], f_meas, self.band_Hz) if cols.size else np.zeros(0)
 
     def skip_costs(self, index, freqs_Hz, vis, f_meas) -> np.ndarray:
         """Cost of leaving each mode unpaired in the frequency pairing: the squared log distance to the
-        nearest measured mode for a clearly visible mode in the band (visibility judged against the
+        nearest measured mode or band edge for a clearly visible mode in the band (visibility judged against the
         modes ``index`` pairs), else 0."""
         freqs_Hz = np.asarray(freqs_Hz, float)
         index = np.asarray(index, int)
         seen = clearly_visible(vis, index, self.threshold)
         inside = (freqs_Hz >= self.band_Hz[0]) & (freqs_Hz <= self.band_Hz[1])
         with np.errstate(divide="ignore", invalid="ignore"):  # 0-Hz rigid-body modes: outside the band
-            cost = np.log(freqs_Hz / nearest_measured(freqs_Hz, f_meas)) ** 2
+            cost = np.log(freqs_Hz / misfit_target(freqs_Hz, f_meas, self.band_Hz)) ** 2
         return np.where(seen & inside, cost, 0.0)
 
     def pair_by_frequency(self, f_meas, freqs_Hz, vis, candidates: np.ndarray, max_rounds: int = 6) -> np.ndarray:
@@ -97,8 +98,8 @@ class VisibilityRule:
 def misfit_table(rule: VisibilityRule, index, freqs_Hz, vis, f_meas, descriptions=None) -> list[dict]:
     """The unpaired, clearly visible modes as records for params.json and the tables.
 
-    Each: ``model_mode`` (1-based), ``freq_Hz``, ``nearest_measured_Hz``, ``misfit_pct`` (signed,
-    model minus nearest measured), ``visibility_rel`` (to the weakest paired mode) and, if given,
+    Each: ``model_mode`` (1-based), ``freq_Hz``, ``target_Hz``, ``misfit_pct`` (signed,
+    model minus the target: nearest measured mode or band edge), ``visibility_rel`` (to the weakest paired mode) and, if given,
     ``description``.
     """
     cols, targets = rule.misfits(index, freqs_Hz, vis, f_meas)
@@ -106,7 +107,7 @@ def misfit_table(rule: VisibilityRule, index, freqs_Hz, vis, f_meas, description
     weakest = float(np.min(np.asarray(vis)[index[index >= 0]])) if np.any(index >= 0) else float("nan")
     out = []
     for j, t in zip(cols, targets):
-        rec = {"model_mode": int(j) + 1, "freq_Hz": float(freqs_Hz[j]), "nearest_measured_Hz": float(t),
+        rec = {"model_mode": int(j) + 1, "freq_Hz": float(freqs_Hz[j]), "target_Hz": float(t),
                "misfit_pct": float(100 * (freqs_Hz[j] - t) / t), "visibility_rel": float(vis[j] / weakest)}
         if descriptions is not None:
             rec["description"] = str(descriptions[j])

@@ -69,7 +69,7 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
     out.append(html_table(freq, {c: ".2f" for c in freq.columns if c not in ("state", "mode")}, text_cols=("state",)))
     if rec.get("unpaired_visible"):
         out.append(html_table(pd.DataFrame(rec["unpaired_visible"]),
-                              {"freq_Hz": ".1f", "nearest_measured_Hz": ".1f", "misfit_pct": ".2f"},
+                              {"freq_Hz": ".1f", "target_Hz": ".1f", "misfit_pct": ".2f"},
                               text_cols=("state",)))
     if spread is not None and len(spread):
         out.append("<p class='note'>Joint parameters over the hypotheses within ΔAICc &lt; 4 (the reconstruction "

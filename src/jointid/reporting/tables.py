@@ -62,7 +62,7 @@ def markdown_table(df: pd.DataFrame, state: str, unpaired: pd.DataFrame | None =
         extra = pd.DataFrame({
             "model mode": [f"{int(v)}" for v in unpaired.model_mode],
             "simulation_Hz": [f"{v:.1f}" for v in unpaired.freq_Hz],
-            "nearest measured_Hz": [f"{v:.1f}" for v in unpaired.nearest_measured_Hz],
+            "target_Hz": [f"{v:.1f}" for v in unpaired.target_Hz],
             "misfit_pct": [f"{v:+.2f}" for v in unpaired.misfit_pct],
             "visibility (weakest paired = 1)": [f"{v:.2f}" for v in unpaired.visibility_rel],
             "description": list(unpaired.description)})

@@ -149,7 +149,7 @@ def _polish_notes(polish: dict, shapes) -> list[str]:
     if seen:
         msgs.append(f"{len(seen)} model mode(s) the test would clearly have seen have no measured partner and "
                     "count as misfits: " + "; ".join(
-                        f"{m['freq_Hz']:.0f} Hz ({m['misfit_pct']:+.1f} % from the measured {m['nearest_measured_Hz']:.0f} Hz, "
+                        f"{m['freq_Hz']:.0f} Hz ({m['misfit_pct']:+.1f} % from {m['target_Hz']:.0f} Hz, the nearest measured mode or band edge, "
                         f"visibility {m['visibility_rel']:.2f} of the weakest paired mode)" for m in seen))
     skipped = polish["unpaired_in_band_Hz"]
     if skipped:

@@ -38,7 +38,7 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
             + misfit)
     if unpaired_out:
         frame = pd.concat(gathered, ignore_index=True) if gathered else pd.DataFrame()
-        cols = ["state", "model_mode", "freq_Hz", "nearest_measured_Hz", "misfit_pct", "visibility_rel", "description"]
+        cols = ["state", "model_mode", "freq_Hz", "target_Hz", "misfit_pct", "visibility_rel", "description"]
         io.write_csv(frame.reindex(columns=cols), unpaired_out)
 
 

@@ -55,7 +55,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
 
     ``unpaired_csv``: the model modes the test would clearly have seen that no measured mode is paired
     with (:mod:`jointid.identification.visibility`; columns ``model_mode, freq_Hz,
-    nearest_measured_Hz, misfit_pct, visibility_rel, description``), the misfits of the tables.
+    target_Hz, misfit_pct, visibility_rel, description``), the misfits of the tables.
 
     With ``edge_matrices`` (``mesh.extrapolate_edges``) the simulated frequencies are the
     mesh-extrapolated ones at these parameters (:mod:`jointid.fe.extrapolate`, solved afresh here), and
@@ -100,13 +100,13 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
         "strain_joints": [float(desc["strain_joints"][i]) if i >= 0 else np.nan for i in index]})
     io.write_csv(rows, out_csv)
     if unpaired_csv:
-        cols = ["model_mode", "freq_Hz", "nearest_measured_Hz", "misfit_pct", "visibility_rel", "description"]
+        cols = ["model_mode", "freq_Hz", "target_Hz", "misfit_pct", "visibility_rel", "description"]
         seen = ([] if rule is None else
                 misfit_table(rule, index, f_all, rule.visibility(shapes, f_all), f_meas, list(desc["description"])))
         io.write_csv(pd.DataFrame(seen, columns=cols), unpaired_csv)
         for m in seen:
             log(f"verify[{state}]: unpaired but clearly visible: {m['freq_Hz']:.0f} Hz {m['description']} "
-                f"({m['misfit_pct']:+.1f} % from the measured {m['nearest_measured_Hz']:.0f} Hz)")
+                f"({m['misfit_pct']:+.1f} % from {m['target_Hz']:.0f} Hz, the nearest measured mode or band edge)")
     log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
     if edge_matrices and par.get("fe_polish"):
