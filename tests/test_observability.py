@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from jointid.correlate.observability import (MeasurementSetup, clearly_visible, nearest_measured, visibility)
+from jointid.correlate.observability import (MeasurementSetup, clearly_visible, misfit_target, nearest_measured,
+                                             visibility)
 from jointid.correlate.pairing import ordered_assignment, pair_by_frequency
 
 
@@ -63,6 +64,13 @@ def test_nearest_measured_in_log_distance():
     assert list(nearest_measured([100, 140, 400], [120.0, 300.0])) == [120.0, 120.0, 300.0]
 
 
+def test_misfit_target_is_the_nearer_of_measured_mode_and_band_edge():
+    """A mode just inside the band edge is scored against the edge (it would be unseen just outside
+    it); a mode mid-band against the nearest measured mode."""
+    t = misfit_target([2450.0, 3400.0, 150.0], [1000.0, 2400.0], (140.0, 3500.0))
+    assert list(t) == [2400.0, 3500.0, 140.0]
+
+
 def test_setup_from_spec_and_default():
     pts = ["T01", "T02"]
     s = MeasurementSetup.from_spec({"excitation": ["T01:y"], "response_directions": ["y"]}, pts, ["T02:x"])
@@ -115,3 +123,33 @@ def test_shared_state_pairing_sums_the_skip_costs_of_every_state_along_the_track
     small = [np.array([0.0, 0.01, 0.0]), np.zeros(3)]
     assert [list(p.model_index) for p in pair_states_by_frequency(f_meas, f_model, tracks, skip_cost=small)] \
         == [[0, 2], [1, 2]]
+
+
+def test_mac_uses_the_locations_both_shapes_have():
+    """A location missing for one mode only leaves the other modes' pairs on every location, and a
+    mode without any shape has MAC 0 with everything (it poisons nothing)."""
+    from jointid.correlate.mac import mac
+
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((6, 3))
+    b = rng.standard_normal((6, 4))
+    full = mac(a, b)
+    a2 = a.copy()
+    a2[0, 1] = np.nan          # mode 2 lacks location 1
+    a2[:, 2] = np.nan          # mode 3 has no shape at all
+    m = mac(a2, b)
+    assert np.allclose(m[0], full[0])                       # untouched mode: all locations
+    assert np.allclose(m[1], mac(a[1:, 1], b[1:])[0])       # its own common locations
+    assert np.all(m[2] == 0.0)
+
+
+def test_a_mode_without_a_shape_is_paired_by_frequency():
+    from jointid.correlate.pairing import pair_modes
+
+    f_model = np.array([100.0, 200.0, 300.0, 400.0])
+    shapes_model = np.eye(4)
+    f_meas = np.array([101.0, 199.0, 305.0])
+    meas = np.eye(4)[:, [0, 1, 2]].copy()
+    meas[:, 2] = np.nan        # the third measured mode's shape is missing
+    p = pair_modes(f_meas, f_model, meas, shapes_model)
+    assert list(p.model_index) == [0, 1, 2] and p.unpaired_measured == []

@@ -19,7 +19,8 @@ from jointid.diagnosis.loop import Diagnosis
 
 
 def history_row(res: Diagnosis, dataset: str, cfg_hash: str) -> dict:
-    """One row of ``results/history.csv`` for this run (current model's errors)."""
+    """One row of ``results/history.csv`` for this run: the current model's errors, the verdict and
+    what the data identify of the current model's contact law (``identified``; empty without one)."""
     cur = res.current[res.current.status == "paired"]
     summ = correlate.error_summary(res.current)
     errs = "; ".join(f"{r.state}: max {r.max_abs_error_pct:.3f} % rms {r.rms_error_pct:.3f} %"
@@ -33,7 +34,8 @@ def history_row(res: Diagnosis, dataset: str, cfg_hash: str) -> dict:
             "dataset": dataset, "variant": variant,
             "max_abs_error_pct": float(np.abs(e).max()) if len(e) else "",
             "rms_error_pct": float(np.sqrt(np.mean(e ** 2))) if len(e) else "",
-            "errors": errs, "verdict": res.explained_by}
+            "errors": errs, "verdict": res.explained_by,
+            "identified": res.identifiable.get("current", "")}
 
 
 def append_history(path, row: dict) -> None:

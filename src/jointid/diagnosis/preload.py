@@ -171,8 +171,10 @@ def identifiable_text(ratios: pd.DataFrame, curve: pd.DataFrame | None, profile:
                         if r.preload_N in (0.0, 100.0, 400.0, 1600.0)) if curve is not None and len(curve) else ""
         spread = (f" (chi-square {curve['chi2'].min():.1f} .. {curve['chi2'].max():.1f} along the curve)"
                   if curve is not None and len(curve) else "")
+        held = curve[curve["fitted"]] if curve is not None and len(curve) else None
+        at = f" (the fit holds P at {held['preload_N'].iloc[0]:g} N)" if held is not None and len(held) else ""
         txt += (f" With {n_levels} force levels beta and the block preload P are not separately identifiable: "
-                f"only this ratio is. Every pair on the curve fits alike{spread}: {pts}.")
+                f"only this ratio is. Every pair on the curve fits alike{spread}: {pts}{at}.")
     else:
         hi = "inf" if math.isinf(profile["high"]) else f"{profile['high']:.0f}"
         txt += (f" With {n_levels} force levels the curvature of the law separates beta from the block "

@@ -80,10 +80,10 @@ def verdict_text(f: Findings, data) -> tuple[str, str]:
         tied = [str(best["effect"])] + [n for n in str(best.get("indistinguishable_from") or "").split(";") if n]
         if len(tied) > 1:
             verdict, short = _tie_text(f, explaining, tied, _max_error(summ)), " or ".join(tied)
-        else:
+            verdict += _identifiable(f, ["+" + n for n in tied])
+        else:  # the single effect's row carries what the data identify of it
             verdict, short = missing_effect_text(best, _max_error(summ)), str(best["effect"])
-        return (verdict + _identifiable(f, ["+" + n for n in tied]) + between_states_text(f.ranking, f.between_share),
-                short)
+        return verdict + between_states_text(f.ranking, f.between_share), short
     combos = f.combinations
     if len(combos) and combos["explains"].any():
         best = combos[combos["explains"]].iloc[0]
@@ -104,9 +104,14 @@ def _identifiable(f: Findings, labels: list) -> str:
 
 
 def missing_effect_text(best: pd.Series, max_error_pct: float) -> str:
-    """The verdict naming the missing effect ``best`` (a ranking row) and what enabling it achieves."""
-    return (f"Missing effect: {best['effect']} ({best['title']}), {best['parameter']} = "
-            f"{best['estimate']:.4g} {best['unit']} (95 % CI {best['ci95_low']:.3g} .. {best['ci95_high']:.3g}). "
+    """The verdict naming the missing effect ``best`` (a ranking row) and what enabling it achieves;
+    what the data identify of it (its ``identifiable`` column) comes before its raw parameter."""
+    unit = "" if best["unit"] in ("-", "") else f" {best['unit']}"
+    raw = (f"{best['parameter']} = {best['estimate']:.4g}{unit} (95 % CI {best['ci95_low']:.3g} .. "
+           f"{best['ci95_high']:.3g})")
+    ident = best.get("identifiable")
+    what = f"the data identify the {ident} Its parameter as fitted: {raw}" if isinstance(ident, str) and ident else raw
+    return (f"Missing effect: {best['effect']} ({best['title']}): {what}. "
             f"It explains {100 * best['explained_fraction']:.0f} % of the residual to first order; refitted, "
             f"the error falls from max {max_error_pct:.2f} % to "
             f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
