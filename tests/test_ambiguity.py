@@ -28,7 +28,7 @@ from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.terms import StateInfo
 from jointid.diagnosis.variants import dataset_states
-from conftest import diagnosis_rig
+from conftest import diagnosis_rig, ladder_text
 
 JOINTS = {"k_normal_N_per_m3": 8.0e11, "k_lateral_N_per_m3": 6.0e11}
 TWO_STATES = {"power_off": {"em_force_N": 0.0}, "power_on": {"em_force_N": 1000.0}}
@@ -62,11 +62,6 @@ def run_case(rig, t: dict, folder, *, drop=None, **kw):
     return res, data
 
 
-def ladder_text(res) -> str:
-    g = res.ladder.groupby("variant", sort=False)["max_abs_error_pct"].max()
-    return " -> ".join(f"{v} {m:.2f} %" for v, m in g.items())
-
-
 def no_nan_anywhere(res, tmp_path):
     """No NaN in the verdict, the ladder's errors, the history row or any written file's text."""
     assert "nan" not in res.verdict.lower()
@@ -92,8 +87,8 @@ def test_partial_data_finds_the_hidden_effect(rig, tmp_path):
     base = res.ladder[res.ladder.variant == "baseline"]
     assert (base.n_paired == 7).all()  # every measured mode paired in both states
     no_nan_anywhere(res, tmp_path)
-    SUMMARY["partial data"] = dict(truth="added_mass_table", rank=1, verdict=res.explained_by,
-                                   ladder=ladder_text(res))
+    SUMMARY["partial data"] = dict(text=res.verdict, truth="added_mass_table", rank=1, verdict=res.explained_by,
+                                   ladder=ladder_text(res.ladder))
 
 
 def test_near_collinear_effects_are_named_together_and_a_measurement_decides(rig, tmp_path):
@@ -118,10 +113,12 @@ def test_near_collinear_effects_are_named_together_and_a_measurement_decides(rig
                band=(100.0, 1.02 * f_new))
     res2, _ = run_case(rig, t2, tmp_path / "ds2")
     assert res2.explained_by == "base_support", res2.verdict
-    SUMMARY["near-collinear"] = dict(truth="base_support", rank=f"tied ({res.explained_by})",
-                                     verdict=res.explained_by, ladder=ladder_text(res),
+    SUMMARY["near-collinear"] = dict(text=res.verdict, truth="base_support", rank=f"tied ({res.explained_by})",
+                                     verdict=res.explained_by, ladder=ladder_text(res.ladder),
                                      measurement=best.measurement, after=res2.explained_by,
-                                     ladder_after=ladder_text(res2))
+                                     ladder_after=ladder_text(res2.ladder))
+    SUMMARY["near-collinear, band extended"] = dict(text=res2.verdict, truth="base_support", rank=1,
+                                                    verdict=res2.explained_by, ladder=ladder_text(res2.ladder))
 
 
 def test_two_effects_at_once_are_named_as_a_pair(rig, tmp_path):
@@ -139,8 +136,8 @@ def test_two_effects_at_once_are_named_as_a_pair(rig, tmp_path):
     comb = res.combinations.iloc[0]
     assert bool(comb.explains) and "em_preload.beta" in comb.estimates
     no_nan_anywhere(res, tmp_path)
-    SUMMARY["two effects"] = dict(truth="em_preload+added_mass_edge", rank="pair first", verdict=res.explained_by,
-                                  ladder=ladder_text(res))
+    SUMMARY["two effects"] = dict(text=res.verdict, truth="em_preload+added_mass_edge", rank="pair first",
+                                  verdict=res.explained_by, ladder=ladder_text(res.ladder))
 
 
 def test_contact_law_with_three_force_levels_identifies_beta_and_preload(rig, tmp_path):
@@ -155,10 +152,11 @@ def test_contact_law_with_three_force_levels_identifies_beta_and_preload(rig, tm
     assert prof["low"] <= 300.0 <= prof["high"], prof
     assert top.ci95_low <= 0.4 <= top.ci95_high, (top.estimate, top.ci95_low, top.ci95_high)
     assert "separates beta from the block preload" in res.verdict
-    SUMMARY["em_preload, 3 levels"] = dict(truth="em_preload beta 0.4, P 300 N", rank=1, verdict=res.explained_by,
-                                           ladder=ladder_text(res),
-                                           estimate=f"beta {top.estimate:.3f} [{top.ci95_low:.3f}, {top.ci95_high:.3f}], "
-                                                    f"P {prof['preload_N']:.0f} N [{prof['low']:.0f}, {prof['high']:.0f}]")
+    SUMMARY["em_preload, 3 levels"] = dict(
+        text=res.verdict, truth="em_preload beta 0.4, P 300 N", rank=1, verdict=res.explained_by,
+        ladder=ladder_text(res.ladder),
+        estimate=(f"beta {top.estimate:.3f} [{top.ci95_low:.3f}, {top.ci95_high:.3f}], "
+                  f"P {prof['preload_N']:.0f} N [{prof['low']:.0f}, {prof['high']:.0f}]"))
 
 
 def test_contact_law_with_two_force_levels_reports_the_ratio(rig, tmp_path):
@@ -175,8 +173,9 @@ def test_contact_law_with_two_force_levels_reports_the_ratio(rig, tmp_path):
     assert lo <= true_ratio <= hi, (true_ratio, text)
     curve = res.preload_curve
     assert len(curve) >= 3 and curve.chi2.max() - curve.chi2.min() < 1.0  # equally good along the curve
-    SUMMARY["em_preload, 2 levels"] = dict(truth=f"em_preload beta 0.4, P 300 N (ratio {true_ratio:.3f})", rank=1,
-                                           verdict=res.explained_by, ladder=ladder_text(res),
+    SUMMARY["em_preload, 2 levels"] = dict(text=res.verdict, rank=1,
+                                           truth=f"em_preload beta 0.4, P 300 N (ratio {true_ratio:.3f})",
+                                           verdict=res.explained_by, ladder=ladder_text(res.ladder),
                                            estimate=text.split(" With")[0])
 
 
@@ -192,7 +191,8 @@ def test_absorbed_effect_is_said_and_nothing_explains(rig, tmp_path):
     row = res.ranking[res.ranking.effect == "rail_fixing"].iloc[0]
     assert bool(row.absorbed) and abs(row.absorbed_bias_pct) > 3.0
     no_nan_anywhere(res, tmp_path)
-    SUMMARY["absorbed"] = dict(truth="rail_fixing 1e13", rank="-", verdict=res.explained_by, ladder=ladder_text(res))
+    SUMMARY["absorbed"] = dict(text=res.verdict, truth="rail_fixing 1e13", rank="-", verdict=res.explained_by,
+                               ladder=ladder_text(res.ladder))
 
 
 def test_too_few_modes_is_refused_with_a_clear_message(rig, tmp_path):
@@ -208,5 +208,8 @@ def test_summary_table(capsys):
     """Print truth, rank, verdict and error ladder of every case (pytest -s)."""
     if not SUMMARY:
         pytest.skip("no case ran")
+    df = pd.DataFrame(SUMMARY).T
     with capsys.disabled():
-        print("\n" + pd.DataFrame(SUMMARY).T.to_string())
+        print("\n" + df.drop(columns="text").to_string())
+        for name, text in df["text"].items():
+            print(f"\n{name}: {text}")

@@ -19,7 +19,7 @@ from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.variants import dataset_states
 from jointid.data.dataset import read_dataset
-from conftest import diagnosis_rig
+from conftest import diagnosis_rig, ladder_text
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = sorted((ROOT / "tests" / "hidden").glob("*.yaml"))
@@ -63,8 +63,8 @@ def test_hidden_effect_is_found(case, rig, tmp_path):
         assert res.explained_by == "unexplained", res.verdict
         assert res.verdict.startswith("No listed effect explains the residual")
         assert not res.ranking.explains.any()
-        SUMMARY[case.stem] = dict(true="(decoy)", rank="-", verdict="unexplained", before=base_max,
-                                  after=float(top.max_abs_error_pct_after))
+        SUMMARY[case.stem] = dict(text=res.verdict, true="(decoy)", rank="-", verdict="unexplained", before=base_max,
+                                  after=float(top.max_abs_error_pct_after), ladder=ladder_text(res.ladder))
         return
     assert top.effect == true, res.ranking[["effect", "explained_fraction", "delta_aicc", "explains"]]
     assert bool(top.explains) and res.explained_by == true
@@ -81,9 +81,10 @@ def test_hidden_effect_is_found(case, rig, tmp_path):
     assert rms < 1.5 * sigma_pct
     assert float(cur.max_abs_error_pct.max()) < 4 * sigma_pct
     assert on.verdict.startswith("The current model")
-    SUMMARY[case.stem] = dict(true=true, rank=rank, verdict=res.explained_by, before=base_max,
+    SUMMARY[case.stem] = dict(text=res.verdict, true=true, rank=rank, verdict=res.explained_by, before=base_max,
                               after=float(cur.max_abs_error_pct.max()), rms_after=rms,
-                              estimate=float(top.estimate), truth=truth["effects"][true][pname])
+                              estimate=float(top.estimate), truth=truth["effects"][true][pname],
+                              ladder=ladder_text(res.ladder))
     if true == "em_preload":
         # drift between the states is reported as evidence of a state-dependent effect
         assert res.drift.significant.any()
@@ -104,4 +105,6 @@ def test_summary_table(capsys):
         pytest.skip("no case ran")
     df = pd.DataFrame(SUMMARY).T
     with capsys.disabled():
-        print("\n" + df.to_string())
+        print("\n" + df.drop(columns="text").to_string())
+        for name, text in df["text"].items():
+            print(f"\n{name}: {text}")

@@ -149,10 +149,12 @@ def combination_text(best: pd.Series, combos: pd.DataFrame, max_error_pct: float
     """The verdict naming a combination of effects that explains the data (no single one does)."""
     names = str(best["effects"]).split("+")
     others = combos[combos["explains"] & (combos["effects"] != best["effects"])
-                    & ((combos["delta_aicc"] - best["delta_aicc"]).abs() < ranking.attrs.get("tie_delta_aicc", 4.0))]
+                    & ((combos["delta_aicc"] - best["delta_aicc"]).abs()
+                       < ranking.attrs.get("tie_delta_aicc", 4.0))]
     lead = ranking[ranking["delta_aicc"].notna()]
-    single = (f"the best single one, {lead.iloc[0]['effect']}, leaves max {lead.iloc[0]['max_abs_error_pct_after']:.2f} % "
-              f"(p = {lead.iloc[0]['fit_p_value']:.2g})" if len(lead) else "")
+    first = lead.iloc[0] if len(lead) else None
+    single = (f"the best single one, {first['effect']}, leaves max {first['max_abs_error_pct_after']:.2f} % "
+              f"(p = {first['fit_p_value']:.2g})" if first is not None else "")
     txt = (f"Missing effects: {' and '.join(names)} together ({best['estimates']}). No single library effect "
            f"explains the residual ({single}); together the error falls from max {max_error_pct:.2f} % to "
            f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
