@@ -27,7 +27,7 @@ def history_row(res: Diagnosis, dataset: str, cfg_hash: str) -> dict:
                      if np.isfinite(r.max_abs_error_pct) else f"{r.state}: no paired mode"
                      for r in summ.itertuples())
     variant = res.ladder["variant"].iloc[-1] if len(res.ladder) else "baseline"
-    non_sugg = [v for v in dict.fromkeys(res.ladder["variant"]) if "suggested" not in v]
+    non_sugg = [v for v in dict.fromkeys(res.ladder["variant"]) if "(" not in v]  # not a suggestion
     variant = non_sugg[-1] if non_sugg else variant
     e = cur["error_pct"].to_numpy(float)
     return {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": cfg_hash,

@@ -358,10 +358,24 @@ def identifiable(diag: Diagnoser, current: Fit, fits: dict, ranking: pd.DataFram
 
 def suggested_ladder(diag: Diagnoser, fits: dict, explained_by: str, ranking: pd.DataFrame) -> list[dict]:
     """Ladder rows of the suggested model: ``+A (suggested)``, or ``+A`` then ``+A+B (suggested)``
-    for a combination (forward selection); one row per tied candidate."""
-    if explained_by in ("none needed", "unexplained"):
+    for a combination (forward selection); one row per tied candidate.  When nothing explains the
+    data, the best single refit and the best pair, marked ``(best, above the noise)``: how far the
+    library gets."""
+    if explained_by == "none needed":
         return []
     rows = []
+    if explained_by == "unexplained":
+        refitted = ranking[ranking["delta_aicc"].notna()]
+        if not len(refitted):
+            return []
+        best = min(refitted["effect"], key=lambda n: fits["+" + n].aicc)
+        rows += state_errors_table(diag, fits["+" + best], f"+{best} (best, above the noise)")
+        pairs = [k for k in fits if k.count("+") == 2]
+        if pairs:
+            p = min(pairs, key=lambda k: fits[k].aicc)
+            if fits[p].aicc < fits["+" + best].aicc:
+                rows += state_errors_table(diag, fits[p], f"{p} (best pair, above the noise)")
+        return rows
     if "+" in explained_by:
         a, b = explained_by.split("+")
         rows += state_errors_table(diag, fits["+" + a], f"+{a}")
