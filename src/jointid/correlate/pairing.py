@@ -28,8 +28,8 @@ from scipy.optimize import linear_sum_assignment
 from jointid.correlate.mac import mac
 
 __all__ = ["Pairing", "below_band", "pair_by_mac", "pair_by_shapes", "pair_by_frequency", "ordered_assignment",
-           "pair_modes", "pair_shapeless", "pair_states_by_frequency", "frequency_errors", "shape_residuals", "point_residuals",
-           "error_summary"]
+           "pair_modes", "pair_shapeless", "pair_states_by_frequency", "frequency_errors", "shape_residuals",
+           "point_residuals", "error_summary"]
 
 
 @dataclass

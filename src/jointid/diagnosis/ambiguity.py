@@ -15,6 +15,8 @@ decide (docs/effects.md, "When the data cannot decide").
 from __future__ import annotations
 
 import itertools
+import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -22,7 +24,12 @@ from scipy.optimize import linear_sum_assignment
 
 from jointid.diagnosis.terms import StateInfo
 
-__all__ = ["CHI2_1_95", "absorption", "tie_groups", "next_measurements", "prediction_spread"]
+if TYPE_CHECKING:
+    from jointid.diagnosis.fitting import Diagnoser
+    from jointid.diagnosis.results import Fit
+
+__all__ = ["CHI2_1_95", "absorption", "absorption_notes", "explain_tie", "tie_groups", "next_measurements",
+           "prediction_spread"]
 
 CHI2_1_95 = 3.841  # chi-square quantile, 1 degree of freedom, 95 %: a difference the data could show
 
@@ -196,3 +203,49 @@ def next_measurements(diag, fits: dict, names: list[str], top: int = 3) -> pd.Da
     cols = ["measurement", "kind", "state", "em_force_N", "expected_delta_chi2", "predictions"]
     df = pd.DataFrame(out, columns=cols)
     return df.sort_values("expected_delta_chi2", ascending=False, kind="stable").head(top).reset_index(drop=True)
+
+
+def absorption_notes(diag: Diagnoser, current: Fit, rows: list, ranking: pd.DataFrame,
+                     shift_pct: float) -> list[str]:
+    """Step 6: the candidates the fitted parameters could be hiding (:func:`absorption`);
+    fills the ranking's ``absorbed`` and ``absorbed_bias_pct`` columns and returns one sentence each."""
+    out = []
+    ranking["absorbed"] = False
+    ranking["absorbed_bias_pct"] = np.nan
+    for row, spec, st in rows:
+        if spec is None or st is None:
+            continue
+        info = absorption(current, st["Jt"], diag.data, shift_pct)
+        if not info["absorbed"]:
+            continue
+        p0 = spec.effect.params[0]
+        at = ranking.index[ranking["effect"] == row["effect"]]
+        joint = [v for k, v in info["bias_pct"].items() if k in current.variant.joint_names]
+        ranking.loc[at, "absorbed"] = True
+        ranking.loc[at, "absorbed_bias_pct"] = max(joint, key=abs) if joint else np.nan
+        out.append(absorption_text(row["effect"], p0.from_t(info["size_t"]), p0.unit, p0.name, info,
+                                             shift_pct, current.variant.p))
+    return out
+
+
+def explain_tie(diag: Diagnoser, ranking: pd.DataFrame, fits: dict) -> tuple[str, pd.DataFrame]:
+    """Step 7 of the loop: for explaining candidates the data cannot tell apart, how far their refits differ and
+    the measurements that would decide (:func:`ambiguity.next_measurements`); ("", empty) otherwise."""
+    explaining = ranking[ranking["explains"].astype(bool)]
+    if not len(explaining) or not explaining.iloc[0]["indistinguishable_from"]:
+        return "", pd.DataFrame()
+    names = [str(explaining.iloc[0]["effect"])] + str(explaining.iloc[0]["indistinguishable_from"]).split(";")
+    tied = {n: fits["+" + n] for n in names}
+    joints = tied[names[0]].variant.joint_names
+    spread = []
+    for j, lab in enumerate(joints):
+        v = [math.exp(float(f.x[j])) for f in tied.values()]
+        spread.append(f"{lab} {min(v):.3g} .. {max(v):.3g} ({100 * (max(v) / min(v) - 1):.0f} %)")
+    dmax = 0.0
+    for si, d in enumerate(diag.data):
+        fm = np.array([f.ev.f_model[si] for f in tied.values()])
+        with np.errstate(invalid="ignore"):
+            dmax = max(dmax, float(np.nanmax(np.abs(np.log(fm.max(0) / fm.min(0)))) * 100) if fm.size else 0.0)
+    detail = (f"Their refitted joint parameters differ ({'; '.join(spread)}) and their predictions of the "
+              f"measured modes by at most {dmax:.2f} %.")
+    return detail, next_measurements(diag, {n: tied[n] for n in names}, names)

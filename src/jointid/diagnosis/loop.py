@@ -7,13 +7,17 @@ reduced solver's subspace grows with every solve, so the order is part of the re
 2. the baseline on all states, then :func:`calibrate_ladder` — the configured effects one by one;
 3. :func:`score_candidates` — a score test of every library effect not in the model;
 4. :func:`refit_candidates` — the leading candidates refitted, AICc and noise-level check;
-5. :func:`verdict_text` — the verdict in words;
-6. :func:`drift_table` and :func:`model_notes` — per-state drift, identifiability, unpaired modes.
+5. :func:`combinations` — pairs of the leading candidates, when no single one explains;
+6. :func:`jointid.diagnosis.ambiguity.absorption_notes` — candidates the fitted joints could imitate;
+7. :func:`jointid.diagnosis.ambiguity.explain_tie` — how tied candidates differ, the measurement that
+   would decide;
+8. :func:`jointid.diagnosis.preload.identifiable_fits` — what the force levels identify of the contact law;
+9. :func:`jointid.diagnosis.verdict.verdict_text` — the verdict in words;
+10. :func:`drift_table` and :func:`model_notes` — per-state drift, identifiability, unpaired modes.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -21,11 +25,11 @@ import numpy as np
 import pandas as pd
 
 from jointid.correlate import pairing as correlate
-from jointid.diagnosis import ambiguity
+from jointid.diagnosis.ambiguity import absorption_notes, explain_tie, tie_groups
 from jointid.diagnosis.combine import combine_candidates
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log, refit
-from jointid.diagnosis.preload import identify_preload, profile_candidate
+from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
 from jointid.diagnosis.statistics import extra_jacobian, identifiability, score_test, state_contrasts
 from jointid.diagnosis.tables import (compare_tables, drift_table, parameter_table, ranking_frame,
@@ -126,17 +130,12 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
             row["explains"] = bool(row["explains"] and needed)
     ranking = ranking_frame([r[0] for r in rows])
     ranking.attrs["tie_delta_aicc"] = float(opt["tie_delta_aicc"])
-    ranking["indistinguishable_from"] = ambiguity.tie_groups(ranking, float(opt["tie_delta_aicc"]))
+    ranking["indistinguishable_from"] = tie_groups(ranking, float(opt["tie_delta_aicc"]))
     absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]))
-    combos = pd.DataFrame()
-    if needed and not ranking["explains"].any() and int(opt["max_effects"]) >= 2:
-        singles = {r[0]["effect"]: fits["+" + r[0]["effect"]] for r in rows if "+" + r[0]["effect"] in fits}
-        if len(singles) >= 2:
-            combo_rows, combo_fits = combine_candidates(diag, current, singles, int(opt["n_combine"]), alpha, log)
-            combos = pd.DataFrame(combo_rows)
-            fits.update(combo_fits)
+    combos = combinations(diag, current, rows, fits, opt, log) if needed and not ranking["explains"].any() \
+        else pd.DataFrame()
     tie_detail, nxt = explain_tie(diag, ranking, fits)
-    ident, curve = identifiable(diag, current, fits, ranking, combos, log)
+    ident, curve = identifiable_fits(diag, current, fits, ranking, combos, log)
     findings = Findings(current, ranking, alpha, between_share, combos, absorbed, tie_detail, nxt, ident,
                         int(opt["max_effects"]))
     verdict, explained_by = verdict_text(findings, diag.data)
@@ -292,68 +291,15 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
         fits["+" + row["effect"]] = f
 
 
-def absorption_notes(diag: Diagnoser, current: Fit, rows: list, ranking: pd.DataFrame, shift_pct: float) -> list[str]:
-    """Step 5: the candidates the fitted parameters could be hiding (:func:`ambiguity.absorption`);
-    fills the ranking's ``absorbed`` and ``absorbed_bias_pct`` columns and returns one sentence each."""
-    out = []
-    ranking["absorbed"] = False
-    ranking["absorbed_bias_pct"] = np.nan
-    for row, spec, st in rows:
-        if spec is None or st is None:
-            continue
-        info = ambiguity.absorption(current, st["Jt"], diag.data, shift_pct)
-        if not info["absorbed"]:
-            continue
-        p0 = spec.effect.params[0]
-        at = ranking.index[ranking["effect"] == row["effect"]]
-        joint = [v for k, v in info["bias_pct"].items() if k in current.variant.joint_names]
-        ranking.loc[at, "absorbed"] = True
-        ranking.loc[at, "absorbed_bias_pct"] = max(joint, key=abs) if joint else np.nan
-        out.append(ambiguity.absorption_text(row["effect"], p0.from_t(info["size_t"]), p0.unit, p0.name, info,
-                                             shift_pct, current.variant.p))
-    return out
-
-
-def explain_tie(diag: Diagnoser, ranking: pd.DataFrame, fits: dict) -> tuple[str, pd.DataFrame]:
-    """Step 6: for explaining candidates the data cannot tell apart, how far their refits differ and
-    the measurements that would decide (:func:`ambiguity.next_measurements`); ("", empty) otherwise."""
-    explaining = ranking[ranking["explains"].astype(bool)]
-    if not len(explaining) or not explaining.iloc[0]["indistinguishable_from"]:
-        return "", pd.DataFrame()
-    names = [str(explaining.iloc[0]["effect"])] + str(explaining.iloc[0]["indistinguishable_from"]).split(";")
-    tied = {n: fits["+" + n] for n in names}
-    joints = tied[names[0]].variant.joint_names
-    spread = []
-    for j, lab in enumerate(joints):
-        v = [math.exp(float(f.x[j])) for f in tied.values()]
-        spread.append(f"{lab} {min(v):.3g} .. {max(v):.3g} ({100 * (max(v) / min(v) - 1):.0f} %)")
-    dmax = 0.0
-    for si, d in enumerate(diag.data):
-        fm = np.array([f.ev.f_model[si] for f in tied.values()])
-        with np.errstate(invalid="ignore"):
-            dmax = max(dmax, float(np.nanmax(np.abs(np.log(fm.max(0) / fm.min(0)))) * 100) if fm.size else 0.0)
-    detail = (f"Their refitted joint parameters differ ({'; '.join(spread)}) and their predictions of the "
-              f"measured modes by at most {dmax:.2f} %.")
-    return detail, ambiguity.next_measurements(diag, {n: tied[n] for n in names}, names)
-
-
-def identifiable(diag: Diagnoser, current: Fit, fits: dict, ranking: pd.DataFrame, combos: pd.DataFrame,
-                 log) -> tuple[dict, pd.DataFrame]:
-    """Step 7: what the data identify of a fitted em_preload (:func:`identify_preload`) in every fit the
-    verdict may name: ``{fit label: sentence}`` (labels ``current``, ``+A``, ``+A+B``) and the beta-P
-    curve of the first one."""
-    labels = ["current"] + [f"+{n}" for n in ranking["effect"] if f"+{n}" in fits]
-    if len(combos):
-        labels += [f"+{e}" for e in combos[combos["explains"]]["effects"]]
-    out, curve = {}, pd.DataFrame()
-    for lab in labels:
-        text, c = identify_preload(diag, current if lab == "current" else fits[lab], log)
-        if text:
-            out[lab] = text
-            curve = c if curve.empty else curve
-    if "+em_preload" in out:
-        ranking.loc[ranking["effect"] == "em_preload", "identifiable"] = out["+em_preload"]
-    return out, curve
+def combinations(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt: dict, log) -> pd.DataFrame:
+    """Step 5: pairs of the leading single refits (:func:`combine_candidates`) when ``max_effects``
+    allows; their fits join ``fits`` under ``+a+b``."""
+    singles = {r[0]["effect"]: fits["+" + r[0]["effect"]] for r in rows if "+" + r[0]["effect"] in fits}
+    if int(opt["max_effects"]) < 2 or len(singles) < 2:
+        return pd.DataFrame()
+    combo_rows, combo_fits = combine_candidates(diag, current, singles, int(opt["n_combine"]), float(opt["alpha"]), log)
+    fits.update(combo_fits)
+    return pd.DataFrame(combo_rows)
 
 
 def suggested_ladder(diag: Diagnoser, fits: dict, explained_by: str, ranking: pd.DataFrame) -> list[dict]:
@@ -386,7 +332,7 @@ def suggested_ladder(diag: Diagnoser, fits: dict, explained_by: str, ranking: pd
 
 
 def model_notes(current: Fit, data: list[StateData]) -> list[str]:
-    """Step 6: notes on the current model: a weakly identifiable combination, unpaired measured modes."""
+    """Step 10: notes on the current model: a weakly identifiable combination, unpaired measured modes."""
     notes = []
     ident = identifiability(current.ev.J, current.variant.labels)
     if ident["flag"]:

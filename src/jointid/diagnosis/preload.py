@@ -24,7 +24,7 @@ from jointid.diagnosis.fitting import Diagnoser, Fit
 from jointid.diagnosis.variants import EffectSpec, Variant
 
 __all__ = ["PRELOAD_GRID_N", "force_levels", "profile_preload", "profile_candidate", "preload_curve",
-           "stiffness_ratios", "identifiable_text", "identify_preload"]
+           "stiffness_ratios", "identifiable_text", "identify_preload", "identifiable_fits"]
 
 PRELOAD_GRID_N = (0.0, 25.0, 50.0, 100.0, 200.0, 400.0, 800.0, 1600.0, 3200.0, 6400.0)
 """Block preloads tried (N): from none to several times a catalogue block's medium preload."""
@@ -227,3 +227,22 @@ def identify_preload(diag: Diagnoser, fit: Fit, log) -> tuple[str, pd.DataFrame]
     ratios = stiffness_ratios(fit, diag.data, ci)
     curve = preload_curve(diag, fit) if profile is None else pd.DataFrame()
     return identifiable_text(ratios, curve, profile, float(fit.x[j]), ci, n_levels), curve
+
+
+def identifiable_fits(diag: Diagnoser, current: Fit, fits: dict, ranking: pd.DataFrame, combos: pd.DataFrame,
+                 log) -> tuple[dict, pd.DataFrame]:
+    """Step 8 of the loop: what the data identify of a fitted em_preload (:func:`identify_preload`) in every fit the
+    verdict may name: ``{fit label: sentence}`` (labels ``current``, ``+A``, ``+A+B``) and the beta-P
+    curve of the first one."""
+    labels = ["current"] + [f"+{n}" for n in ranking["effect"] if f"+{n}" in fits]
+    if len(combos):
+        labels += [f"+{e}" for e in combos[combos["explains"]]["effects"]]
+    out, curve = {}, pd.DataFrame()
+    for lab in labels:
+        text, c = identify_preload(diag, current if lab == "current" else fits[lab], log)
+        if text:
+            out[lab] = text
+            curve = c if curve.empty else curve
+    if "+em_preload" in out:
+        ranking.loc[ranking["effect"] == "em_preload", "identifiable"] = out["+em_preload"]
+    return out, curve
