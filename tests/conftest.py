@@ -83,6 +83,20 @@ def ladder_text(ladder) -> str:
     return " -> ".join(f"{v} {m:.2f} %" for v, m in g.items())
 
 
+def print_summary(summary: dict, capsys) -> None:
+    """Print a synthetic-case summary (one row per case) and each case's verdict text (pytest -s);
+    skip when no case ran."""
+    import pandas as pd
+
+    if not summary:
+        pytest.skip("no case ran")
+    df = pd.DataFrame(summary).T
+    with capsys.disabled():
+        print("\n" + df.drop(columns="text").to_string())
+        for name, text in df["text"].items():
+            print(f"\n{name}: {text}")
+
+
 # ------------------------------------------------------------------ workflow copies
 def coarse_config_dict() -> dict:
     """The default ``config.yaml`` with the sections of ``tests/coarse_config.yaml`` merged over it

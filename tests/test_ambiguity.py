@@ -17,7 +17,6 @@ Each case synthesises a dataset (fixed seed) from a truth the diagnosis never se
 import json
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from jointid.data.dataset import read_dataset, write_dataset
@@ -28,7 +27,7 @@ from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.terms import StateInfo
 from jointid.diagnosis.variants import dataset_states
-from conftest import diagnosis_rig, ladder_text
+from conftest import diagnosis_rig, ladder_text, print_summary
 
 JOINTS = {"k_normal_N_per_m3": 8.0e11, "k_lateral_N_per_m3": 6.0e11}
 TWO_STATES = {"power_off": {"em_force_N": 0.0}, "power_on": {"em_force_N": 1000.0}}
@@ -206,10 +205,4 @@ def test_too_few_modes_is_refused_with_a_clear_message(rig, tmp_path):
 
 def test_summary_table(capsys):
     """Print truth, rank, verdict and error ladder of every case (pytest -s)."""
-    if not SUMMARY:
-        pytest.skip("no case ran")
-    df = pd.DataFrame(SUMMARY).T
-    with capsys.disabled():
-        print("\n" + df.drop(columns="text").to_string())
-        for name, text in df["text"].items():
-            print(f"\n{name}: {text}")
+    print_summary(SUMMARY, capsys)

@@ -19,7 +19,7 @@ from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.variants import dataset_states
 from jointid.data.dataset import read_dataset
-from conftest import diagnosis_rig, ladder_text
+from conftest import diagnosis_rig, ladder_text, print_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = sorted((ROOT / "tests" / "hidden").glob("*.yaml"))
@@ -101,10 +101,4 @@ def test_hidden_effect_is_found(case, rig, tmp_path):
 
 def test_summary_table(capsys):
     """Print rank of the true effect and error before/after for every case (pytest -s)."""
-    if not SUMMARY:
-        pytest.skip("no case ran")
-    df = pd.DataFrame(SUMMARY).T
-    with capsys.disabled():
-        print("\n" + df.drop(columns="text").to_string())
-        for name, text in df["text"].items():
-            print(f"\n{name}: {text}")
+    print_summary(SUMMARY, capsys)
