@@ -45,3 +45,17 @@ def test_python_dash_m_runs_the_dispatcher():
     res = subprocess.run([sys.executable, "-m", "jointid.cli", "nope"], capture_output=True, text=True,
                          timeout=60)
     assert res.returncode == 2 and "choose one of: diagnose" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_data_check_validates_folders_without_running_anything(capsys, tmp_path):
+    assert cli.main(["data", "check", str(REPO / "data" / "paper")]) == 0
+    assert "valid (power_off: 6 modes, power_on: 6 modes)" in capsys.readouterr().out
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "modes.csv").write_text("state;mode;freq_Hz\npower_on;1;350,5\n")
+    assert cli.main(["data", "check", str(bad)]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert any(line.startswith(f"{bad}/modes.csv") and "';'" in line for line in err), err
+    assert any(line.startswith(f"{bad}/conditions.yaml: file is missing") for line in err), err
+    assert cli.main(["data", "check", str(REPO / "data" / "paper"), "--points", str(tmp_path / "none.csv")]) == 1
+    assert "written by the mesh rule" in capsys.readouterr().err

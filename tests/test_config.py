@@ -582,6 +582,8 @@ def workdir(tmp_path, monkeypatch):
     (tmp_path / "data" / "paper").symlink_to(REPO / "data" / "paper")
     (tmp_path / "data" / "rig2").mkdir()
     (tmp_path / "data" / "rig2" / "modes.csv").write_text("state,mode,freq_Hz\npower_on,1,350.0\n")
+    (tmp_path / "data" / "rig2" / "conditions.yaml").write_text(
+        "source: test rig 2\nstates:\n  power_on: {em_force_N: 1000.0}\n")
     monkeypatch.chdir(tmp_path)
     return tmp_path
 
@@ -603,6 +605,20 @@ def test_datasets_that_resolve_pass(default, workdir):
                                        c["states"]["power_off"].update(dataset="data/paper"),
                                        c["measurements"].update(dataset="data/none")))
     load_config(own, check_datasets=True)
+
+
+def test_a_broken_dataset_is_reported_at_config_load_naming_file_and_fix(default, workdir):
+    """Frequencies in kHz and a missing conditions.yaml stop the run before any job (the Snakefile
+    validates with check_datasets), one line each, naming the config key, the file and the fix."""
+    (workdir / "data" / "rig2" / "modes.csv").write_text("state,mode,freq_Hz\npower_on,1,0.35\npower_on,2,1.3\n")
+    (workdir / "data" / "rig2" / "conditions.yaml").unlink()
+    cfg = modified(default, lambda c: c["states"]["power_on"].update(dataset="data/rig2"))
+    lines = dataset_problems(cfg)
+    assert len(lines) == 2, lines
+    assert all(line.startswith("config.yaml: states.power_on.dataset: the dataset has a problem: data/rig2/")
+               for line in lines)
+    assert any("modes.csv" in line and "kHz" in line for line in lines)
+    assert any("conditions.yaml" in line and "file is missing" in line for line in lines)
 
 
 def test_unknown_state_dataset_is_reported_with_key_value_and_fix(default, workdir):

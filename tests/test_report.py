@@ -184,3 +184,36 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
         assert (wd / "results" / "report" / "figures" / f"{name}.png").read_bytes().startswith(PNG)
     proc = run_snakemake(wd, "--report", "smk_report.html", check=True)
     assert (wd / "smk_report.html").stat().st_size > 10_000, proc.stdout
+
+
+def test_model_modes_leave_as_vtu_and_uff(coarse_run, tmp_path):
+    """The harmonic stage writes the identified model's modes for ParaView (one vector field per mode,
+    the frequencies as field data) and as UFF 55 at the measuring points, which pyuff and jointid's own
+    importer read back with the same frequencies and shapes."""
+    import meshio
+    import pyuff
+
+    from jointid.data.uff import import_uff
+
+    wd = clone_run(coarse_run, tmp_path / "wf")
+    outs = [f"results/model/modes_{s}.{ext}" for s in STATES for ext in ("vtu", "uff")]
+    run_snakemake(wd, "-j2", *outs, check=True)
+    points = pd.read_csv(wd / "results" / "model" / "measuring_points.csv")
+    for state in STATES:
+        ref = np.load(wd / "results" / "harmonic" / state / "modes.npz")
+        m = meshio.read(wd / "results" / "model" / f"modes_{state}.vtu")
+        fields = sorted(k for k in m.point_data if k.startswith("mode_"))
+        assert len(fields) == len(ref["freqs_Hz"]) and all(m.point_data[k].shape == (len(m.points), 3) for k in fields)
+        assert np.allclose(np.ravel(m.field_data["freq_Hz"]), ref["freqs_Hz"])
+        assert fields[1].startswith(f"mode_02_{ref['freqs_Hz'][1]:.0f}Hz_")
+        uff = wd / "results" / "model" / f"modes_{state}.uff"
+        sets = pyuff.UFF(str(uff)).read_sets()
+        assert [s["type"] for s in sets[:2]] == [164, 15]
+        assert np.allclose([s["freq"] for s in sets if s["type"] == 55], ref["freqs_Hz"])
+        ds, _ = import_uff(uff, points, state=state, out=tmp_path / f"ds_{state}")
+        assert np.allclose(ds.freqs(state), np.sort(ref["freqs_Hz"]))
+        labels = [str(v) for v in ref["labels"]]
+        back = ds.shape_matrix(state, labels)
+        order = np.argsort(ref["freqs_Hz"], kind="stable")
+        want = ref["shapes"][:, order] / np.abs(ref["shapes"][:, order]).max(axis=0)
+        assert np.allclose(back / np.abs(back).max(axis=0), want, atol=1e-4)

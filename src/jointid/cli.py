@@ -24,6 +24,7 @@ MODULES = {
     "checks": "jointid.reporting.checks",
     "synth": "jointid.diagnosis.synth",
     "uff": "jointid.data.uff",
+    "data": "jointid.data.__main__",
 }
 COMMANDS = {
     "diagnose": "diagnose which listed physical effect the model lacks (--dataset DIR --out DIR)",
@@ -31,6 +32,7 @@ COMMANDS = {
     "checks": "acceptance checks on the reproduced tables (CI gate; --table1, --tables2-3)",
     "synth": "write a synthetic dataset from a truth YAML file (--truth FILE --out DIR)",
     "uff": "import a Universal File (.unv/.uff) into a dataset folder",
+    "data": "validate dataset folders before any run (check FOLDER ... [--points CSV])",
 }
 
 

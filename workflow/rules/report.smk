@@ -32,6 +32,8 @@ rule harmonic:
         stiffness=f"{R}/harmonic/{{state}}/dynamic_stiffness.json",
         modes=f"{R}/harmonic/{{state}}/modes.npz",
         points=f"{R}/harmonic/{{state}}/drive_points.npz",
+        modes_vtu=f"{R}/model/modes_{{state}}.vtu",  # ParaView: Warp By Vector
+        modes_uff=f"{R}/model/modes_{{state}}.uff",  # test software: UFF 164 + 15 + 55
     params:
         cfg=lambda wc: cfg_harmonic(wc.state),
     log:

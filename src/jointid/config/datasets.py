@@ -101,6 +101,27 @@ def _check_named_paths(c: Checks, named: Mapping, here: str) -> None:
                   "the dataset's modes.csv and conditions.yaml")
 
 
+def _validate_contents(c: Checks, by_state: dict[str, str], named: Mapping, states: Mapping) -> None:
+    """Every dataset folder the run reads, validated in full before any job
+    (:func:`jointid.data.dataset.validate_dataset`: units, columns, separators, conditions.yaml),
+    each problem under the config key that names the folder.  Measuring-point names are checked
+    later, by the stage reading the dataset with the model's points."""
+    from jointid.data.dataset import validate_dataset  # heavy (pandas): only when folders are checked
+
+    keys: dict[str, str] = {}
+    for dname, ds in named.items():
+        if isinstance(ds, Mapping) and isinstance(ds.get("path"), str):
+            keys.setdefault(ds["path"], f"datasets.{dname}.path")
+    for sname, path in by_state.items():
+        value = states[sname].get("dataset") if isinstance(states.get(sname), Mapping) else None
+        keys.setdefault(path, f"states.{sname}.dataset" if value == path else "measurements.dataset")
+    for path, key in keys.items():
+        if not Path(path).is_dir():
+            continue  # reported by the folder checks
+        for line in validate_dataset(path):
+            c.add(key, f"the dataset has a problem: {line}")
+
+
 def _state_folders(c: Checks, states: Mapping, named: Mapping, here: str) -> dict[str, str]:
     """Folder of each state whose dataset folder exists (the rule of :func:`dataset_folder`,
     checked); a problem is noted for each state whose dataset is missing."""
@@ -186,6 +207,7 @@ def check_dataset_folders(c: Checks) -> None:
                   f"{', '.join(found) or 'none'}){hint} — measure it there, or set states.{sname}.dataset to a "
                   "dataset that holds it")
     check_mode_counts(c, {s: states_in(p).get(s) for s, p in by_state.items() if states_in(p)})
+    _validate_contents(c, by_state, named, states)
     for dname, ds in named.items():
         if not isinstance(ds, Mapping) or not isinstance(ds.get("path"), str) or not isinstance(ds.get("states"), list):
             continue

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import scipy.sparse as sp
 from skfem import MeshHex
@@ -11,14 +13,18 @@ from jointid.fe.fem import Model
 from jointid.io import atomic_path
 
 
-def write_mesh_vtu(model: Model, path, modes: np.ndarray | None = None, freqs_Hz=None) -> None:
+def write_mesh_vtu(model: Model, path, modes: np.ndarray | None = None, freqs_Hz=None, *,
+                   descriptions=None) -> None:
     """Write the linear (8-node) skeleton of the mesh; mode shapes at the vertices as point data.
 
-    ``modes`` is ``(n_dofs, n_modes)``; each becomes a vector field ``mode_<i>_<f>Hz``.
+    ``modes`` is ``(n_dofs, n_modes)``; each becomes a vector field ``mode_<i>_<f>Hz[_<description>]``
+    (open in ParaView, Warp By Vector).  The frequencies are also field data ``freq_Hz`` (one value
+    per mode, in order), and the cells carry their part id (``part``).
     """
     mesh_arrays = model.meta["mesh"]
     mesh = MeshHex(np.asarray(mesh_arrays["p"], float), np.asarray(mesh_arrays["t"], np.int64))
     point_data = {}
+    field_data = {}
     if modes is not None:
         nv = mesh.p.shape[1]  # vertex dofs come first in scikit-fem's numbering
         to_vertices = None
@@ -31,7 +37,12 @@ def write_mesh_vtu(model: Model, path, modes: np.ndarray | None = None, freqs_Hz
             else:
                 u = to_vertices @ modes[:, j].reshape(-1, 3)
             tag = f"mode_{j + 1:02d}" + (f"_{freqs_Hz[j]:.0f}Hz" if freqs_Hz is not None else "")
+            if descriptions is not None:
+                tag += "_" + re.sub(r"[^A-Za-z0-9]+", "_", str(descriptions[j])).strip("_")
             point_data[tag] = u
+        if freqs_Hz is not None:
+            field_data["freq_Hz"] = np.asarray(freqs_Hz, float)
     m = to_meshio(mesh, point_data=point_data, cell_data={"part": [np.asarray(mesh_arrays["part"])]})
+    m.field_data.update(field_data)
     with atomic_path(path) as tmp:
         m.write(str(tmp), file_format="vtu")

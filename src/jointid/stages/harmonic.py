@@ -16,6 +16,8 @@ from jointid import io
 from jointid.geometry.points import dof_labels
 from jointid.response import damping as dm
 from jointid.config.datasets import dataset_folder
+from jointid.data.uff_export import write_modes_uff
+from jointid.fe.vtk import write_mesh_vtu
 from jointid.response.drive_point import (MODE_FACTOR, drive_vector, harmonic_response, joint_stiffness,
                                           modal_damping_ratios, solve_band_modes)
 from jointid.response.harmonic import RIGID_HZ, static_residual
@@ -71,7 +73,7 @@ def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
 
 def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv: str, out_json: str,
                  out_modes: str | None = None, verify_csv: str | None = None, out_points: str | None = None,
-                 progress=print) -> dict:
+                 out_vtu: str | None = None, out_uff: str | None = None, progress=print) -> dict:
     """The ``harmonic`` workflow stage of one state.
 
     Reads the identified parameters and the cached model, writes the drive-point FRF (``out_csv``,
@@ -94,6 +96,10 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     out_points : str, optional
         ``drive_points.npz`` (:func:`point_data`): the modal data of every table measuring point for
         the ranges of Table 1 (rule ``table1``).
+    out_vtu, out_uff : str, optional
+        The identified model's modes for ParaView (mesh with one vector field per mode,
+        :func:`jointid.fe.vtk.write_mesh_vtu`) and for test software (UFF 164 + 15 + 55 at the
+        measuring points, :func:`jointid.data.uff_export.write_modes_uff`).
 
     Returns
     -------
@@ -121,8 +127,14 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     io.write_json(out_json, out)
     if out_points:
         io.write_npz(out_points, **pts)
+    labels = dof_labels(pd.DataFrame(model.meta["points"]))
+    if out_vtu:
+        write_mesh_vtu(model, out_vtu, modes.phi, res.freqs_Hz, descriptions=desc["description"].to_numpy())
+    if out_uff:
+        write_modes_uff(out_uff, pd.DataFrame(model.meta["points"]), labels, res.freqs_Hz, model.probe @ modes.phi,
+                        damping_ratio=res.zeta, descriptions=desc["description"].to_numpy(),
+                        title=f"jointid identified model, state {state}")
     if out_modes:
-        labels = dof_labels(pd.DataFrame(model.meta["points"]))
         io.write_npz(out_modes, freqs_Hz=res.freqs_Hz, shapes=model.probe @ modes.phi, labels=np.array(labels),
                      description=desc["description"].to_numpy().astype(str), zeta=res.zeta,
                      participation=res.participation)
