@@ -213,6 +213,10 @@ def test_cli_writes_dataset(tmp_path, capsys):
     assert read_dataset(tmp_path / "mytest", POINTS).freqs("power_off")[0] == pytest.approx(350.0)
     assert main([str(tmp_path / "nope.unv"), "--state", "s", "--points",
                  str(tmp_path / "measuring_points.csv"), "--out", str(tmp_path / "x")]) == 2
+    capsys.readouterr()
+    assert main([str(path), "--state", "s", "--points", str(tmp_path / "none.csv"), "--out", str(tmp_path / "y")]) == 2
+    err = capsys.readouterr().err
+    assert "measuring-points file not found — the mesh rule writes it" in err and "Errno" not in err
 
 
 def test_modes_from_frf_recovers_frequency_and_damping():

@@ -432,6 +432,10 @@ def main(argv=None) -> int:
     ap.add_argument("--em-force-N", type=float, default=None, help="vertical motor force (N)")
     ap.add_argument("--merge", action="store_true", help="keep other states already in --out")
     args = ap.parse_args(argv)
+    if not Path(args.points).is_file():
+        print(f"{args.points}: measuring-points file not found — the mesh rule writes it "
+              "(snakemake -j2 results/model/measuring_points.csv)", file=sys.stderr)
+        return 2
     try:
         points = pd.read_csv(args.points)
         dataset, report = import_uff(args.uff, points, state=args.state, tol_m=args.tol_m,
