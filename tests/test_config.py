@@ -300,6 +300,9 @@ BAD = [
     ("unknown top-level key", lambda c: c.update(reprot={}),
      "reprot: unknown key — did you mean 'report'? (allowed: materials, rig, mesh, mesh_check, carriage_rigidity, joints, states, measurements, "
      "datasets, doe, surface, identify, solver, harmonic, diagnosis, effects, linked, hypotheses, report)"),
+    ("length in mm", lambda c: c["rig"]["base"].update(length_m=1100),
+     "rig.base.length_m: 1100 m is not a plausible size of a machine-tool feed drive; the value looks like mm — "
+     "write 1.1 (the unit of every *_m key is m)"),
     ("non-finite", lambda c: c["rig"]["base"].update(width_m=float("inf")),
      "rig.base.width_m: inf is not a finite number — give a finite value"),
 ]

@@ -168,7 +168,9 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
     from jointid.fe.vtk import write_mesh_vtu
 
     write_mesh_vtu(back, tmp_path / "m.vtu", modes=modes.phi[:, :2], freqs_Hz=modes.freqs_Hz[:2])
-    u = next(v for k, v in meshio.read(tmp_path / "m.vtu").point_data.items() if k.startswith("mode_01"))
+    vtu = meshio.read(tmp_path / "m.vtu")
+    assert np.allclose(vtu.field_data["freq_Hz"], modes.freqs_Hz[:2], rtol=1e-15)  # the frequencies too
+    u = next(v for k, v in vtu.point_data.items() if k.startswith("mode_01"))
     mesh = back.meta["mesh"]
     Tv = sp.csr_matrix((mesh["vertex_data"], mesh["vertex_indices"], mesh["vertex_indptr"]),
                        shape=(mesh["p"].shape[1], back.n_dofs // 3))

@@ -124,8 +124,36 @@ _GEOMETRY_CHECKS = (_rails_on_base, _rails_across_base, _carriages_apart_across,
 """The geometry checks, in the order their problems are reported."""
 
 
+MAX_RIG_LENGTH_M = 5.0
+"""A rig dimension or position above this (in m) is not a feed drive's: the value was given in mm."""
+
+
+def _lengths_in_metres(c: Checks) -> None:
+    """Every ``rig.*_m`` value is a plausible length in m; one that looks like mm is reported with the
+    value in m, and its key is marked bad so that the fit and mesh-size checks skip it."""
+    try:
+        rig = c.get("rig")
+    except Skip:
+        return
+
+    def walk(node, path):
+        if isinstance(node, Mapping):
+            for k, v in node.items():
+                walk(v, path + [str(k)])
+        elif (path[-1].endswith("_m") and not path[-1].endswith("_per_m") and isinstance(node, (int, float))
+              and not isinstance(node, bool)):
+            if math.isfinite(node) and abs(node) > MAX_RIG_LENGTH_M and tuple(path) not in c.bad:
+                c.add(path, f"{fmt_num(node)} m is not a plausible size of a machine-tool feed drive; the value "
+                      f"looks like mm — write {fmt_num(node / 1000)} (the unit of every *_m key is m)")
+                c.bad.add(tuple(path))
+
+    walk(rig, ["rig"])
+
+
 def check_geometry(c: Checks) -> None:
-    """The parts of the rig fit together: rails on the base, carriages under the table, mounts ..."""
+    """The values are lengths in m, and the parts of the rig fit together: rails on the base, carriages
+    under the table, mounts ..."""
+    _lengths_in_metres(c)
     for check in _GEOMETRY_CHECKS:
         try:
             check(c)

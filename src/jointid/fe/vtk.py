@@ -43,6 +43,12 @@ def write_mesh_vtu(model: Model, path, modes: np.ndarray | None = None, freqs_Hz
         if freqs_Hz is not None:
             field_data["freq_Hz"] = np.asarray(freqs_Hz, float)
     m = to_meshio(mesh, point_data=point_data, cell_data={"part": [np.asarray(mesh_arrays["part"])]})
-    m.field_data.update(field_data)
     with atomic_path(path) as tmp:
         m.write(str(tmp), file_format="vtu")
+        if field_data:  # meshio 5 does not write field data: VTK XML holds it before the piece
+            text = tmp.read_text()
+            block = "".join(f'<DataArray type="Float64" Name="{name}" NumberOfTuples="{len(v)}" format="ascii">\n'
+                            + " ".join(repr(float(x)) for x in v) + "\n</DataArray>\n"
+                            for name, v in field_data.items())
+            head = f"<UnstructuredGrid>\n<FieldData>\n{block}</FieldData>\n"
+            tmp.write_text(text.replace("<UnstructuredGrid>\n", head, 1))
