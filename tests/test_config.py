@@ -624,6 +624,29 @@ def test_a_broken_dataset_is_reported_at_config_load_naming_file_and_fix(default
     assert any("conditions.yaml" in line and "file is missing" in line for line in lines)
 
 
+BROKEN_DATASETS = [  # (case, modes.csv text, keep conditions.yaml, what the line must say)
+    ("frequencies in kHz", "state,mode,freq_Hz\npower_on,1,0.35\npower_on,2,1.3\n", True,
+     "multiply all frequencies by 1000"),
+    ("a freq_kHz column", "state,mode,freq_kHz\npower_on,1,0.35\n", True, "rename the column to freq_Hz"),
+    ("; and decimal commas", "state;mode;freq_Hz\npower_on;1;350,5\n", True, "';'"),
+    ("damping in percent", "state,mode,freq_Hz,damping_ratio\npower_on,1,350.0,3.0\n", True, "damping_ratio"),
+    ("no conditions.yaml", "state,mode,freq_Hz\npower_on,1,350.0\n", False, "conditions.yaml: file is missing"),
+]
+
+
+@pytest.mark.parametrize("case, modes, conditions, says", BROKEN_DATASETS, ids=[b[0] for b in BROKEN_DATASETS])
+def test_every_broken_dataset_case_stops_the_config_check(default, workdir, case, modes, conditions, says):
+    """The mis-unit and missing-file cases fail when the configuration is checked (as the Snakefile does
+    before the first job), naming the config key, the file and the fix."""
+    (workdir / "data" / "rig2" / "modes.csv").write_text(modes)
+    if not conditions:
+        (workdir / "data" / "rig2" / "conditions.yaml").unlink()
+    cfg = modified(default, lambda c: c["states"]["power_on"].update(dataset="data/rig2"))
+    lines = dataset_problems(cfg)
+    assert any(says in line and "data/rig2/" in line for line in lines), lines
+    assert all(line.startswith("config.yaml: states.power_on.dataset: ") for line in lines), lines
+
+
 def test_unknown_state_dataset_is_reported_with_key_value_and_fix(default, workdir):
     cfg = modified(default, lambda c: c["states"]["power_on"].update(dataset="rig2x"))
     assert load_config(cfg)["states"]["power_on"]["dataset"] == "rig2x"  # off by default: cwd-independent
