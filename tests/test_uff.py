@@ -1,5 +1,7 @@
 """UFF import: small universal files written with pyuff, imported and checked value by value."""
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -82,7 +84,7 @@ def test_import_frequencies_damping_renumbered(tmp_path):
 def test_import_node_mapping_and_unmatched_lines(tmp_path):
     _, report = import_uff(write_uff(tmp_path / "t.unv"), POINTS, state="s")
     assert "UFF node 999 not matched: nearest point B02 is 0.6708 m away (tol_m = 0.005)" in report
-    assert "measuring point B02 not matched by any UFF node" in report
+    assert "1 measuring point(s) have no UFF node: B02" in report
     assert not any("node 101" in line or "node 103" in line for line in report)
 
 
@@ -129,9 +131,12 @@ def test_em_force_default_is_reported(tmp_path):
 
 def test_length_scale_without_units_dataset(tmp_path):
     path = write_uff(tmp_path / "t.unv", units=False, frf=False)
-    _, report = import_uff(path, POINTS, state="s")
-    assert any("coordinates look like mm" in line for line in report)
-    assert "measuring point T01 not matched by any UFF node" in report
+    with pytest.raises(DataError) as info:  # no node matches in metres: every shape would be dropped
+        import_uff(path, POINTS, state="s")
+    lines = info.value.problems
+    assert "every mode shape was dropped" in lines[0] and "--node-map" in lines[0]
+    assert any("coordinates look like mm" in line for line in lines)
+    assert "4 measuring point(s) have no UFF node: T01, T02, B01, B02" in lines
     ds, report = import_uff(path, POINTS, state="s", length_scale=0.001)
     assert set(ds.shapes["point"]) == {"T01", "T02", "B01"}
     assert not any("look like mm" in line for line in report)
@@ -233,3 +238,85 @@ def test_modes_from_frf_recovers_frequency_and_damping():
         assert row["damping_ratio"] == pytest.approx(z, rel=0.01)
     two = modes_from_frf(f, np.column_stack([h, 2 * h]), 2)  # the two most prominent peaks
     np.testing.assert_allclose(two["freq_Hz"], picked["freq_Hz"][:2], rtol=1e-6)
+
+
+# ---------------------------------------------------------------- real files not written here
+REAL = Path(__file__).parent / "data" / "uff"
+
+
+def named_points(nodes) -> pd.DataFrame:
+    """Measuring points named after the file's node numbers (matched by name), far apart."""
+    nodes = list(nodes)
+    return pd.DataFrame({"point": [f"P{n}" for n in nodes], "part": "table",
+                         "x_m": np.arange(len(nodes), dtype=float), "y_m": 0.0, "z_m": 0.0})
+
+
+def test_real_normal_modes_import_in_hz(tmp_path):
+    """Modes at 10-13 Hz are not taken for kHz: UFF 55 frequencies are Hz by definition."""
+    ds, report = import_uff(REAL / "uff55_translation.uff", named_points([1, 2, 3, 4]), state="s",
+                            out=tmp_path / "ds")
+    assert ds.freqs("s") == pytest.approx([10.0, 12.0, 13.0])
+    assert ds.conditions["frequencies_in_Hz_confirmed"] is True
+    assert set(ds.shapes["point"]) == {"P1", "P2", "P3", "P4"}
+
+
+def test_real_complex_mode_is_made_real_and_said(tmp_path):
+    ds, report = import_uff(REAL / "uff55_sample_test_record10.uff", named_points([111111, 60101]), state="s",
+                            out=tmp_path / "ds")
+    lam = complex(-0.1111111, 41.11111)
+    assert ds.freqs("s") == pytest.approx([abs(lam) / (2 * np.pi)])
+    assert ds.modes["damping_ratio"].iloc[0] == pytest.approx(-lam.real / abs(lam))
+    assert any("complex shape made real" in line for line in report)
+
+
+def test_real_six_dof_shapes_keep_the_translations(tmp_path):
+    ds, report = import_uff(REAL / "uff55_translation_rotation.uff", named_points(range(1, 44)), state="s",
+                            out=tmp_path / "ds")
+    assert ds.freqs("s") == pytest.approx([97.013])
+    assert len(set(ds.shapes["point"])) == 43
+    assert any("rotations r4, r5, r6 dropped" in line for line in report)
+
+
+def test_real_geometry_only_export_is_refused_in_a_few_lines(tmp_path):
+    """A Test.Lab geometry export (no modes): the right message, and the 36 unmatched nodes summed up."""
+    with pytest.raises(DataError) as info:
+        import_uff(REAL / "TestLab_161_164_18_15_82.uff", POINTS, state="s", out=tmp_path / "ds")
+    lines = info.value.problems
+    assert "no mode shapes (dataset 55) found" in lines[0]
+    assert len(lines) <= 8 and any("UFF nodes not matched in all" in line for line in lines), lines
+    assert not (tmp_path / "ds").exists()
+
+
+def test_every_shape_dropped_is_an_error_unless_mapped_or_frequencies_only(tmp_path, capsys):
+    path = REAL / "uff55_translation.uff"
+    far = named_points([1, 2, 3, 4]).assign(point=["A", "B", "C", "D"])  # no name ends in a node number
+    with pytest.raises(DataError, match="every mode shape was dropped"):
+        import_uff(path, far, state="s", out=tmp_path / "a")
+    assert not (tmp_path / "a").exists()
+    pd.DataFrame({"node": [1, 2, 3, 4], "point": ["A", "B", "C", "D"]}).to_csv(tmp_path / "map.csv", index=False)
+    far.to_csv(tmp_path / "points.csv", index=False)
+    args = [str(path), "--state", "s", "--points", str(tmp_path / "points.csv")]
+    assert main(args + ["--out", str(tmp_path / "b")]) == 2
+    assert "every mode shape was dropped" in capsys.readouterr().err
+    assert main(args + ["--out", str(tmp_path / "c"), "--node-map", str(tmp_path / "map.csv")]) == 0
+    assert set(read_dataset(tmp_path / "c").shapes["point"]) == {"A", "B", "C", "D"}
+    assert main(args + ["--out", str(tmp_path / "d"), "--frequencies-only"]) == 0
+    assert read_dataset(tmp_path / "d").shapes is None
+
+
+def test_frf_only_file_gives_modes_by_peak_picking(tmp_path):
+    """A file with FRFs (dataset 58) and no modes: --modes-from-frf N picks them (written here with
+    pyuff: a two-mode receptance)."""
+    f = np.linspace(50.0, 400.0, 1401)
+    w = 2 * np.pi * f
+    H = sum(1.0 / ((2 * np.pi * fn) ** 2 - w ** 2 + 2j * 0.02 * 2 * np.pi * fn * w) for fn in (120.0, 260.0))
+    path = tmp_path / "frf.uff"
+    uff = pyuff.UFF(str(path))
+    uff.write_sets([pyuff.prepare_58(binary=0, id1="drive point", func_type=4, rsp_node=1, rsp_dir=2,
+                                     ref_node=1, ref_dir=2, data=H, x=f, abscissa_spec_data_type=18,
+                                     ordinate_spec_data_type=8, orddenom_spec_data_type=13)], mode="overwrite")
+    with pytest.raises(DataError, match="--modes-from-frf N"):
+        import_uff(path, named_points([1]), state="s")
+    ds, report = import_uff(path, named_points([1]), state="s", out=tmp_path / "ds", n_frf_modes=2)
+    assert ds.freqs("s") == pytest.approx([120.0, 260.0], rel=2e-3)
+    assert ds.frf is not None and any("picked from 1 FRF" in line for line in report)

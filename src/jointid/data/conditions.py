@@ -15,9 +15,12 @@ import yaml
 from jointid.data.validate import DIRECTIONS, few
 from jointid.yamlio import number_from_text
 
-__all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "SETUP_KEYS", "check_conditions"]
+__all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "SETUP_KEYS", "check_conditions", "hz_confirmed"]
 
-TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "test_setup", "notes")
+TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "test_setup", "notes", "frequencies_in_Hz_confirmed")
+"""``frequencies_in_Hz_confirmed: true`` says the frequencies are in Hz as written (a file format that
+defines its unit, such as UFF 55, or a structure whose modes lie below 20 Hz): the kHz plausibility
+check of modes.csv is skipped."""
 SETUP_KEYS = ("excitation", "response_points", "response_directions", "note", "band_Hz")
 STATE_KEYS = ("em_force_N", "currents", "motor_position_m", "frf_drive_point",
               "frf_drive_direction", "notes")
@@ -64,6 +67,19 @@ def _unknown_keys(problems, prefix, mapping, allowed):
                          f"allowed keys are {', '.join(allowed)}{guess}")
 
 
+def hz_confirmed(path) -> bool:
+    """Whether ``conditions.yaml`` at ``path`` says ``frequencies_in_Hz_confirmed: true`` (False when
+    it is missing or unreadable: its own check reports that)."""
+    import yaml  # noqa: PLC0415
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = yaml.safe_load(fh)
+    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        return False
+    return isinstance(data, dict) and data.get("frequencies_in_Hz_confirmed") is True
+
+
 def check_conditions(path, label, problems, points, has_frf_states):
     """Check ``conditions.yaml`` at ``path`` (shown as ``label``); add each problem to ``problems``.
 
@@ -98,6 +114,10 @@ def check_conditions(path, label, problems, points, has_frf_states):
             problems.add(f"{label}:frequency_uncertainty_pct",
                          f"frequency_uncertainty_pct = {u!r} is not a number in (0, 100)",
                          "give the 1-sigma frequency uncertainty in percent, e.g. 1.0")
+    if "frequencies_in_Hz_confirmed" in data and not isinstance(data["frequencies_in_Hz_confirmed"], bool):
+        problems.add(f"{label}:frequencies_in_Hz_confirmed",
+                     f"frequencies_in_Hz_confirmed = {data['frequencies_in_Hz_confirmed']!r} is not true/false",
+                     "write frequencies_in_Hz_confirmed: true (or remove the key)")
     if "test_setup" in data:
         _check_setup(problems, f"{label}:test_setup", data["test_setup"], points)
     states = data.get("states")

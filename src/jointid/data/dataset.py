@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from jointid.data.conditions import check_conditions
+from jointid.data.conditions import check_conditions, hz_confirmed
 from jointid.data.validate import (COLUMNS, DIRECTIONS, CheckedModes, Problems, check_frf, check_modes, check_shapes,
                                    read_table)
 from jointid.errors import DataError
@@ -198,7 +198,8 @@ def _load(folder, measuring_points=None, expected_states=None):
     label = lambda name: str(folder / name)  # noqa: E731
     modes, shapes, frf = CheckedModes(None, [], set()), None, None
     if (folder / "modes.csv").is_file():
-        modes = check_modes(folder / "modes.csv", label("modes.csv"), problems)
+        modes = check_modes(folder / "modes.csv", label("modes.csv"), problems,
+                            hz_confirmed=hz_confirmed(folder / "conditions.yaml"))
     else:
         problems.add(label("modes.csv"), "file is missing",
                      "add modes.csv with columns state,mode,freq_Hz")

@@ -25,6 +25,13 @@ CLI::
 
     python -m jointid.data.uff IN.unv --state power_off --points results/model/measuring_points.csv \\
         --out data/mytest [--tol-m 0.005] [--length-scale 0.001] [--em-force-N 0] [--merge]
+        [--node-map nodes.csv] [--modes-from-frf N] [--frequencies-only]
+
+Frequencies of datasets 55 and 58 are in Hz by the format's definition: the dataset written says
+``frequencies_in_Hz_confirmed: true`` (no kHz guess).  A file whose every shape is dropped (no node
+matched a measuring point) is an error unless ``--frequencies-only``; unmatched nodes are summed up
+in one line with the matching rule.  Complex and 6-DOF shapes are reported as made real / reduced
+to translations.
 """
 
 from __future__ import annotations
@@ -179,6 +186,7 @@ def _realise(values: np.ndarray) -> tuple[np.ndarray, float]:
 
 def _modes(sets, mapping, report):
     modes, shapes = [], []
+    six_dof_said = False
     for k, s in enumerate(s for s in sets if s.get("type") == 55):
         atype = s.get("analysis_type")
         if atype == 2:
@@ -198,10 +206,15 @@ def _modes(sets, mapping, report):
             report.append(f"UFF 55 mode {s.get('mode_n')}: data characteristic {s.get('data_ch')} "
                           "has no x, y, z components; skipped")
             continue
-        stacked, share = _realise(np.concatenate([np.asarray(s[k]) for k in ("r1", "r2", "r3")]))
-        if share < 0.9:
-            report.append(f"UFF 55 mode {s.get('mode_n')}: complex shape kept only "
-                          f"{100 * share:.0f} % of its energy when made real")
+        if s.get("data_ch") == 3 and not six_dof_said:
+            report.append("UFF 55: 6-DOF shapes (data characteristic 3): the translations r1, r2, r3 are "
+                          "kept, the rotations r4, r5, r6 dropped")
+            six_dof_said = True
+        raw = np.concatenate([np.asarray(s[k]) for k in ("r1", "r2", "r3")])
+        stacked, share = _realise(raw)
+        if np.iscomplexobj(raw):
+            report.append(f"UFF 55 mode {s.get('mode_n')}: complex shape made real (rotated to its best real "
+                          f"direction, real part kept: {100 * share:.0f} % of its energy)")
         n = len(s["node_nums"])
         values = stacked.reshape(3, n)
         modes.append((freq, zeta, s.get("mode_n"), len(modes)))
@@ -263,9 +276,43 @@ def _frfs(sets, mapping, to_m, to_n, report):
     return rows, (mapping[ref_node], DIRECTIONS[abs(ref_dir) - 1])
 
 
+def condense_mapping_report(lines: list[str], tol_m: float, shown: int = 3) -> list[str]:
+    """The node-mapping lines with the unmatched nodes and points summed up: up to ``shown`` each
+    are listed, the rest counted in one line that states the matching rule and how to map them."""
+    nodes = [ln for ln in lines if ln.startswith("UFF node ") and " not matched" in ln]
+    points = [ln for ln in lines if ln.startswith("measuring point ")]
+    rest = [ln for ln in lines if ln not in nodes and ln not in points]
+    out = rest + nodes[:shown]
+    if len(nodes) > shown:
+        out.append(f"... {len(nodes)} UFF nodes not matched in all (rule: a --node-map entry, else the one point "
+                   f"name ending in the node's number, else the nearest point within tol_m = {tol_m:g} m); map "
+                   "them with --node-map CSV (columns node,point)")
+    if points:
+        names = [ln.split()[2] for ln in points]
+        more = f" and {len(names) - 8} more" if len(names) > 8 else ""
+        out.append(f"{len(names)} measuring point(s) have no UFF node: {', '.join(names[:8])}{more}")
+    return out
+
+
+def _frf_modes(frf_rows: list, n_modes: int, report: list) -> list:
+    """Modes picked from the summed FRF magnitude (:func:`modes_from_frf`) as ``_modes`` records."""
+    df = pd.DataFrame(frf_rows, columns=["point", "direction", "freq_Hz", "re", "im"])
+    grid = np.unique(df["freq_Hz"].to_numpy(float))
+    H = np.zeros((len(grid), 0))
+    for _, g in df.groupby(["point", "direction"], sort=False):
+        h = np.interp(grid, g["freq_Hz"].to_numpy(float), np.hypot(g["re"], g["im"]).to_numpy(float))
+        H = np.column_stack([H, h])
+    picked = modes_from_frf(grid, H, n_modes)
+    report.append(f"{len(picked)} modes picked from {H.shape[1]} FRF(s) by peak picking with half-power "
+                  "damping (no shapes)")
+    return [(float(f), float(z) if np.isfinite(z) else 0.0, i + 1, i)
+            for i, (f, z) in enumerate(zip(picked["freq_Hz"], picked["damping_ratio"]))]
+
+
 def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float = 0.005,
                out=None, length_scale: float | None = None, node_map: dict | None = None,
-               em_force_N: float | None = None, merge: bool = False) -> tuple[Dataset, list[str]]:
+               em_force_N: float | None = None, merge: bool = False, n_frf_modes: int | None = None,
+               frequencies_only: bool = False) -> tuple[Dataset, list[str]]:
     # long by its numpydoc; the body is one pass (units, nodes, modes, FRFs, conditions, write)
     """Import one state's modal test data from a UFF file.
 
@@ -290,6 +337,12 @@ def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float
         says so.
     merge : bool
         With ``out``: keep the other states of an existing dataset there and replace ``state``.
+    n_frf_modes : int, optional
+        For a file with FRFs (dataset 58) but no modes: pick this many modes from the summed FRF
+        magnitude (:func:`modes_from_frf`; frequencies and half-power damping, no shapes).
+    frequencies_only : bool
+        Import the modes although every shape was dropped (no node matched a measuring point);
+        otherwise that is an error.
 
     Returns
     -------
@@ -305,7 +358,7 @@ def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float
     to_m, to_n = _units(sets, length_scale, report)
     nodes = _nodes_table(sets, to_m)
     mapping, map_report = map_nodes(nodes, measuring_points, tol_m=tol_m, node_map=node_map)
-    report += map_report
+    report += condense_mapping_report(map_report, tol_m)
     if length_scale is None and to_m == 1.0 and nodes["x_m"].notna().any():
         alt, _ = map_nodes(nodes.assign(**{c: nodes[c] * 1e-3 for c in ("x_m", "y_m", "z_m")}),
                            measuring_points, tol_m=tol_m, node_map=node_map)
@@ -313,9 +366,21 @@ def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float
             report.append("coordinates look like mm (more nodes match when scaled by 0.001); "
                           "pass length_scale=0.001 (--length-scale 0.001)")
     modes, shapes = _modes(sets, mapping, report)
+    frf_rows, drive = _frfs(sets, mapping, to_m, to_n, report)
+    if not modes and frf_rows and n_frf_modes:
+        modes = _frf_modes(frf_rows, n_frf_modes, report)
     if not modes:
-        raise DataError([f"{path}: no mode shapes (dataset 55) found — export the modal model "
-                         "with mode shapes"] + report)
+        has58 = any(s.get("type") == 58 for s in sets)
+        hint = (" — the file has FRFs (dataset 58): pick the modes from them with --modes-from-frf N "
+                "(n_frf_modes=N)" if has58 and frf_rows else
+                " — export the modal model with mode shapes (dataset 55), or FRFs (dataset 58, function type 4)")
+        raise DataError([f"{path}: no mode shapes (dataset 55) found{hint}"] + report)
+    n55 = sum(1 for s in sets if s.get("type") == 55)
+    if n55 and not shapes and not frequencies_only:
+        raise DataError([f"{path}: every mode shape was dropped: no UFF node matched a measuring point "
+                         "(see the lines below) — map the nodes with --node-map CSV (node,point), fix "
+                         "--tol-m / --length-scale, or import the frequencies alone with --frequencies-only"]
+                        + report)
     zetas = np.array([z for _, z, _, _ in modes])
     mode_df = pd.DataFrame({"state": state, "mode": np.arange(1, len(modes) + 1),
                             "freq_Hz": [f for f, *_ in modes]})
@@ -325,7 +390,6 @@ def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float
         report.append("some modes have no damping; damping_ratio column left out")
     shape_df = pd.DataFrame(shapes, columns=["mode", "point", "direction", "value"])
     shape_df.insert(0, "state", state)
-    frf_rows, drive = _frfs(sets, mapping, to_m, to_n, report)
     frf_df = None
     if frf_rows:
         frf_df = pd.DataFrame(frf_rows, columns=["point", "direction", "freq_Hz", "re", "im"])
@@ -337,6 +401,7 @@ def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float
     if drive is not None:
         cond["frf_drive_point"], cond["frf_drive_direction"] = drive
     conditions = {"source": f"UFF import of {path.name} (jointid.data.uff), state {state}",
+                  "frequencies_in_Hz_confirmed": True,  # UFF 55 and 58 give frequencies in Hz by definition
                   "states": {state: cond}}
     shapes_out = shape_df if len(shape_df) else None
     if out is not None:
@@ -431,16 +496,30 @@ def main(argv=None) -> int:
                     help="metres per file length unit when the file has no dataset 164")
     ap.add_argument("--em-force-N", type=float, default=None, help="vertical motor force (N)")
     ap.add_argument("--merge", action="store_true", help="keep other states already in --out")
+    ap.add_argument("--node-map", help="CSV with columns node,point: explicit UFF node -> measuring point")
+    ap.add_argument("--modes-from-frf", type=int, default=None, metavar="N",
+                    help="a file with FRFs but no modes: pick N modes from the FRFs (no shapes)")
+    ap.add_argument("--frequencies-only", action="store_true",
+                    help="import the modes although no node matched a measuring point (shapes dropped)")
     args = ap.parse_args(argv)
-    if not Path(args.points).is_file():
-        print(f"{args.points}: measuring-points file not found — the mesh rule writes it "
-              "(snakemake -j2 results/model/measuring_points.csv)", file=sys.stderr)
-        return 2
+    for name, f in (("measuring-points", args.points), ("node-map", args.node_map)):
+        if f and not Path(f).is_file():
+            where = (" — the mesh rule writes it (snakemake -j2 results/model/measuring_points.csv)"
+                     if name == "measuring-points" else " — give a CSV with columns node,point")
+            print(f"{f}: {name} file not found{where}", file=sys.stderr)
+            return 2
     try:
         points = pd.read_csv(args.points)
+        node_map = None
+        if args.node_map:
+            nm = pd.read_csv(args.node_map)
+            if not {"node", "point"} <= set(nm.columns):
+                raise DataError(f"{args.node_map}: needs the columns node,point (found {', '.join(nm.columns)})")
+            node_map = dict(zip(nm["node"].astype(int), nm["point"].astype(str)))
         dataset, report = import_uff(args.uff, points, state=args.state, tol_m=args.tol_m,
-                                     out=args.out, length_scale=args.length_scale,
-                                     em_force_N=args.em_force_N, merge=args.merge)
+                                     out=args.out, length_scale=args.length_scale, node_map=node_map,
+                                     em_force_N=args.em_force_N, merge=args.merge,
+                                     n_frf_modes=args.modes_from_frf, frequencies_only=args.frequencies_only)
     except (DataError, OSError) as exc:
         print(exc, file=sys.stderr)
         return 2

@@ -221,9 +221,10 @@ class CheckedModes:
     states: list[str]
     tainted: set[str]
 
-def check_modes(path, label, problems):
+def check_modes(path, label, problems, hz_confirmed: bool = False):
     """Check modes.csv (rows, numbering 1..n per state by increasing frequency, units); the valid
-    rows as a :class:`CheckedModes`."""
+    rows as a :class:`CheckedModes`.  ``hz_confirmed`` (conditions.yaml's
+    ``frequencies_in_Hz_confirmed``) skips the kHz plausibility check."""
     table = read_table(path, label, problems)
     if table is None:
         return CheckedModes(None, [], set())
@@ -263,10 +264,11 @@ def check_modes(path, label, problems):
         return CheckedModes(None, [], set())
     if records:
         fmax = max(records, key=lambda r: r[3])
-        if fmax[3] < KHZ_LIMIT_HZ:
+        if fmax[3] < KHZ_LIMIT_HZ and not hz_confirmed:
             problems.add(f"{label}:{fmax[0]}", f"largest freq_Hz = {fmax[3]:g} is below "
                          f"{KHZ_LIMIT_HZ:g} Hz; values look like kHz",
-                         "multiply all frequencies by 1000 to convert to Hz")
+                         "multiply all frequencies by 1000 to convert to Hz (or, if they are in Hz, add "
+                         "frequencies_in_Hz_confirmed: true to conditions.yaml)")
     by_state: dict[str, dict[int, tuple]] = {}
     for rec in records:
         line, state, mode, freq, _ = rec
