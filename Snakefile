@@ -24,7 +24,7 @@ from jointid.config.snakefile import validated, sections, merged
 from jointid.stages import doe, identify, modal, model, surface, verify
 
 configfile: "config.yaml"
-config = validated(config)
+config = validated(config, ["config.yaml", *workflow.overwrite_configfiles])
 SHEET = doe.doe_sheet(config)
 POINTS = list(SHEET["point"])
 STATES = list(config["states"])

@@ -717,3 +717,18 @@ def test_cli_and_snakefile_check_the_datasets(workdir, capsys):
         validated(raw)
     assert info.value.code == 1
     assert "config.yaml: states.power_on.dataset: 'rig2x' is neither" in capsys.readouterr().err
+
+
+def test_problem_lines_name_the_config_file_that_set_the_key(tmp_path):
+    """With --configfile overlays the Snakefile names the file each bad key came from (the deepest
+    definition, the later file on a tie), not config.yaml for all."""
+    from jointid.config.snakefile import attribute
+
+    base, over = tmp_path / "config.yaml", tmp_path / "over.yaml"
+    base.write_text("mesh: {refine: 1}\nrig: {base: {length_m: 1.1}}\n")
+    over.write_text("mesh: {refine: 0}\ndoe: {seed: 1}\n")
+    lines = ["config.yaml: mesh.refine: 0 must be >= 1", "config.yaml: rig.base.length_m: bad",
+             "config.yaml: doe.seed: bad", "config.yaml: harmonic.band_Hz[1]: bad"]
+    assert attribute(lines, [str(base), str(over)]) == [
+        f"{over}: mesh.refine: 0 must be >= 1", f"{base}: rig.base.length_m: bad", f"{over}: doe.seed: bad",
+        "config.yaml: harmonic.band_Hz[1]: bad"]

@@ -3,28 +3,68 @@
 from __future__ import annotations
 
 import copy
+import re
 import sys
+from pathlib import Path
 
 from jointid.config.load import load_config
 from jointid.errors import ConfigError
 from jointid.yamlio import deep_merge
 
-__all__ = ["merged", "sections", "validated"]
+__all__ = ["attribute", "merged", "sections", "validated"]
 
 
-def validated(config: dict) -> dict:
+def validated(config: dict, configfiles=()) -> dict:
     """Validate (and fill defaults of) the Snakemake config; on error print the lines and exit 1.
 
     Snakemake has already merged the ``--configfile`` files (deeply, later files win; a ``null``
     there survives and removes the key, as in :func:`jointid.config.load.check_config`).  The measured
     dataset folders are checked too (relative to the working directory, as the rules read them),
     so a misnamed dataset stops the run here instead of as a missing input or a stale result.
+    ``configfiles`` (the ``--configfile`` files, in order) name the file each problem's key came
+    from (:func:`attribute`); without them every line says ``config.yaml``.
     """
     try:
         return load_config(dict(config), check_datasets=True)
     except ConfigError as exc:
-        print(str(exc), file=sys.stderr)
+        print("\n".join(attribute(exc.problems, [str(f) for f in configfiles])), file=sys.stderr)
         sys.exit(1)
+
+
+def attribute(lines: list[str], configfiles: list[str], default: str = "config.yaml") -> list[str]:
+    """Problem lines ``config.yaml: <key>: ...`` relabelled with the config file that set ``<key>``.
+
+    The file defining the longest prefix of the key wins, the later one on a tie (as Snakemake
+    merges them); a key no file defines keeps ``default``.
+    """
+    from jointid.yamlio import read_yaml  # noqa: PLC0415
+
+    docs = []
+    for f in configfiles:
+        try:
+            docs.append((f, read_yaml(Path(f), f) or {}))
+        except Exception:  # noqa: BLE001 - an unreadable file names nothing
+            continue
+    out = []
+    for line in lines:
+        head = f"{default}: "
+        if not line.startswith(head) or not docs:
+            out.append(line)
+            continue
+        key = line[len(head):].split(": ", 1)[0]
+        parts = [p for p in re.split(r"\.|\[\d+\]", key) if p]
+        best, depth = default, 0
+        for name, doc in docs:
+            node, d = doc, 0
+            for p in parts:
+                if isinstance(node, dict) and p in node:
+                    node, d = node[p], d + 1
+                else:
+                    break
+            if d >= depth and d > 0:
+                best, depth = name, d
+        out.append(f"{best}: {line[len(head):]}")
+    return out
 
 
 def sections(config: dict, *names: str) -> dict:
