@@ -229,6 +229,6 @@ def test_invalid_config_stops_the_dry_run_with_one_line_per_problem(tmp_path):
     sigma = [ln for ln in lines if "identify.frequency_uncertainty_pct" in ln]
     assert len(bounds) == 1 and "inverted" in bounds[0] and "swap" in bounds[0], proc.stderr
     assert len(sigma) == 1 and "-1" in sigma[0], proc.stderr
-    for ln in bounds + sigma:
-        assert ln.startswith("config.yaml: ") and " — " in ln, ln  # where: what — how to fix
+    for ln in bounds + sigma:  # where (the overlay that set the key): what — how to fix
+        assert ln.startswith(f"{bad}: ") and " — " in ln, ln
     assert not (wd / "results").exists() and not (wd / "logs").exists()

@@ -178,10 +178,10 @@ def test_failing_stage_leaves_no_partial_output_and_keeps_earlier_results(coarse
     bad = wd / "data" / "bad"
     bad.mkdir()
     (bad / "conditions.yaml").write_text((wd / "data" / "paper" / "conditions.yaml").read_text())
-    modes = (wd / "data" / "paper" / "modes.csv").read_text().splitlines()
-    assert modes[2].startswith("power_off,2,1416.1")
-    modes[2] = modes[2].replace(",1416.1", ",-1416.1")  # file line 3: a negative frequency
-    (bad / "modes.csv").write_text("\n".join(modes) + "\n")
+    (bad / "modes.csv").write_text((wd / "data" / "paper" / "modes.csv").read_text())
+    # a shape at a point the model does not have: only a stage that knows the model's measuring points
+    # can tell (everything else is checked before the first job), so the run fails mid-way
+    (bad / "shapes.csv").write_text("state,mode,point,direction,value\npower_off,1,T99,y,1.0\n")
     override = write_config(wd / "bad_dataset.yaml", "measurements:\n  dataset: data/bad\n")
 
     upstream = ("results/model/*", "results/doe/*", "results/modal/**/*", "results/surface/*")
@@ -198,7 +198,7 @@ def test_failing_stage_leaves_no_partial_output_and_keeps_earlier_results(coarse
             f"{state}: the failed scout must not leave scout.json"
         log = (wd / "logs" / "scout" / f"{state}.log").read_text()
         assert "Traceback" not in log, "a DataError is reported without a traceback"
-        assert "data/bad/modes.csv:3" in log and "freq_Hz" in log, log
+        assert "data/bad/shapes.csv:2" in log and "T99" in log, log
     # earlier results untouched (bytes and times), no stray temporary files
     assert file_hashes(wd, upstream) == before
     assert {p: (wd / p).stat().st_mtime_ns for p in before} == mtimes
