@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import linear_sum_assignment
 
+from jointid.correlate.pairing import pair_by_shapes
 from jointid.diagnosis.terms import StateInfo
 
 if TYPE_CHECKING:
@@ -99,13 +99,7 @@ def tie_groups(ranking: pd.DataFrame, tie_delta_aicc: float) -> list[str]:
 
 def _match(sa, sb) -> np.ndarray:
     """Mode of solution ``sb`` matching each mode of ``sa`` by MAC of the probe shapes (-1 below 0.5)."""
-    A, B = np.asarray(sa.shapes, float), np.asarray(sb.shapes, float)
-    C = (A.T @ B) ** 2 / np.maximum(np.outer((A * A).sum(0), (B * B).sum(0)), 1e-300)
-    r, c = linear_sum_assignment(-C)
-    out = -np.ones(A.shape[1], int)
-    good = C[r, c] >= 0.5
-    out[r[good]] = c[good]
-    return out
+    return pair_by_shapes(np.asarray(sa.shapes, float), np.asarray(sb.shapes, float), threshold=0.5)[0]
 
 
 def _further_modes(diag, fits: dict, names: list[str]) -> list[dict]:
