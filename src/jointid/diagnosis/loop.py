@@ -68,9 +68,12 @@ class Diagnosis:
     absorbed: list = field(default_factory=list)
 
 
-OPTIONS = {"alpha": 0.01, "n_refit": 5, "max_effects": 2, "n_combine": 5, "tie_delta_aicc": 4.0,
-           "absorption_shift_pct": 3.0}
-"""Defaults of the ``diagnosis`` config section (the schema holds the same)."""
+def default_options() -> dict:
+    """The defaults of the ``diagnosis`` config section, from the schema (for a config not validated)."""
+    from jointid.config.schema import load_schema, subschema  # noqa: PLC0415
+
+    props = subschema(load_schema(), "diagnosis")["properties"]
+    return {k: v["default"] for k, v in props.items()}
 
 
 def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: dict | None = None,
@@ -107,7 +110,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     Diagnosis
     """
     t_start = time.time()
-    opt = {**OPTIONS, **(cfg.get("diagnosis") or {})}
+    opt = {**default_options(), **(cfg.get("diagnosis") or {})}
     opt.update({k: v for k, v in (("n_refit", n_refit), ("alpha", alpha)) if v is not None})
     alpha = float(opt["alpha"])
     enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
