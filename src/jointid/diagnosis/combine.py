@@ -14,6 +14,7 @@ import itertools
 import numpy as np
 
 from jointid.diagnosis.fitting import Diagnoser, Fit
+from jointid.progress import Steps
 
 __all__ = ["combine_candidates", "combination_row"]
 
@@ -50,11 +51,12 @@ def combine_candidates(diag: Diagnoser, current: Fit, singles: dict, n_combine: 
     """
     lead = sorted(singles, key=lambda n: singles[n].aicc)[:n_combine]
     rows, fits = [], {}
+    steps = Steps(len(lead) * (len(lead) - 1) // 2)
     for a, b in itertools.combinations(lead, 2):
         fa, fb = singles[a], singles[b]
         spec_b = fb.variant.effects[-1]
         var = fa.variant.extended(spec_b)
-        log(f"diagnosis: refitting {current.variant.name} + {a} + {b}")
+        log(f"diagnosis: refitting {current.variant.name} + {a} + {b} {steps.next()}")
         best = None
         for x0 in _starts(current, fa, fb):
             f = diag.fit(var, x0, index=fa.ev.index)

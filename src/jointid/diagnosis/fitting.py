@@ -38,13 +38,14 @@ from jointid.diagnosis.results import Evaluation, Fit
 from jointid.diagnosis.terms import System
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
+from jointid.progress import stamp
 
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
 
 
 def print_log(msg: str) -> None:
-    """Default progress log of the diagnosis: print and flush."""
-    print(msg, flush=True)
+    """Default progress log of the diagnosis: print with the wall-clock time, and flush."""
+    print(stamp(msg), flush=True)
 
 
 class Diagnoser:
@@ -82,6 +83,7 @@ class Diagnoser:
         m = max(len(d.f_meas) for d in self.data)
         self.solver = ReducedSolver(self.system, kc, mc, self.n_modes, directions, shift_Hz=self._shift,
                                     backend=self._backend, tol=self._tol, n_seed=m + 2)
+        self.solver.log = self.log
         self.log(f"diagnosis: reduced solver with {self.solver.V.shape[1]} vectors "
                  f"({self.system.n_dofs} DOFs) in {time.time() - t0:.1f} s")
 

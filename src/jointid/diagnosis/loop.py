@@ -39,6 +39,7 @@ from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.diagnosis.verdict import Findings, verdict_text
 from jointid.errors import DataError
 from jointid.fe.reduced import ReducedSolver
+from jointid.progress import Steps
 
 
 @dataclass
@@ -287,8 +288,9 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
         rest = [r for r in rows if r[1] is not None and r not in order and r[2]["collinearity"] >= 1e-3]
         order = order[:n_refit] + sorted(rest, key=lambda r: -r[0]["score"])
         n_refit = len(order)
+    steps = Steps(min(n_refit, len(order)))
     for i, (row, spec, st) in enumerate(order[:n_refit]):
-        log(f"diagnosis: refitting {current.variant.name} + {row['effect']}")
+        log(f"diagnosis: refitting {current.variant.name} + {row['effect']} {steps.next()}")
         f = refit(diag, current, spec, st["t_hat"], verify=i == 0)
         row.update(refit_row(f, current, diag.data, alpha))
         fits["+" + row["effect"]] = f

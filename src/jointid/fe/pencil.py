@@ -51,9 +51,10 @@ class FreePencil:
         # K0 itself (no second copy): assembling is one copy plus a scatter of the few entries of
         # each other term (the mass terms, M0 included, are scattered: a third of the pattern)
         self._pos = {}
+        keys = _keys(self.pattern)  # once: every term is located by a search in these
         for group, terms in (("K", self.K_terms), ("M", self.M_terms)):
             for k, A in terms.items():
-                pos = _positions(self.pattern, A)
+                pos = _positions(keys, A)
                 if (group, k) == ("K", "K0"):
                     self._K0 = np.zeros(self.pattern.nnz)
                     self._K0[pos] = A.data
@@ -130,11 +131,20 @@ class FreePencil:
 
 
 def _union_pattern(mats: list[sp.csr_matrix]) -> sp.csr_matrix:
-    """The union of the sparsity patterns (sorted CSR, data all ones)."""
-    U = None
-    for A in mats:
-        B = sp.csr_matrix((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)
-        U = B if U is None else U + B
+    """The union of the sparsity patterns (sorted CSR, data all ones).  The small terms are gathered
+    into one matrix first, so the large ones are added once, not once per term."""
+    def ones(A):
+        return sp.csr_matrix((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)
+
+    big = sorted(mats, key=lambda A: A.nnz, reverse=True)
+    large, small = big[:2], big[2:]
+    U = ones(large[0])
+    for A in large[1:]:
+        U = U + ones(A)
+    if small:
+        rows = np.concatenate([np.repeat(np.arange(A.shape[0]), np.diff(A.indptr)) for A in small])
+        cols = np.concatenate([A.indices for A in small])
+        U = U + sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=U.shape)
     U = U.tocsr()
     U.sum_duplicates()
     U.sort_indices()
@@ -142,12 +152,16 @@ def _union_pattern(mats: list[sp.csr_matrix]) -> sp.csr_matrix:
     return U
 
 
-def _positions(P: sp.csr_matrix, A: sp.csr_matrix) -> np.ndarray:
-    """Index into ``P.data`` of every stored entry of ``A`` (A's pattern is a subset of P's)."""
-    n = P.shape[1]
+def _keys(P: sp.csr_matrix) -> np.ndarray:
+    """Sorted linear keys ``row * n_cols + col`` of the stored entries of a sorted CSR pattern."""
     prow = np.repeat(np.arange(P.shape[0], dtype=np.int64), np.diff(P.indptr))
-    pkeys = prow * n + P.indices
+    return prow * P.shape[1] + P.indices
+
+
+def _positions(pkeys: np.ndarray, A: sp.csr_matrix) -> np.ndarray:
+    """Index into the pattern's data of every stored entry of ``A`` (A's pattern is a subset of the
+    pattern whose :func:`_keys` are ``pkeys``)."""
     arow = np.repeat(np.arange(A.shape[0], dtype=np.int64), np.diff(A.indptr))
-    pos = np.searchsorted(pkeys, arow * n + A.indices)
-    dtype = np.int32 if P.nnz < 2**31 else np.int64
+    pos = np.searchsorted(pkeys, arow * A.shape[1] + A.indices)
+    dtype = np.int32 if len(pkeys) < 2**31 else np.int64
     return pos.astype(dtype)

@@ -1,14 +1,13 @@
 """Rayleigh-Ritz eigen-solver on an adaptively enriched subspace of an affine FE model.
 
 ``K(c) = K0 + sum c_a K_a``, ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.fem.Model`, or the
-diagnosis' :class:`jointid.diagnosis.effects.System` with its effect terms).  The subspace starts from the exact
-modes at a reference point plus their first-order responses ``A^-1 (dK - lambda dM) phi`` to given
-coefficient directions; at each new point the residuals ``K phi - lambda M phi`` of the Ritz pairs are
-checked in the full space and, where the estimated relative eigenvalue error exceeds ``tol``, the
-preconditioned residuals are added (Davidson step with the reference factorisation, or a
-factorisation and Lanczos solve at a distant point).  The answers are therefore full-FE answers to
-``tol`` (1e-6 by default) at the cost of a few dense ``r x r`` eigen-problems.  Used by the diagnosis
-(every fit) and by the identification's FE polish.
+diagnosis' :class:`jointid.diagnosis.effects.System`).  The subspace starts from the exact modes at a
+reference point plus their first-order responses ``A^-1 (dK - lambda dM) phi`` to given coefficient
+directions.  At each refined point the residuals ``K phi - lambda M phi`` of the Ritz pairs are
+checked in the full space; where the estimated relative eigenvalue error exceeds ``tol`` (1e-6 by
+default) the preconditioned residuals join the subspace (Davidson steps, the preconditioner
+re-factorised at a distant point).  :meth:`ReducedSolver.verify` adds a Sturm count.  Used by the
+diagnosis, the hypotheses and the identification's FE polish.
 """
 
 from __future__ import annotations
@@ -21,6 +20,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from jointid.errors import ModelError
+from jointid.fe.basis import GrowingBasis
 from jointid.fe.modal import TWO_PI, count_pencil_modes_below, factorize_pencil, shift_invert_lanczos
 from jointid.fe.pencil import FreePencil
 
@@ -94,11 +94,14 @@ class ReducedSolver:
         self.P = system.probe[:, sel].tocsr() if len(sel) < n else system.probe.tocsr()
         self.n_full_solves = 0
         self.n_refine = 0
+        self.n_checks = 0
         self.generation = 0
-        self.V = np.zeros((len(sel), 0))
+        self.basis = GrowingBasis(len(sel))
         self.Kr = {k: np.zeros((0, 0)) for k in self.K_terms}
         self.Mr = {k: np.zeros((0, 0)) for k in self.M_terms}
         self.M_ref = None
+        self._refined: dict = {}  # refined solutions by (coefficients, basis), see solve
+        self.log = None  # progress lines (certificates), e.g. print
         self._refactor(kc, mc)
         phi, f = self._lanczos(kc, mc, self.n_modes + 4)
         lam = (TWO_PI * f) ** 2
@@ -115,6 +118,11 @@ class ReducedSolver:
                 blocks.append(self.fac.solve(R))
         if blocks:
             self._append(np.hstack(blocks))
+
+    @property
+    def V(self) -> np.ndarray:
+        """The M_ref-orthonormal basis on the free DOFs, ``(n_free, r)``."""
+        return self.basis.V
 
     # ------------------------------------------------------------ assembly helpers
     def K(self, kc: dict) -> sp.csr_matrix:
@@ -166,6 +174,8 @@ class ReducedSolver:
         Lc = np.linalg.cholesky(0.5 * (G + G.T))
         W = sla.solve_triangular(Lc, W.T, lower=True).T
         V_old = self.V
+        keep = self.basis.keep_products
+        base_products = {}
         for group, terms, red in (("K", self.K_terms, self.Kr), ("M", self.M_terms, self.Mr)):
             for name, A in terms.items():
                 sub = self._rows[name]
@@ -173,6 +183,8 @@ class ReducedSolver:
                     AW = A @ W
                     off = V_old.T @ AW
                     blk = W.T @ AW
+                    if keep and name in ("K0", "M0"):
+                        base_products[name] = AW
                 else:
                     rows, Ars = sub
                     AW = Ars @ W[rows]
@@ -180,7 +192,7 @@ class ReducedSolver:
                     blk = W[rows].T @ AW
                 old = red[name]
                 red[name] = np.block([[old, off], [off.T, 0.5 * (blk + blk.T)]])
-        self.V = np.hstack([V_old, W])
+        self.basis.append(W, base_products.get("K0"), base_products.get("M0"))
         self.PV = self.P @ self.V
         self._regroup()
         return W.shape[1]
@@ -225,48 +237,97 @@ class ReducedSolver:
         lam, Y = sla.eigh(Kr, Mr, check_finite=False, subset_by_index=[0, n - 1], driver="gvx")
         return lam, Y
 
+    def _apply(self, coeffs: dict, Y: np.ndarray, group: str) -> np.ndarray:
+        """``A(coeffs) V Y`` for the stiffness (``group`` "K") or mass ("M") on the free DOFs: the
+        base term from its cached product with the basis, every other term on the rows it touches."""
+        terms, base = (self.K_terms, "K0") if group == "K" else (self.M_terms, "M0")
+        cached = self.basis.KV if group == "K" else self.basis.MV
+        V = self.V
+        c0 = 1.0 + coeffs.get(base, 0.0)
+        phi = None
+        if cached is not None:
+            out = c0 * (cached @ Y)
+        else:
+            phi = V @ Y
+            out = c0 * (terms[base] @ phi)
+        for name, c in coeffs.items():
+            if name == base or c == 0.0:
+                continue
+            if name not in terms:
+                raise KeyError(f"no {group} term named {name!r}; the model has {sorted(terms)}")
+            sub = self._rows[name]
+            if sub is None:
+                phi = V @ Y if phi is None else phi
+                out += c * (terms[name] @ phi)
+            else:
+                rows, Ars = sub
+                out[rows] += c * (Ars @ (V[rows] @ Y))
+        return out
+
+    def _key(self, kc: dict, mc: dict, n: int) -> tuple:
+        return (tuple(sorted(kc.items())), tuple(sorted(mc.items())), n, self.generation, self.basis.r)
+
     def solve(self, kc: dict, mc: dict, n: int | None = None, *, refine: bool = True) -> Solution:
         """Lowest ``n`` modes at coefficients ``(kc, mc)``, refined until their estimated error < tol."""
         n = n or self.n_modes
+        if refine:
+            hit = self._refined.get(self._key(kc, mc, n))
+            if hit is not None:  # this point was refined on this very basis: nothing can have changed
+                return hit
         lam, Y = self._ritz(kc, mc, n)
         worst = float("nan")
         if refine:
             last = np.inf
-            K = M = None
+            refactored, slow_after = False, 0
             for it in range(12):
-                phi = self.V @ Y[:, :n]
-                if K is None:  # assembled once per point, on the first residual check
-                    K, M = self.K(kc), self.M(mc)
-                R = K @ phi - (M @ phi) * lam[None, :n]
+                self.n_checks += 1
+                R = self._apply(kc, Y[:, :n], "K") - self._apply(mc, Y[:, :n], "M") * lam[None, :n]
                 D = self.fac.solve(R)
                 err = np.abs(np.einsum("ij,ij->j", R, D)) / np.maximum(np.abs(lam[:n]), 1.0)
                 worst = float(err.max())
                 if worst <= self.tol:
                     break
                 self.n_refine += 1
-                if self.V.shape[1] > self.max_basis:
+                slow = worst > 0.5 * last
+                slow_after += int(refactored and slow)
+                if self.basis.r > self.max_basis:
                     self._refactor(kc, mc)
                     self._reset(self._lanczos(kc, mc, n + 4)[0])
-                elif worst > 1e-2 or worst > 0.5 * last:
-                    # far from the reference or slow progress: exact modes at this point, which
-                    # also becomes the new preconditioner
+                elif (worst > 1e-2 or slow) and not refactored:
+                    # far from the reference or slow progress: this point becomes the preconditioner
+                    # (Davidson steps with the exact shifted inverse here)
                     self._refactor(kc, mc)
+                    refactored = True
+                    D = self.fac.solve(R)
+                    self._append(D[:, err > self.tol])
+                elif slow_after >= 2:
+                    # still slow with the local preconditioner: exact modes at this point
                     self._append(self._lanczos(kc, mc, n + 4)[0])
+                    slow_after = -100
                 else:
                     self._append(D[:, err > self.tol])
                 last = worst
                 lam, Y = self._ritz(kc, mc, n)
         lam_n = lam[:n]
         freqs = np.sqrt(np.clip(lam_n, 0.0, None)) / TWO_PI
-        return Solution(freqs_Hz=freqs, lam=lam_n, Y=Y[:, :n], lam_all=lam, Y_all=Y, kc=dict(kc),
-                        mc=dict(mc), shapes=self.PV @ Y[:, :n], generation=self.generation, error=worst)
+        sol = Solution(freqs_Hz=freqs, lam=lam_n, Y=Y[:, :n], lam_all=lam, Y_all=Y, kc=dict(kc),
+                       mc=dict(mc), shapes=self.PV @ Y[:, :n], generation=self.generation, error=worst)
+        if refine and worst <= self.tol:
+            if len(self._refined) > 64:
+                self._refined.clear()
+            self._refined[self._key(kc, mc, n)] = sol
+        return sol
 
     def _reset(self, phi):
         self.generation += 1
-        self.V = np.zeros((phi.shape[0], 0))
+        self.basis = GrowingBasis(phi.shape[0])
         self.Kr = {k: np.zeros((0, 0)) for k in self.K_terms}
         self.Mr = {k: np.zeros((0, 0)) for k in self.M_terms}
         self._append(phi)
+
+    def _say(self, msg: str):
+        if self.log is not None:
+            self.log("reduced solver: " + msg)
 
     def full_phi(self, sol: Solution) -> np.ndarray:
         """Mass-normalised full-space mode shapes of a solution, ``(n_dofs, n)`` (zeros at fixed DOFs)."""
@@ -288,10 +349,15 @@ class ReducedSolver:
         red = self.solve(kc, mc, n, refine=True)
         lam = self._ritz(kc, mc, n + 1)[0]
         f = np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
+        count = None
         if len(f) > n and f[n] > f[n - 1] * (1.0 + 1e-6) and np.isfinite(red.error):
-            count = count_pencil_modes_below(self.pencil, kc, mc, 0.5 * (f[n - 1] + f[n]), self.backend)
+            at = 0.5 * (f[n - 1] + f[n])
+            count = count_pencil_modes_below(self.pencil, kc, mc, at, self.backend)
             if count == n:
+                self._say(f"certificate: residual error {red.error:.1e} (tol {self.tol:.0e}) and Sturm count "
+                          f"{count} modes below {at:.1f} Hz = the {n} Ritz values")
                 return 0.5 * red.error  # relative frequency error = half the eigenvalue error
+        self._say(f"certificate failed ({'Sturm count ' + str(count) + ' for ' + str(n) + ' Ritz values' if count is not None else 'no gap above the last Ritz value'}): full Lanczos solve")
         self._refactor(kc, mc)
         phi, f_full = self._lanczos(kc, mc, n + 2)
         f_full = f_full[:n]

@@ -9,6 +9,7 @@ import traceback
 from collections.abc import Iterable
 
 from jointid.errors import JointidError
+from jointid.progress import stamp
 
 EXIT_TERMINATED = 128 + signal.SIGTERM
 """Exit status of a stage stopped by SIGTERM (as a shell reports a process killed by it)."""
@@ -19,8 +20,9 @@ class Terminated(SystemExit):
 
 
 def log(msg: str) -> None:
-    """Print a stage's progress line at once (the rule's log is a pipe, not a terminal)."""
-    print(msg, flush=True)
+    """Print a stage's progress line at once, with the wall-clock time (the rule's log is a pipe,
+    not a terminal)."""
+    print(stamp(msg), flush=True)
 
 
 def _on_sigterm(signum, frame):

@@ -1,0 +1,26 @@
+"""Progress lines of long stages: a wall-clock stamp on every line, and for loops of known length
+the step and an estimate of the time left (from the mean time of the steps done so far)."""
+
+from __future__ import annotations
+
+import time
+
+
+def stamp(msg: str) -> str:
+    """``msg`` prefixed with the wall-clock time ``[HH:MM:SS]``."""
+    return f"[{time.strftime('%H:%M:%S')}] {msg}"
+
+
+class Steps:
+    """Counter of a loop of ``n`` steps: :meth:`next` gives ``"(k/n)"`` before step k, with ``about
+    X s left`` once a step has finished."""
+
+    def __init__(self, n: int):
+        self.n, self.k, self.t0 = int(n), 0, time.monotonic()
+
+    def next(self) -> str:
+        self.k += 1
+        if self.k == 1 or self.n <= 1:
+            return f"({self.k}/{self.n})"
+        per = (time.monotonic() - self.t0) / (self.k - 1)
+        return f"({self.k}/{self.n}, about {per * (self.n - self.k + 1):.0f} s left)"
