@@ -1,4 +1,4 @@
-"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e f g] [--quick]``.
+"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e f g h] [--quick]``.
 
 =====  =======================================================================================
 ``a``  default-model assembly + 12-mode modal solve: jointid vs idiomatic scikit-fem, the ratio
@@ -8,6 +8,7 @@
 ``e``  mesh convergence: first 12 frequencies of the default model vs a once-refined mesh
 ``f``  identified joint parameters re-identified on a refined mesh: their change
 ``g``  where the lateral modes lose mesh convergence: grid lines added beside one set of part edges
+``h``  the loop: enable one effect in the config and rerun the diagnosis target (tmp copy): wall time
 =====  =======================================================================================
 
 Every measurement that matters for memory runs in its own subprocess (``benchmarks.worker``), which
@@ -15,4 +16,4 @@ reports its own peak RSS (``resource.getrusage``).  Results go to ``benchmarks/o
 one JSON per benchmark and ``summary.md`` with the table that is printed.
 """
 
-BENCHMARKS = ("a", "b", "c", "d", "e", "f", "g")
+BENCHMARKS = ("a", "b", "c", "d", "e", "f", "g", "h")
