@@ -18,6 +18,8 @@ factors taken at its last optimum until they settle.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from jointid.fe.describe import describe_modes
@@ -27,6 +29,7 @@ from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
 from jointid.identification.rom import ROM, load_rom
 from jointid.identification.updating import fe_polish, log_jacobian
+from jointid.progress import stamp
 
 __all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "corrected", "edge_limit_at", "extrapolated_polish",
            "polish_on_model", "polish_optimum", "solve_point"]
@@ -36,7 +39,7 @@ EXTRAPOLATION_SETTLED = 2e-3  # the factors have settled once their first-order 
 
 
 def _log(msg: str) -> None:
-    print(msg, flush=True)
+    print(stamp(msg), flush=True)
 
 
 def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True,
@@ -82,7 +85,8 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
     ``EXTRAPOLATION_PASSES`` passes).  Returns ``(record for params.json, the last polish)``.
     """
     say = lambda m: _log(f"identify[{state}]: {m}")  # noqa: E731
-    models = [load_model(p) for p in (matrices, *edge_matrices)]
+    # each level is loaded when its turn comes and dropped after its solve (peak memory: one level)
+    models = [partial(load_model, p) for p in (matrices, *edge_matrices)]
     theta_mesh = dict(zip(doc["names"], map(float, polish["theta"])))
     passes = []
     for k in range(EXTRAPOLATION_PASSES):

@@ -7,6 +7,8 @@ Imports of the numerical modules are inside the functions (see :mod:`jointid.sta
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from jointid import io
@@ -35,7 +37,7 @@ def _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices, say):
     f_c = modes_c.freqs_Hz
     if edge_matrices:
         say("default mesh: extrapolated over its edge levels")
-        f_c = edge_limit_at(cfg, [coarse, *map(load_model, edge_matrices)], theta_d, log=say,
+        f_c = edge_limit_at(cfg, [coarse, *(partial(load_model, p) for p in edge_matrices)], theta_d, log=say,
                             base=(modes_c.freqs_Hz, shapes_c)).limit_Hz
     return f_c, modes_c.freqs_Hz, shapes_c, J_all, coarse.n_dofs
 
@@ -43,7 +45,6 @@ def _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices, say):
 def _refined_mesh(cfg, theta_d, halve, extrapolate: bool, say):
     """Solve of the mesh with the ``halve`` cells halved (and its two more edge levels with
     ``extrapolate``); returns ``(frequencies, its own frequencies, shapes, number of DOFs)``."""
-    from functools import partial
 
     from jointid.fe.extrapolate import level_config
     from jointid.fe.model import build_model

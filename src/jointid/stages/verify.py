@@ -5,6 +5,8 @@ Imports of the numerical modules are inside the functions (see :mod:`jointid.sta
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from jointid import io
@@ -75,7 +77,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     f_meas = np.asarray(par["f_meas_Hz"])
     f_all, lim = freqs, None
     if edge_matrices:
-        lim = edge_limit_at(cfg, [model, *map(load_model, edge_matrices)], theta,
+        lim = edge_limit_at(cfg, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
                             log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes))
         f_all = lim.limit_Hz
     from jointid.geometry.points import dof_labels
