@@ -195,8 +195,11 @@ def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos
     kc2, mc2 = T.baseline_coefficients(system, cfg, near)
     full = solve_modes(system.K(kc2), system.M(mc2), 10, fixed=system.fixed)
     lanczos_runs = solver.n_full_solves
+    lines = []
+    solver.log = lines.append
     err = solver.verify(kc2, mc2, 10)
     assert solver.n_full_solves == lanczos_runs  # confirmed by the count, no eigen-solve
+    assert len(lines) == 1 and "certificate: residual error" in lines[0] and "Sturm count 10 modes" in lines[0]
     red = solver.solve(kc2, mc2, 10)
     assert err < 1e-6
     assert np.max(np.abs(red.freqs_Hz / full.freqs_Hz - 1)) < 1e-6
@@ -204,6 +207,7 @@ def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos
     monkeypatch.setattr(reduced, "count_pencil_modes_below", lambda *a, **k: 11)
     err = solver.verify(kc2, mc2, 10)
     assert solver.n_full_solves == lanczos_runs + 1 and err < 1e-5
+    assert "certificate failed (Sturm count 11 for 10 Ritz values): full Lanczos solve" in lines[-1]
 def test_variant_coefficient_derivatives(coarse):
     cfg, system = coarse
     var = Variant(system, cfg, [EffectSpec.candidate(E.EFFECTS["em_preload"])])

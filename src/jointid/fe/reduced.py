@@ -357,7 +357,9 @@ class ReducedSolver:
                 self._say(f"certificate: residual error {red.error:.1e} (tol {self.tol:.0e}) and Sturm count "
                           f"{count} modes below {at:.1f} Hz = the {n} Ritz values")
                 return 0.5 * red.error  # relative frequency error = half the eigenvalue error
-        self._say(f"certificate failed ({'Sturm count ' + str(count) + ' for ' + str(n) + ' Ritz values' if count is not None else 'no gap above the last Ritz value'}): full Lanczos solve")
+        why = (f"Sturm count {count} for {n} Ritz values" if count is not None
+               else "no gap above the last Ritz value, or the residual check did not converge")
+        self._say(f"certificate failed ({why}): full Lanczos solve")
         self._refactor(kc, mc)
         phi, f_full = self._lanczos(kc, mc, n + 2)
         f_full = f_full[:n]
