@@ -13,7 +13,7 @@ def stamp(msg: str) -> str:
 
 class Steps:
     """Counter of a loop of ``n`` steps: :meth:`next` gives ``"(k/n)"`` before step k, with ``about
-    X s left`` once a step has finished."""
+    X s left`` once a step has finished; :meth:`done` gives ``"(k/n done, about X s left)"`` after it."""
 
     def __init__(self, n: int):
         self.n, self.k, self.t0 = int(n), 0, time.monotonic()
@@ -24,3 +24,10 @@ class Steps:
             return f"({self.k}/{self.n})"
         per = (time.monotonic() - self.t0) / (self.k - 1)
         return f"({self.k}/{self.n}, about {per * (self.n - self.k + 1):.0f} s left)"
+
+    def done(self) -> str:
+        self.k += 1
+        if self.k >= self.n:
+            return f"({self.k}/{self.n} done)"
+        per = (time.monotonic() - self.t0) / self.k
+        return f"({self.k}/{self.n} done, about {per * (self.n - self.k):.0f} s left)"

@@ -37,6 +37,7 @@ from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
 from jointid.diagnosis.statistics import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.errors import ConfigError
+from jointid.progress import Steps
 from jointid.yamlio import deep_merge
 
 __all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "LinkedLaw", "hypothesis_config", "needs_own_model",
@@ -140,6 +141,7 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, log=print_log) -
     profile, best = [], None
     x_prev = None
     index = None
+    steps = Steps(len(classes))
     for P in classes:  # continuation: each class starts at the optimum (and pairing) of the one before
         var = linked_variant(system, cfg, law if linked else None, P)
         if x_prev is None:  # the configured start and the hypothesis's effects at their null, best kept
@@ -149,7 +151,7 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, log=print_log) -
         x_prev, index = fit.x, fit.ev.index
         beta = fit.variant.physical(fit.x).get("em_preload.beta", float("nan"))
         profile.append({"preload_N": float(P), "beta": float(beta), "chi2": fit.chi2})
-        log(f"hypotheses: preload {P:g} N: chi2 {fit.chi2:.2f}, beta {beta:.3f}")
+        log(f"hypotheses: preload {P:g} N {steps.done()}: chi2 {fit.chi2:.2f}, beta {beta:.3f}")
         if best is None or fit.chi2 < best[0].chi2 - 1e-9:
             best = (fit, P)
     fit, P = best
