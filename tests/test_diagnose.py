@@ -325,3 +325,39 @@ def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
             for s, f in (("power_off", 0.0), ("power_on", 1000.0))]
     with pytest.raises(DataError, match="2 measured frequencies for 3 fitted parameters"):
         diagnose(system, cfg, data)
+
+
+def test_current_stage_gives_the_diagnosis_ladder_without_the_candidate_search(tmp_path):
+    """Rule ``current`` (the quick half of the loop): baseline and configured effect calibrated by the
+    same steps as the diagnosis, so its ladder equals the diagnosis' first ladder rows."""
+    from conftest import diagnosis_rig
+
+    from jointid.diagnosis import synth
+    from jointid.diagnosis.loop import diagnose
+    from jointid.stages.diagnosis import run_current
+
+    rig = diagnosis_rig()
+    cfg = {**rig["cfg"], "effects": {"em_preload": {"beta": 0.1}}}
+    truth = synth.load_truth(Path(__file__).parent / "hidden" / "em_preload.yaml")
+    synth.write_synthetic(truth, rig["cfg"], tmp_path / "ds", model=rig["model"])
+    lines = []
+    quick = run_current(cfg, tmp_path / "ds", None, tmp_path / "out", model=rig["model"], log=lines.append)
+    ladder = pd.read_csv(tmp_path / "out" / "ladder.csv")
+    assert list(ladder.variant.unique()) == ["baseline", "+em_preload"]
+    assert (tmp_path / "out" / "current.csv").exists() and (tmp_path / "out" / "compare.csv").exists()
+    assert quick.ranking.empty and lines[-1].startswith("current model: baseline max ")
+    full = diagnose(rig["system"], cfg, _data(rig, cfg, tmp_path), candidates=["added_mass_edge"], log=lambda m: None)
+    cols = ["variant", "state", "max_abs_error_pct", "rms_error_pct", "chi2"]
+    head = full.ladder[full.ladder.variant.isin(["baseline", "+em_preload"])][cols].reset_index(drop=True)
+    pd.testing.assert_frame_equal(ladder[cols], head, rtol=1e-9)
+    # the configured effect brings the error down to the noise (0.2 %) from well above it
+    g = ladder.groupby("variant", sort=False).max_abs_error_pct.max()
+    assert g["baseline"] > 1.0 and g["+em_preload"] < 1.0
+
+
+def _data(rig, cfg, tmp_path):
+    from jointid.data.dataset import read_dataset
+    from jointid.diagnosis.variants import dataset_states
+
+    ds = read_dataset(tmp_path / "ds", measuring_points=rig["system"].meta["points"])
+    return dataset_states(ds, rig["system"], cfg)

@@ -3,8 +3,9 @@
 # Every dataset registered under `datasets:` in config.yaml is diagnosed by
 #   snakemake -j2 results/diagnosis/<name>/ranking.csv
 # (plus ladder.csv, index.html and the other tables in the same folder); each run appends one row to
-# results/history.csv.  Enabled effects (`effects:`) are part of the diagnosed model, so changing them
-# reruns only this rule.  With no `datasets:` block the run's measured dataset (measurements.dataset,
+# results/history.csv.  results/diagnosis/<name>/current/ladder.csv is the quick half: the current
+# model calibrated and its errors, without the candidate search.  Enabled effects (`effects:`) are
+# part of the diagnosed model, so changing them reruns only these rules.  With no `datasets:` block the run's measured dataset (measurements.dataset,
 # data/paper by default) is diagnosed under its folder name.
 
 from jointid.config.datasets import registered_datasets
@@ -53,3 +54,29 @@ if DIAG_DATASETS:
             "../scripts/diagnose.py"
 
     EXTRA_TARGETS.extend(expand(f"{R}/diagnosis/{{dataset}}/ranking.csv", dataset=list(DIAG_DATASETS)))
+
+    # the quick half of the loop (not part of `all`): the current model's ladder and errors, the same
+    # numbers as the diagnosis' first ladder rows, without the candidate search
+    #   snakemake -j2 results/diagnosis/<name>/current/ladder.csv
+    rule current:
+        input:
+            matrices=rules.mesh.output.matrices,
+            dataset=_diagnosis_inputs,
+        output:
+            ladder=f"{R}/diagnosis/{{dataset}}/current/ladder.csv",
+            current=f"{R}/diagnosis/{{dataset}}/current/current.csv",
+            compare=f"{R}/diagnosis/{{dataset}}/current/compare.csv",
+        params:
+            cfg=_diagnosis_cfg,
+        wildcard_constraints:
+            dataset="|".join(DIAG_DATASETS),
+        log:
+            "logs/diagnosis/{dataset}_current.log",
+        benchmark:
+            "benchmarks/out/current/{dataset}.tsv"
+        threads: 1
+        resources:
+            mem_mb=4500,
+            runtime=10,
+        script:
+            "../scripts/current.py"

@@ -7,7 +7,9 @@ Called by ``workflow/scripts/diagnose.py`` (rule ``diagnose``) and by the comman
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
+from jointid import io
 from jointid.config import config_hash
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
@@ -20,6 +22,15 @@ from jointid.fe.model import load_model
 from jointid.threads import limit_threads
 
 
+def _system_and_data(cfg: dict, dataset_path: str, matrices: str | None, model=None):
+    limit_threads(1)
+    model = model or load_model(matrices)
+    system = build_system(model, cfg)
+    ds = read_dataset(dataset_path, measuring_points=system.meta["points"])
+    entry = cfg.get("dataset") or {}
+    return system, dataset_states(ds, system, cfg, entry.get("states"))
+
+
 def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
                   history_csv: str | None = None, model=None, log=print_log) -> Diagnosis:
     """Workflow stage: diagnose one dataset and write ``out_dir`` (+ a row of ``history_csv``).
@@ -29,12 +40,7 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
     (the ``datasets.<name>`` entry: ``path``, ``states``); the model comes from ``matrices`` (the
     cached ``results/model/matrices.npz``) or ``model``.
     """
-    limit_threads(1)
-    model = model or load_model(matrices)
-    system = build_system(model, cfg)
-    ds = read_dataset(dataset_path, measuring_points=system.meta["points"])
-    entry = cfg.get("dataset") or {}
-    data = dataset_states(ds, system, cfg, entry.get("states"))
+    system, data = _system_and_data(cfg, dataset_path, matrices, model)
     res = diagnose(system, cfg, data, log=log)
     h = config_hash({k: v for k, v in cfg.items() if k != "dataset"})
     run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": h,
@@ -43,4 +49,25 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
     if history_csv:
         append_history(history_csv, history_row(res, dataset_name, h))
     log(res.verdict)
+    return res
+
+
+def run_current(cfg: dict, dataset_path: str, matrices: str | None, out_dir: str, *, model=None,
+                log=print_log) -> Diagnosis:
+    """Workflow stage (rule ``current``): the quick half of the loop of docs/effects.md.
+
+    The baseline and the configured effects are calibrated exactly as the diagnosis does it (the same
+    steps, so the same numbers), but no candidate is tested: ``out_dir`` gets ``ladder.csv``
+    (baseline -> +each configured effect, per-state errors), ``current.csv`` (the current model
+    against every measured mode) and ``compare.csv``.  Which effect is still missing is the full
+    diagnosis' answer (``ranking.csv``).
+    """
+    system, data = _system_and_data(cfg, dataset_path, matrices, model)
+    res = diagnose(system, cfg, data, candidates=[], drift=False, log=log)
+    out = Path(out_dir)
+    io.write_csv(res.ladder, out / "ladder.csv")
+    io.write_csv(res.current, out / "current.csv")
+    io.write_csv(res.compare, out / "compare.csv")
+    steps = res.ladder.groupby("variant", sort=False)["max_abs_error_pct"].max()
+    log("current model: " + " -> ".join(f"{v} max {m:.2f} %" for v, m in steps.items()))
     return res

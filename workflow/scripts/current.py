@@ -1,0 +1,9 @@
+"""Snakemake adapter: the current model of one registered dataset (baseline and configured effects
+calibrated, per-state errors), without the candidate search of the full diagnosis."""
+import os
+
+from jointid.stages.diagnosis import run_current
+from jointid.stages.runner import run_script
+
+run_script(snakemake, lambda cfg, inp, out: run_current(
+    cfg, cfg["dataset"]["path"], inp.matrices, os.path.dirname(out.ladder)))
