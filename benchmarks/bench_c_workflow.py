@@ -14,13 +14,11 @@ import re
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-from .common import OUT, PYTHON, ROOT, Result, TreeMemorySampler, fmt_mb, worker_env
+from .common import OUT, PYTHON, Result, TreeMemorySampler, copy_project, fmt_mb, worker_env
 
-COPY = ("Snakefile", "config.yaml", "workflow", "data")
 ROM_CONFIG = "solver:\n  method: rom\n"  # merged last (Snakemake's --config cannot set a nested key by dots)
 
 
@@ -68,18 +66,7 @@ def _notes(res: Result, out: dict, blas_threads, prefix: str) -> None:
 
 
 def _run_workflow(quick: bool, blas_threads: int | None, keep: bool, method: str) -> dict:
-    tmp = Path(tempfile.mkdtemp(prefix=f"jointid-bench-c-{'rom-' if method == 'rom' else ''}"))
-    for name in COPY:
-        src = ROOT / name
-        if src.is_dir():
-            shutil.copytree(src, tmp / name, ignore=shutil.ignore_patterns("__pycache__"))
-        elif src.exists():
-            shutil.copy2(src, tmp / name)
-    configs = ["config.yaml"]
-    if quick:
-        (tmp / "tests").mkdir()
-        shutil.copy2(ROOT / "tests" / "coarse_config.yaml", tmp / "tests" / "coarse_config.yaml")
-        configs.append("tests/coarse_config.yaml")
+    tmp, configs = copy_project(f"jointid-bench-c-{'rom-' if method == 'rom' else ''}", quick)
     if method == "rom":
         (tmp / "rom_config.yaml").write_text(ROM_CONFIG)
         configs.append("rom_config.yaml")

@@ -17,31 +17,18 @@ import csv
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-from .common import PYTHON, ROOT, Result, worker_env
+from .common import PYTHON, Result, copy_project, worker_env
 
-COPY = ("Snakefile", "config.yaml", "workflow", "data")
 EFFECT = "em_preload"
 REQUIRED_S, TARGET_S = 60.0, 20.0
 
 
 def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, effect: str = EFFECT) -> Result:
     res = Result("h")
-    tmp = Path(tempfile.mkdtemp(prefix="jointid-bench-h-"))
-    for name in COPY:
-        src = ROOT / name
-        if src.is_dir():
-            shutil.copytree(src, tmp / name, ignore=shutil.ignore_patterns("__pycache__"))
-        else:
-            shutil.copy2(src, tmp / name)
-    configs = ["config.yaml"]
-    if quick:
-        (tmp / "tests").mkdir()
-        shutil.copy2(ROOT / "tests" / "coarse_config.yaml", tmp / "tests" / "coarse_config.yaml")
-        configs.append("tests/coarse_config.yaml")
+    tmp, configs = copy_project("jointid-bench-h-", quick)
     target = "results/diagnosis/paper/ranking.csv"
     first = _snakemake(tmp, target, configs, blas_threads, "first.out")
     (tmp / "loop.yaml").write_text(f"effects:\n  {effect}: {{}}\n")

@@ -203,3 +203,28 @@ def fmt_s(t: float) -> str:
 
 def fmt_mb(mb: float) -> str:
     return f"{mb / 1024:.2f} GB" if mb >= 1024 else f"{mb:.0f} MB"
+
+
+WORKFLOW_FILES = ("Snakefile", "config.yaml", "workflow", "data")
+"""What a temporary copy of the project needs to run the workflow (the package is installed)."""
+
+
+def copy_project(prefix: str, quick: bool) -> tuple[Path, list[str]]:
+    """A temporary copy of the workflow files; returns its folder and the config files to pass
+    (``config.yaml``, plus the coarse test config with ``quick``)."""
+    import shutil
+    import tempfile
+
+    tmp = Path(tempfile.mkdtemp(prefix=prefix))
+    for name in WORKFLOW_FILES:
+        src = ROOT / name
+        if src.is_dir():
+            shutil.copytree(src, tmp / name, ignore=shutil.ignore_patterns("__pycache__"))
+        elif src.exists():
+            shutil.copy2(src, tmp / name)
+    configs = ["config.yaml"]
+    if quick:
+        (tmp / "tests").mkdir()
+        shutil.copy2(ROOT / "tests" / "coarse_config.yaml", tmp / "tests" / "coarse_config.yaml")
+        configs.append("tests/coarse_config.yaml")
+    return tmp, configs
