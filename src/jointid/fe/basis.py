@@ -1,7 +1,7 @@
 """Storage of a growing subspace basis and its products with the two base terms.
 
 The columns live in Fortran-ordered buffers that double when full, so appending copies nothing
-already stored.  ``K0 V`` and ``M0 V`` are kept beside ``V`` while the three fit in
+already stored.  ``K0 V`` and ``M0 V`` are kept beside ``V`` while the two products fit in
 :data:`BASE_PRODUCT_BYTES`: a full-space residual ``K(c) V y - lambda M(m) V y`` then needs neither
 an assembly nor a product with the whole stiffness (the other terms touch few rows).
 """

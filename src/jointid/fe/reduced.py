@@ -94,7 +94,6 @@ class ReducedSolver:
         self.P = system.probe[:, sel].tocsr() if len(sel) < n else system.probe.tocsr()
         self.n_full_solves = 0
         self.n_refine = 0
-        self.n_checks = 0
         self.generation = 0
         self.basis = GrowingBasis(len(sel))
         self.Kr = {k: np.zeros((0, 0)) for k in self.K_terms}
@@ -280,7 +279,6 @@ class ReducedSolver:
             last = np.inf
             refactored, slow_after = False, 0
             for it in range(12):
-                self.n_checks += 1
                 R = self._apply(kc, Y[:, :n], "K") - self._apply(mc, Y[:, :n], "M") * lam[None, :n]
                 D = self.fac.solve(R)
                 err = np.abs(np.einsum("ij,ij->j", R, D)) / np.maximum(np.abs(lam[:n]), 1.0)
