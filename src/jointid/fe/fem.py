@@ -16,11 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
-from skfem import BilinearForm, Basis, ElementHex1, ElementHex2, FacetBasis
+from skfem import BilinearForm, Basis, ElementHex1, ElementHex2, ElementTetP1, ElementTetP2, FacetBasis
 
 from jointid.geometry.mesh import RigMesh
 
-ELEMENTS = {"hex1": (ElementHex1, 2), "hex2": (ElementHex2, 4)}  # element, exact quadrature order
+ELEMENTS = {"hex1": (ElementHex1, 2), "hex2": (ElementHex2, 4), "tet1": (ElementTetP1, 2),
+            "tet2": (ElementTetP2, 4)}  # element, exact quadrature order of the mass
 DIRS = {"x": 0, "y": 1, "z": 2}
 
 

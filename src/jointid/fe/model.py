@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from skfem import Basis
 
 from jointid.fe import fem
+from jointid.errors import ModelError
 from jointid.geometry import localrefine
 from jointid.io import map_npz, write_npz_mappable
 from jointid.geometry.mesh import mesh_from_config
@@ -38,13 +39,18 @@ from jointid.geometry.rig import PART_IDS, build_rig
 RAIL_BONDED_N_PER_M3 = 1.0e15  # rail-to-base layer standing in for a bonded (consolidated) fixing
 
 
-def joint_terms(joints_cfg: dict) -> dict[str, list[str]]:
+def joint_terms(joints_cfg: dict, model_cfg: dict | None = None) -> dict[str, list[str]]:
     """Stiffness terms multiplied by each joint parameter (identified and fixed ones).
 
-    A parameter ``k_<kind>_N_per_m3`` with direction d acts on the face of its kind: ``normal`` on the
+    With ``model_cfg`` of kind mesh, the layers of ``model_cfg['joints']`` name the terms of each
+    parameter (:func:`jointid.fe.meshmodel.mesh_joint_terms`).  On the rig, a parameter ``k_<kind>_N_per_m3`` with direction d acts on the face of its kind: ``normal`` on the
     rail top; ``lateral`` on the flanks (or the top for a flat joint); ``feed`` and any other kind on
     every contact face (top and flanks).
     """
+    if (model_cfg or {}).get("kind", "rig") == "mesh":
+        from jointid.fe.meshmodel import mesh_joint_terms
+
+        return mesh_joint_terms(model_cfg)
     params = dict(joints_cfg.get("parameters", {}))
     dirs = {name: spec["direction"] for name, spec in params.items()}
     for name in joints_cfg.get("fixed", {}):
@@ -63,6 +69,11 @@ def joint_terms(joints_cfg: dict) -> dict[str, list[str]]:
     return out
 
 
+def is_mesh_model(cfg: dict) -> bool:
+    """Whether ``cfg`` describes a model read from a mesh file (``model: {kind: mesh}``)."""
+    return (cfg.get("model") or {}).get("kind", "rig") == "mesh"
+
+
 def _kind(name: str) -> str:
     return name.split("_")[1] if name.startswith("k_") else name
 
@@ -71,7 +82,17 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
                 progress=None) -> fem.Model:
     """Assemble the rig model described by ``cfg`` (the whole validated configuration); ``refine``
     and ``halve`` refine its mesh (see :func:`jointid.geometry.mesh.build_mesh`); ``rig`` is a geometry to use
-    instead of the one built from ``cfg['rig']`` (e.g. with extra grid breakpoints)."""
+    instead of the one built from ``cfg['rig']`` (e.g. with extra grid breakpoints).  With
+    ``model: {kind: mesh}`` the model is read from the user's mesh file instead
+    (:func:`jointid.fe.meshmodel.build_mesh_model`; no refinement)."""
+    if is_mesh_model(cfg):
+        if refine not in (None, 1) or halve:
+            raise ModelError("model.kind: mesh: a mesh file is solved as it is — refinement (mesh.refine, "
+                             "mesh_check, mesh.extrapolate_edges) works on the parametric rig only; "
+                             "refine the mesh in the tool that made it")
+        from jointid.fe.meshmodel import build_mesh_model
+
+        return build_mesh_model(cfg, progress)
     say = progress or (lambda msg: None)
     rig_cfg, mesh_cfg = cfg["rig"], cfg["mesh"]
     rig = rig or build_rig(rig_cfg)
@@ -188,7 +209,8 @@ def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Mo
                      dof_part=model.dof_part[free], meta=meta)
 
 
-def joint_coefficients(joints_cfg: dict, theta: dict[str, float] | None = None) -> dict[str, float]:
+def joint_coefficients(joints_cfg: dict, theta: dict[str, float] | None = None,
+                       model_cfg: dict | None = None) -> dict[str, float]:
     """Coefficient of every joint spring term (``K_top_y`` ...) at joint parameters ``theta`` (N/m^3;
     defaults: the geometric mean of the bounds for identified parameters, the configured value for
     fixed ones)."""
@@ -197,7 +219,7 @@ def joint_coefficients(joints_cfg: dict, theta: dict[str, float] | None = None) 
     if theta:
         values.update(theta)
     kc: dict[str, float] = {}
-    for name, terms in joint_terms(joints_cfg).items():
+    for name, terms in joint_terms(joints_cfg, model_cfg).items():
         for term in terms:
             kc[term] = kc.get(term, 0.0) + values.get(name, 0.0)
     return kc
@@ -211,6 +233,15 @@ def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | Non
     identified parameters, the configured value for fixed ones).  Returns ``(k_coeffs, m_coeffs)``
     for :meth:`Model.K` and :meth:`Model.M`.
     """
+    if is_mesh_model(cfg):
+        from jointid.fe.meshmodel import mesh_constant_coefficients
+
+        kc, mc = mesh_constant_coefficients(cfg["model"])
+        for name, v in joint_coefficients(cfg["joints"], theta, cfg["model"]).items():
+            kc[name] = kc.get(name, 0.0) + v
+        for name, v in (extra_k or {}).items():
+            kc[name] = kc.get(name, 0.0) + v
+        return kc, mc
     kc = joint_coefficients(cfg["joints"], theta)
     kc["K_railfix"] = float(cfg["rig"]["rails"].get("fixing_stiffness_N_per_m3", RAIL_BONDED_N_PER_M3))
     if "K_mount" in model.stiffness:

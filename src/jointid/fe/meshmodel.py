@@ -1,0 +1,213 @@
+"""The affine FE model of a user's own structure, from a mesh file with named groups
+(``model: {kind: mesh}``).
+
+Terms (the same affine form as the rig's, :mod:`jointid.fe.model`):
+
+=====================  ========================================================================
+``K0``, ``M0``         the bodies (elasticity, consistent mass; materials from ``model.bodies``)
+``K_<joint>_<comp>``   unit spring layer of a joint in one component (:mod:`jointid.fe.layer`)
+``K_foundation``       unit springs per area to the ground under every support surface
+``M_<mass>``           1 kg spread over the surface of an added mass
+=====================  ========================================================================
+
+Clamped supports fix the DOFs of their surface.  The measuring points of ``model.points`` are
+projected onto the nearest surface of the mesh and interpolated there.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+
+from jointid.errors import ModelError
+from jointid.fe import fem
+from jointid.fe.layer import spring_layer_terms, surface_interpolation
+from jointid.geometry.meshfile import MeshFile, read_mesh
+
+
+def mesh_joint_terms(model_cfg: dict) -> dict[str, list[str]]:
+    """Joint parameter name -> the layer terms it multiplies (``K_<joint>_<component>``)."""
+    out: dict[str, list[str]] = {}
+    for joint in model_cfg.get("joints", []):
+        for comp, value in joint["law"].items():
+            if isinstance(value, str):
+                out.setdefault(value, []).append(f"K_{joint['name']}_{comp}")
+    return out
+
+
+def mesh_constant_coefficients(model_cfg: dict) -> tuple[dict[str, float], dict[str, float]]:
+    """Coefficients that are not identified: joint components given in N/m^3, the foundation and
+    the added masses.  Returns ``(k_coeffs, m_coeffs)``."""
+    kc: dict[str, float] = {}
+    for joint in model_cfg.get("joints", []):
+        for comp, value in joint["law"].items():
+            if not isinstance(value, str):
+                kc[f"K_{joint['name']}_{comp}"] = float(value)
+    k_found = sum(float(s.get("k_N_per_m3", 0.0)) for s in model_cfg.get("supports", [])
+                  if s["kind"] == "foundation")
+    if any(s["kind"] == "foundation" for s in model_cfg.get("supports", [])):
+        kc["K_foundation"] = k_found / max(1, sum(s["kind"] == "foundation" for s in model_cfg["supports"]))
+    mc = {f"M_{m['name']}": float(m["mass_kg"]) for m in model_cfg.get("masses", [])}
+    return kc, mc
+
+
+def _problems(cfg: dict, mf: MeshFile) -> list[str]:
+    """Every mismatch between ``model`` and the groups of the mesh file, one line each."""
+    mcfg, where = cfg["model"], mf.path
+    out = []
+    known_s = set(mf.surfaces)
+    for name, material in mcfg["bodies"].items():
+        if name not in mf.cell_groups:
+            out.append(f"{where}: model.bodies.{name}: no solid group {name!r} in the mesh — it has "
+                       f"{mf.group_names()}; name a solid group")
+        if material not in cfg["materials"]:
+            out.append(f"model.bodies.{name}: unknown material {material!r} — use one of {sorted(cfg['materials'])}")
+    for i, joint in enumerate(mcfg["joints"]):
+        for s in joint["surfaces"]:
+            if s not in known_s:
+                out.append(f"{where}: model.joints[{i}] ({joint['name']}): no surface group {s!r} in the mesh — "
+                           f"it has {mf.group_names()}")
+        if {"feed", "lateral"} & set(joint["law"]) and "feed_axis" not in joint:
+            out.append(f"model.joints[{i}] ({joint['name']}): components feed/lateral need feed_axis "
+                       "(the feed direction, e.g. [0, 0, 1])")
+    for key in ("supports", "masses"):
+        for i, item in enumerate(mcfg[key]):
+            if item["surface"] not in known_s:
+                out.append(f"{where}: model.{key}[{i}]: no surface group {item['surface']!r} in the mesh — "
+                           f"it has {mf.group_names()}")
+    for i, s in enumerate(mcfg["supports"]):
+        if s["kind"] == "foundation" and "k_N_per_m3" not in s:
+            out.append(f"model.supports[{i}]: a foundation needs k_N_per_m3 (stiffness per area, N/m^3)")
+    return out
+
+
+def _cell_materials(cfg: dict, mf: MeshFile):
+    """Per-cell Lamé constants and density, and the body index of each cell."""
+    n = mf.mesh.t.shape[1]
+    body = -np.ones(n, np.int64)
+    names = list(cfg["model"]["bodies"])
+    for k, name in enumerate(names):
+        cells = mf.cell_groups[name]
+        twice = cells[body[cells] >= 0]
+        if len(twice):
+            other = names[body[twice[0]]]
+            raise ModelError(f"{mf.path}: {len(twice)} cells are in both bodies {other!r} and {name!r} — a cell "
+                             "belongs to one body; fix the groups or list only one of them in model.bodies")
+        body[cells] = k
+    if (body < 0).any():
+        raise ModelError(f"{mf.path}: {int((body < 0).sum())} of {n} solid cells are in no group of model.bodies "
+                         f"(listed: {names}; the mesh has {mf.group_names()}) — add their group to model.bodies")
+    lam, mu, rho = (np.empty(n) for _ in range(3))
+    for k, name in enumerate(names):
+        m = cfg["materials"][cfg["model"]["bodies"][name]]
+        sel = body == k
+        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
+        rho[sel] = m["density_kg_per_m3"]
+    return lam, mu, rho, body
+
+
+def read_points(path: str) -> pd.DataFrame:
+    """Measuring points CSV: ``point, x_m, y_m, z_m`` (``part`` optional)."""
+    from jointid.errors import ConfigError
+
+    if not path:
+        raise ConfigError("model.points: no measuring-point file — give a CSV with columns point, x_m, y_m, z_m")
+    try:
+        pts = pd.read_csv(path)
+    except FileNotFoundError:
+        raise ConfigError(f"model.points: {path}: no such file — give a CSV with columns point, x_m, y_m, z_m") from None
+    missing = [c for c in ("point", "x_m", "y_m", "z_m") if c not in pts.columns]
+    if missing:
+        raise ConfigError(f"{path}: no column {', '.join(missing)} — the measuring points need point, x_m, y_m, z_m")
+    if pts["point"].duplicated().any():
+        raise ConfigError(f"{path}: point {pts['point'][pts['point'].duplicated()].iloc[0]!r} appears twice — "
+                          "name every measuring point once")
+    if "part" not in pts.columns:
+        pts["part"] = ""
+    return pts[["point", "part", "x_m", "y_m", "z_m"]].astype({"point": str, "part": str})
+
+
+def build_mesh_model(cfg: dict, progress=None) -> fem.Model:
+    """Assemble the model of ``cfg['model']`` (kind mesh) from its mesh file."""
+    say = progress or (lambda msg: None)
+    mcfg = cfg["model"]
+    mf = read_mesh(mcfg["path"], allow_linear=mcfg["allow_linear"])
+    problems = _problems(cfg, mf)
+    if problems:
+        raise ModelError(problems)
+    from skfem import Basis
+
+    elem_cls, intorder = fem.ELEMENTS[mf.element]
+    basis = Basis(mf.mesh, elem_cls(), intorder=intorder)
+    lam, mu, rho, body = _cell_materials(cfg, mf)
+    K0, M0 = fem.assemble_elasticity(basis, lam, mu, rho)
+    say(f"mesh: {mf.mesh.t.shape[1]} {mf.element} cells from {mf.path}, {3 * basis.N} DOFs")
+    stiffness, areas = {"K0": K0}, {}
+    for joint in mcfg["joints"]:
+        a, b = (mf.surfaces[s] for s in joint["surfaces"])
+        try:
+            terms, info = spring_layer_terms(basis, a, b, list(joint["law"]), intorder=intorder,
+                                             feed_axis=joint.get("feed_axis"), max_gap_m=mcfg["max_gap_m"])
+        except ValueError as exc:
+            raise ModelError(f"{mf.path}: joint {joint['name']} ({' - '.join(joint['surfaces'])}): {exc} — check "
+                             "the surface groups, or raise model.max_gap_m") from None
+        for comp, K in terms.items():
+            stiffness[f"K_{joint['name']}_{comp}"] = K
+        areas[joint["name"]] = info["area_m2"]
+        say(f"joint {joint['name']}: {info['area_m2']:.4g} m^2, largest gap {info['max_gap_m']:.2g} m")
+    fixed = [np.array([], np.int64)]
+    foundation = None
+    for s in mcfg["supports"]:
+        facets = mf.surfaces[s["surface"]]
+        if s["kind"] == "clamped":
+            sdofs = basis.get_dofs(facets=facets).all()
+            fixed.append(np.concatenate([3 * sdofs + c for c in range(3)]))
+        else:
+            G = fem.ground_springs(fem.facet_mass(mf.mesh, basis.elem, facets, intorder))
+            foundation = G if foundation is None else foundation + G
+    if foundation is not None:
+        stiffness["K_foundation"] = foundation.tocsr()
+    mass = {"M0": M0}
+    for m in mcfg["masses"]:
+        mass[f"M_{m['name']}"] = fem.surface_mass(fem.facet_mass(mf.mesh, basis.elem, mf.surfaces[m["surface"]], intorder))
+    pts, probe = _probe(basis, mcfg)
+    dof_part = -np.ones(basis.N, dtype=int)
+    for k in range(len(mcfg["bodies"])):
+        dof_part[np.unique(basis.element_dofs[:, body == k])] = k
+    meta = {"kind": "mesh", "n_elements": int(mf.mesh.t.shape[1]), "n_dofs": int(3 * basis.N),
+            "element": mf.element, "bodies": list(mcfg["bodies"]),
+            "support": ",".join(sorted({s["kind"] for s in mcfg["supports"]})) or "free",
+            "contact_area_m2": areas, "points": pts.to_dict(orient="list"), "source": mf.path}
+    model = fem.Model(stiffness=stiffness, mass=mass, fixed=np.unique(np.concatenate(fixed)), probe=probe,
+                      doflocs=basis.doflocs, dof_part=dof_part, meta=meta)
+    model.meta["mesh"] = {"p": mf.mesh.p, "t": mf.mesh.t, "part": body}
+    return model
+
+
+def _probe(basis, mcfg: dict):
+    """Measuring points projected onto the nearest boundary face: the point table and the vector
+    probe ``(3 n_points, 3 N)``."""
+    pts = read_points(mcfg["points"])
+    x = pts[["x_m", "y_m", "z_m"]].to_numpy(float).T
+    P, dist, _ = surface_interpolation(basis, basis.mesh.boundary_facets(), x)
+    far = np.flatnonzero(dist > mcfg["point_tolerance_m"])
+    if len(far):
+        raise ModelError([f"{mcfg['points']}: point {pts['point'].iloc[i]} is {dist[i]:.4g} m from the nearest surface "
+                          f"of the mesh (tolerance model.point_tolerance_m = {mcfg['point_tolerance_m']} m) — "
+                          "correct its coordinates (m, in the mesh's axes)" for i in far])
+    Pc = P.tocoo()
+    probe = sp.csr_matrix(
+        (np.tile(Pc.data, 3),
+         (np.concatenate([3 * Pc.row + c for c in range(3)]), np.concatenate([3 * Pc.col + c for c in range(3)]))),
+        shape=(3 * len(pts), 3 * basis.N))
+    return pts, probe
+
+
+def resolve(path: str, base: str | Path | None = None) -> str:
+    """``path`` as given, or relative to ``base`` when it does not exist as given."""
+    if base is None or Path(path).is_absolute() or Path(path).exists():
+        return path
+    return str(Path(base) / path)
