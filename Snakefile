@@ -73,6 +73,8 @@ rule all:
 
 
 rule mesh:
+    input:
+        model.input_files(config),  # model.kind mesh: the mesh file and the measuring points
     output:
         matrices=f"{R}/model/matrices.npz",
         points=f"{R}/model/measuring_points.csv",

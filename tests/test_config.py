@@ -298,7 +298,7 @@ BAD = [
      "solver.shift_Hz: 0 with rig.support.kind: free factorises a singular stiffness (rigid-body modes) — "
      "use a negative shift, e.g. -10"),
     ("unknown top-level key", lambda c: c.update(reprot={}),
-     "reprot: unknown key — did you mean 'report'? (allowed: materials, rig, mesh, mesh_check, carriage_rigidity, joints, states, measurements, "
+     "reprot: unknown key — did you mean 'report'? (allowed: materials, model, rig, mesh, mesh_check, carriage_rigidity, joints, states, measurements, "
      "datasets, doe, surface, identify, solver, harmonic, diagnosis, effects, linked, hypotheses, report)"),
     ("length in mm", lambda c: c["rig"]["base"].update(length_m=1100),
      "rig.base.length_m: 1100 m is not a plausible size of a machine-tool feed drive; the value looks like mm — "

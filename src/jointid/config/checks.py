@@ -229,3 +229,48 @@ def check_solver(c: Checks) -> None:
             c.add("identify.weights", "all weights are 0 — give at least one positive weight, or [] for all 1")
     except Skip:
         pass
+
+
+def check_model(c: Checks) -> None:
+    """``model.kind: mesh``: the mesh and point files exist, bodies name materials, joint laws name
+    known parameters and every identified parameter acts on a layer, and nothing asks to refine the
+    user's mesh."""
+    from pathlib import Path
+
+    try:
+        if c.get("model.kind") != "mesh":
+            return
+        model = c.get("model")
+    except Skip:
+        return
+    for key, what in (("path", "the mesh file (gmsh .msh, Abaqus .inp, .vtu)"),
+                      ("points", "the measuring points CSV (point, x_m, y_m, z_m)")):
+        value = model.get(key, "")
+        if not value:
+            c.add(f"model.{key}", f"missing — model.kind: mesh needs {what}")
+        elif not Path(value).is_file():
+            c.add(f"model.{key}", f"{value}: no such file (paths are relative to the working directory) — give {what}")
+    if not model.get("bodies"):
+        c.add("model.bodies", "empty — name each solid group of the mesh with its material, e.g. {frame: steel}")
+    materials = c.cfg.get("materials") or {}
+    for name, material in (model.get("bodies") or {}).items():
+        if material not in materials:
+            c.add(f"model.bodies.{name}", f"{material!r} is not in materials — use one of: {', '.join(materials)} or add it")
+    joints = c.cfg.get("joints") or {}
+    known = set(joints.get("parameters") or {}) | set(joints.get("fixed") or {})
+    used = set()
+    for i, joint in enumerate(model.get("joints") or []):
+        for comp, value in (joint.get("law") or {}).items():
+            if isinstance(value, str):
+                used.add(value)
+                if value not in known:
+                    c.add(f"model.joints[{i}].law.{comp}", f"{value!r} is neither in joints.parameters nor in joints.fixed "
+                          f"— use one of {sorted(known)} or give a stiffness per area in N/m^3")
+    for name in sorted(set(joints.get("parameters") or {}) - used):
+        c.add(f"joints.parameters.{name}", "no layer of model.joints uses it, so it cannot be identified — "
+              "name it in a joint's law, or remove it")
+    if (c.cfg.get("mesh") or {}).get("extrapolate_edges"):
+        c.add("mesh.extrapolate_edges", "true refines the parametric rig's edges; a mesh file is solved as it is — "
+              "set mesh.extrapolate_edges: false (refine in the tool that made the mesh)")
+    if (c.cfg.get("mesh_check") or {}).get("enabled"):
+        c.add("mesh_check.enabled", "true refines the parametric rig; a mesh file is solved as it is — set it false")

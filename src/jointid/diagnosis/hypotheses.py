@@ -45,7 +45,7 @@ __all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "LinkedLaw", "hypothesis_config"
            "state_joints"]
 
 HYPOTHESIS_KEYS = ("description", "overrides", "fixed", "effects")
-MODEL_SECTIONS = ("materials", "rig", "mesh")
+MODEL_SECTIONS = ("materials", "rig", "model", "mesh")
 """Overrides of these sections change the FE model itself: the hypothesis builds its own."""
 
 

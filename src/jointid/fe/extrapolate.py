@@ -71,7 +71,9 @@ def aitken_weights(ratio, status) -> np.ndarray:
 
 
 def level_config(cfg: dict, extra: int) -> dict:
-    """``cfg`` with ``extra`` more edge-refinement levels than its own mesh."""
+    """``cfg`` with ``extra`` more edge-refinement levels than its own mesh (``cfg`` itself for none)."""
+    if not extra:
+        return cfg
     out = copy.deepcopy(cfg)
     out["mesh"]["edge_refine_levels"] = int(cfg["mesh"].get("edge_refine_levels", 0)) + extra
     return out

@@ -159,7 +159,7 @@ def spring_layer_terms(basis, facets_a: np.ndarray, facets_b: np.ndarray, compon
     x = xq.reshape(3, -1)
     w = np.asarray(fb.dx).ravel()
     normals = np.asarray(fb.normals).reshape(3, -1)
-    vals = np.stack([np.asarray(fb.basis[i][0].value) for i in range(fb.Nbfun)])  # (nloc, nf, nqp)
+    vals = np.stack([np.asarray(fb.basis[i][0]) for i in range(fb.Nbfun)])  # (nloc, nf, nqp)
     rows = np.broadcast_to(np.arange(nf * nqp).reshape(1, nf, nqp), vals.shape).ravel()
     cols = np.broadcast_to(fb.element_dofs[:, :, None], vals.shape).ravel()
     NA = sp.csr_matrix((vals.ravel(), (rows, cols)), shape=(nf * nqp, basis.N))

@@ -51,7 +51,7 @@ def disc_points(centre_xz, diameter_m: float, n_radial: int = N_RADIAL, n_angula
 def _basis(model):
     """The model's scalar basis rebuilt from its cached mesh, and the map ``T`` from its free nodes
     (None without hanging nodes)."""
-    from skfem import Basis, MeshHex
+    from skfem import Basis, MeshHex, MeshTet
 
     from jointid.geometry import localrefine
     from jointid.geometry.rig import body_of
@@ -59,7 +59,8 @@ def _basis(model):
     m = model.meta.get("mesh") or {}
     if "p" not in m or "t" not in m:
         raise ModelError("patch_probe: the model has no mesh (meta['mesh']); rebuild it with the mesh rule")
-    mesh = MeshHex(np.asarray(m["p"], float), np.asarray(m["t"], np.int64))
+    t = np.asarray(m["t"], np.int64)
+    mesh = (MeshTet if t.shape[0] == 4 else MeshHex)(np.asarray(m["p"], float), t)
     element = model.meta.get("element", "hex2")
     basis = Basis(mesh, fem.ELEMENTS[element][0](), intorder=1)  # only probes are evaluated
     T = None

@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import MeshHex
+from skfem import MeshHex, MeshTet
 from skfem.io.meshio import to_meshio
 
 from jointid.fe.fem import Model
@@ -22,7 +22,8 @@ def write_mesh_vtu(model: Model, path, modes: np.ndarray | None = None, freqs_Hz
     per mode, in order), and the cells carry their part id (``part``).
     """
     mesh_arrays = model.meta["mesh"]
-    mesh = MeshHex(np.asarray(mesh_arrays["p"], float), np.asarray(mesh_arrays["t"], np.int64))
+    t = np.asarray(mesh_arrays["t"], np.int64)
+    mesh = (MeshTet if t.shape[0] == 4 else MeshHex)(np.asarray(mesh_arrays["p"], float), t)
     point_data = {}
     field_data = {}
     if modes is not None:

@@ -7,7 +7,7 @@ Named groups come from the file:
 * Abaqus ``.inp``: element sets (``*ELSET``) of solid elements (bodies) and of face elements
   (surfaces);
 * ``.vtu`` and other formats with cell data: one integer cell-data array per group, non-zero on the
-  cells of that group (the layout :func:`jointid.geometry.meshexport.write_mesh` writes).
+  cells of that group (the layout :func:`jointid.fe.meshexport.write_mesh` writes).
 
 Solid cells: quadratic tetrahedra (10 nodes) or hexahedra (20 or 27 nodes), solved with the
 quadratic Lagrange elements of scikit-fem on the cells' corner nodes (straight-edged: a curved

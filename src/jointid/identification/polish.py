@@ -135,7 +135,7 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
     (:class:`jointid.identification.visibility.VisibilityRule`): modes the test would clearly have
     seen count as misfits when no measured mode takes them.
     """
-    jt = joint_terms(cfg["joints"])
+    jt = joint_terms(cfg["joints"], cfg.get("model"))
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     n_modes = cfg["solver"]["n_modes"]
     if isinstance(model, ROM):
@@ -187,7 +187,7 @@ def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, ba
     ``(freqs_Hz, shapes)`` at ``theta`` when already solved; ``sensitivities``: with the factors'
     first-order dependence on ``theta`` (exact modal sensitivities on each mesh)."""
     names = list(theta)
-    jt = joint_terms(cfg["joints"])
+    jt = joint_terms(cfg["joints"], cfg.get("model"))
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     solves = []
     for k, model in enumerate(models):

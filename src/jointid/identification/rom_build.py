@@ -382,7 +382,7 @@ def _assemble(b: _Builder, model, n_modes, covered, labels, keep_basis=False) ->
 
 def _param_map(cfg, model, names, lower, upper) -> dict:
     jcfg = cfg["joints"]
-    terms = joint_terms(jcfg)
+    terms = joint_terms(jcfg, cfg.get("model"))
     kc, mc = base_coefficients(cfg, model, None)
     defaults = {n: float(np.sqrt(s["lower"] * s["upper"])) for n, s in jcfg["parameters"].items()}
     defaults.update({k: float(v) for k, v in jcfg.get("fixed", {}).items()})

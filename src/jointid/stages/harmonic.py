@@ -38,7 +38,7 @@ DAMPING_WHY = {  # why each damping model, for dynamic_stiffness.json
 
 def config_keys(state: str) -> tuple[str, ...]:
     """Config keys of rule ``harmonic``: the shared sections and this state's settings only."""
-    return ("rig", "joints", "solver", "harmonic", "measurements", "datasets", f"states.{state}")
+    return ("rig", "model", "joints", "solver", "harmonic", "measurements", "datasets", f"states.{state}")
 
 
 def frf_frame(res) -> pd.DataFrame:

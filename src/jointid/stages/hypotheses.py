@@ -28,7 +28,7 @@ from jointid.errors import ConfigError
 from jointid.fe.model import build_model, load_model
 from jointid.threads import limit_threads
 
-CONFIG = ("materials", "rig", "mesh", "joints", "states", "measurements", "datasets", "solver", "identify",
+CONFIG = ("materials", "rig", "model", "mesh", "joints", "states", "measurements", "datasets", "solver", "identify",
           "harmonic", "effects", "linked", "hypotheses")
 """Config sections a hypothesis reads (its own entry of ``hypotheses`` only, see the rule)."""
 ADMISSIBLE_DELTA_AICC = 4.0
@@ -75,7 +75,7 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
     return rec
 
 
-RANKING_CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "hypotheses")
+RANKING_CONFIG = ("materials", "rig", "model", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "hypotheses")
 """Config keys of rule ``hypotheses`` (the best hypothesis's joints in the catalogue-style block test)."""
 CREDIBLE_RATIO = (0.6, 1.5)
 """Lateral/normal rigidity ratio of a carriage on its rail that a guide catalogue makes credible."""

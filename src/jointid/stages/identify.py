@@ -24,7 +24,7 @@ AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are repo
 def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
     """Config keys of rule ``identify``: the shared sections, this state's settings and the other
     states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
-    return ("rig", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
+    return ("rig", "model", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
             "harmonic.band_Hz", "harmonic.drive_point", f"states.{state}", *(f"states.{s}.dataset" for s in states))
 
 
@@ -179,8 +179,8 @@ def _zoom_notes(names, theta, lower, upper, polish, res) -> list[str]:
 def _face_of(cfg: dict, name: str) -> str:
     from jointid.fe.model import joint_terms
 
-    terms = joint_terms(cfg["joints"])[name]
-    return "+".join(sorted({t.split("_")[1] for t in terms}))
+    terms = joint_terms(cfg["joints"], cfg.get("model"))[name]
+    return "+".join(sorted({t[2:].rsplit("_", 1)[0] for t in terms}))  # K_<face>_<component>
 
 
 def _per_carriage(cfg, names, theta, ci_lo, ci_hi, areas: dict) -> dict:

@@ -15,7 +15,7 @@ from jointid import io
 from jointid.errors import ModelError
 from jointid.stages.modal import SOLVE_KEYS
 
-CONFIG = ("materials", "rig", "mesh", "mesh_check", "joints", "identify.weights", *SOLVE_KEYS)
+CONFIG = ("materials", "rig", "model", "mesh", "mesh_check", "joints", "identify.weights", *SOLVE_KEYS)
 """Config keys of rule ``mesh_check``."""
 
 
@@ -31,7 +31,7 @@ def _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices, say):
 
     coarse = load_model(matrices)
     _, shapes_c, _, modes_c = solve_point(cfg, coarse, theta_d, describe=False)
-    jt = joint_terms(cfg["joints"])
+    jt = joint_terms(cfg["joints"], cfg.get("model"))
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
     f_c = modes_c.freqs_Hz

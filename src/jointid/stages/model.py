@@ -11,10 +11,19 @@ from jointid import io
 from jointid.stages.runner import log
 
 
+def input_files(config: dict) -> list[str]:
+    """Files the model is read from: with ``model.kind: mesh`` the mesh file and the measuring
+    points (so that a changed file rebuilds the model), none for the parametric rig."""
+    m = config.get("model") or {}
+    return [m["path"], m["points"]] if m.get("kind") == "mesh" else []
+
+
 def config_keys(config: dict) -> tuple[str, ...]:
     """Config keys of rules ``mesh`` and ``mesh_edges``: the mesh, not whether identify and verify
     extrapolate over its edge levels (``mesh.extrapolate_edges``)."""
-    return ("materials", "rig", *(f"mesh.{k}" for k in config["mesh"] if k != "extrapolate_edges"))
+    if (config.get("model") or {}).get("kind") == "mesh":
+        return ("materials", "model")
+    return ("materials", "rig", "model", *(f"mesh.{k}" for k in config["mesh"] if k != "extrapolate_edges"))
 
 
 def run_mesh(cfg: dict, matrices: str, points_csv: str | None = None, vtu: str | None = None,
@@ -51,9 +60,27 @@ def model_summary(model) -> dict:
     n_elements, element, support, contact_area_m2`` (m^2 per face), ``contact_area_per_carriage_m2``,
     ``motor_mass_kg``, ``dims_m``, ``carriage_centres_m``."""
     m = model.meta
+    if m.get("kind") == "mesh":  # a joint layer is the unit: its whole area stands for "per carriage"
+        return {"kind": "mesh", "n_dofs": m["n_dofs"], "n_elements": m["n_elements"], "element": m["element"],
+                "support": m["support"], "contact_area_m2": m["contact_area_m2"],
+                "contact_area_per_carriage_m2": _combined_areas(m["contact_area_m2"]),
+                "bodies": m["bodies"], "source": m["source"]}
     per = {face: a / 4 for face, a in m["contact_area_m2"].items()}
     per["flank+top"] = per["top"] + per["flank"]
     return {"n_dofs": m["n_dofs"], "n_elements": m["n_elements"], "element": m["element"],
             "support": m["support"], "contact_area_m2": m["contact_area_m2"],
             "contact_area_per_carriage_m2": per, "motor_mass_kg": m["motor_mass_kg"],
             "dims_m": m["dims_m"], "carriage_centres_m": m["carriage_centres_m"]}
+
+
+def _combined_areas(areas: dict[str, float]) -> dict[str, float]:
+    """Areas of every joint and of every set of joints (keys ``a+b``, sorted), for a parameter
+    acting on several layers."""
+    from itertools import combinations
+
+    names = sorted(areas)
+    out = {}
+    for k in range(1, min(len(names), 4) + 1):
+        for combo in combinations(names, k):
+            out["+".join(combo)] = float(sum(areas[n] for n in combo))
+    return out
