@@ -61,6 +61,11 @@ CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
+
+def PAPER_INPUT(path):
+    """A file of the paper's values, compared with on the paper's data only (measurements.dataset)."""
+    return path if os.path.normpath(config["measurements"]["dataset"]) == "data/paper" else []
+
 localrules: all, doe, gather_modal, tables, doe_zoom, gather_zoom
 
 
@@ -387,7 +392,7 @@ rule tables:
     input:
         verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
         unpaired=expand(f"{R}/identify/{{state}}/unpaired_visible.csv", state=STATES),
-        paper="data/paper/paper_tables.csv",
+        paper=PAPER_INPUT("data/paper/paper_tables.csv"),
     output:
         power_off=f"{R}/tables/table2_power_off.csv",
         unpaired=f"{R}/tables/unpaired_visible.csv",

@@ -52,7 +52,7 @@ rule table1:
     input:
         stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
         points=expand(f"{R}/harmonic/{{state}}/drive_points.npz", state=STATES),
-        paper="data/paper/paper_table1.csv",
+        paper=PAPER_INPUT("data/paper/paper_table1.csv"),
     output:
         csv=report(f"{R}/tables/table1_dynamic_stiffness.csv", caption="../report/table1.rst",
                    category="Tables"),
@@ -77,10 +77,11 @@ rule report:
         table1_ranges=rules.table1.output.ranges,
         table2=rules.tables.output.power_off,
         table3=rules.tables.output.power_on,
-        paper_table1="data/paper/paper_table1.csv",
+        paper_table1=PAPER_INPUT("data/paper/paper_table1.csv"),
         verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
         params=expand(f"{R}/identify/{{state}}/params.json", state=STATES),
-        rigidity=expand(f"{R}/identify/{{state}}/carriage_rigidity.json", state=STATES),
+        rigidity=(expand(f"{R}/identify/{{state}}/carriage_rigidity.json", state=STATES)
+                  if config["model"]["kind"] == "rig" else []),  # the rig's carriage on its rail
         frf=expand(f"{R}/harmonic/{{state}}/frf.csv", state=STATES),
         stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
         modes=expand(f"{R}/harmonic/{{state}}/modes.npz", state=STATES),

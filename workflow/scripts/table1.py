@@ -4,5 +4,5 @@ from jointid.stages.runner import run_script
 from jointid.stages import tables
 
 run_script(snakemake, lambda cfg, inp, out: tables.run_table1(
-    list(inp.stiffness), inp.paper, out.csv, out.md, points_npz=list(inp.points), cfg=cfg,
+    list(inp.stiffness), inp.paper or None, out.csv, out.md, points_npz=list(inp.points), cfg=cfg,
     out_ranges=out.ranges, out_cases=out.cases), provenance=True)

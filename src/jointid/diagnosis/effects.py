@@ -59,7 +59,7 @@ from typing import Callable
 
 import numpy as np
 
-from jointid.diagnosis.terms import BONDED_N_PER_M3, JOINT_FACES, StateInfo, System
+from jointid.diagnosis.terms import BONDED_N_PER_M3, StateInfo, System, term_component
 from jointid.errors import ConfigError, ModelError
 from jointid.response.emforce import carriage_loads_N
 
@@ -154,10 +154,14 @@ def _carriage_loads(system: System, state: StateInfo, opts: dict, force: float) 
     w = force + m * G
     lx = force * opts.get("force_x_m", 0.0) / w if w > 0 else 0.0
     lz = force * opts.get("force_z_m", 0.0) / w if w > 0 else 0.0
+    xz = system.carriage_xz_m
+    if len(xz) < 3 or np.linalg.matrix_rank(np.column_stack([np.ones(len(xz)), xz])) < 3:
+        # one carriage, or carriages on one line: the plane of settlement is not determined by
+        # them; the load is shared equally (exact for one carriage, and for a load between two)
+        return np.full(len(xz), w / len(xz))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return carriage_loads_N(force, m, system.carriage_xz_m[:, 0], system.carriage_xz_m[:, 1],
-                                load_x_m=lx, load_z_m=lz)
+        return carriage_loads_N(force, m, xz[:, 0], xz[:, 1], load_x_m=lx, load_z_m=lz)
 
 
 def pressure_ratio(system: System, state: StateInfo, opts: dict) -> np.ndarray:
@@ -177,10 +181,24 @@ def _apply_em(system, kc, mc, state, values, opts):
     if beta == 0.0 or state.em_force_N == 0.0:
         return
     scale = pressure_ratio(system, state, opts) ** beta
-    dirs = set(opts.get("directions") or ("x", "y"))
+    dirs = contact_directions(system, opts)
     for name in list(kc):
-        if "@" in name and name.split("@")[0].split("_")[2] in dirs:
+        if "@" in name and term_component(name) in dirs:
             kc[name] *= float(scale[int(name.split("@")[1])])
+
+
+MESH_CONTACT = ("normal", "lateral", "tangential")
+"""Components of a mesh file's joint layers that follow the contact pressure by default."""
+
+
+def contact_directions(system: System, opts: dict) -> set:
+    """Layer components scaled by the pressure law: ``opts['directions']``; its default (x, y, the
+    rig's contact directions) means the normal and in-plane components of a mesh file's layers
+    except the feed."""
+    dirs = set(opts.get("directions") or ("x", "y"))
+    if system.model.meta.get("kind") == "mesh" and dirs == {"x", "y"}:
+        return set(MESH_CONTACT)
+    return dirs
 
 
 def _apply_mass(term):
@@ -203,10 +221,27 @@ def _apply_feed(system, kc, mc, state, values, opts):
     k = values["k_feed_extra_N_per_m3"]
     if k == 0.0:
         return
-    for c in range(system.n_carriages):
-        for face in JOINT_FACES:
-            name = f"K_{face}_z@{c}"
-            kc[name] = kc.get(name, 0.0) + k
+    for name in _feed_terms(system):
+        kc[name] = kc.get(name, 0.0) + k
+
+
+def _feed_terms(system) -> list[str]:
+    """Per-carriage layer terms in the feed direction (the rig's z, a mesh layer's feed component)."""
+    return [n for n in system.stiffness if "@" in n and term_component(n) in ("z", "feed")]
+
+
+def _needs_feed(system, cfg, states, opts):
+    if not _feed_terms(system):
+        return "no joint layer has a feed (z) component to stiffen"
+    return None
+
+
+def _needs_term(term, where):
+    def requires(system, cfg, states, opts):
+        if term not in system.stiffness and term not in system.mass:
+            return f"the model has no {term} term ({where})"
+        return None
+    return requires
 
 
 def _needs_two_forces(system, cfg, states, opts):
@@ -238,18 +273,21 @@ EFFECTS: dict[str, Effect] = {
         name="added_mass_table", title="added mass on the table top",
         description="Fixture, workpiece or sensors spread over the table top.",
         params=(Param("mass_kg", "kg", 0.0, 0.0, 30.0, 5.0, "linear", "added mass"),),
-        options={}, apply=_apply_mass("M_table_top")),
+        options={}, apply=_apply_mass("M_table_top"),
+        requires=_needs_term("M_table_top", "on a mesh file: a mass named table_top in model.masses")),
     "added_mass_edge": Effect(
         name="added_mass_edge", title="added mass on the table edge",
         description="Cable chain or encoder read head on the table's +X side face.",
         params=(Param("mass_kg", "kg", 0.0, 0.0, 15.0, 2.0, "linear", "added mass"),),
-        options={}, apply=_apply_mass("M_table_edge")),
+        options={}, apply=_apply_mass("M_table_edge"),
+        requires=_needs_term("M_table_edge", "on a mesh file: a mass named table_edge in model.masses")),
     "rail_fixing": Effect(
         name="rail_fixing", title="compliant rail fixing",
         description="Bolted rail-to-base interface compliance per area (all directions).",
         params=(Param("k_railfix_N_per_m3", "N/m^3", math.inf, 1.0e10, math.inf, 1.0e12, "compliance",
                       "rail-to-base interface stiffness per area"),),
-        options={}, apply=_series("K_railfix", "k_railfix_N_per_m3")),
+        options={}, apply=_series("K_railfix", "k_railfix_N_per_m3"),
+        requires=_needs_term("K_railfix", "the rig's rail fixing layer")),
     "base_support": Effect(
         name="base_support", title="elastic base support",
         description="The base rests on an elastic foundation over its bottom face instead of a clamp.",
@@ -261,11 +299,14 @@ EFFECTS: dict[str, Effect] = {
         description="Extra Z stiffness per area at the carriage joints (position loop, brake).",
         params=(Param("k_feed_extra_N_per_m3", "N/m^3", 0.0, 0.0, 2.0e11, 1.0e10, "linear",
                       "extra feed-direction stiffness per area on the rail-top and flank layers"),),
-        options={}, apply=_apply_feed),
+        options={}, apply=_apply_feed, requires=_needs_feed),
 }
 
 
 # ------------------------------------------------------------------ config and application
+DIRECTIONS = ("x", "y", "z", "normal", "feed", "lateral", "tangential", "all")
+"""Layer directions or components an effect's ``directions`` option may name."""
+
 @dataclass
 class Enabled:
     """An effect switched on in the config: its physical parameter values, options and fit flag."""
@@ -313,9 +354,10 @@ def enabled_effects(effects_cfg: dict | None) -> list[Enabled]:
                                     f"range {p.lower:g}..{p.upper:g} {p.unit} — give a value inside it")
                 values[key] = v
             elif key == "directions":
-                if not isinstance(v, list) or not v or any(d not in ("x", "y", "z") for d in v):
-                    problems.append(f"config.yaml: effects.{name}.directions: {v!r} is not a list of x, y, z — "
-                                    "write e.g. directions: [x, y]")
+                if not isinstance(v, list) or not v or any(d not in DIRECTIONS for d in v):
+                    problems.append(f"config.yaml: effects.{name}.directions: {v!r} is not a list of "
+                                    f"{', '.join(DIRECTIONS)} — write e.g. directions: [x, y] (rig) or "
+                                    "[normal, lateral] (mesh file)")
                 opts[key] = v
             elif key in eff.options:
                 opts[key] = v

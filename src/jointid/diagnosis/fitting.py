@@ -35,7 +35,7 @@ from scipy.optimize import least_squares, linear_sum_assignment
 
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis.results import Evaluation, Fit
-from jointid.diagnosis.terms import System
+from jointid.diagnosis.terms import System, term_component
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
 from jointid.progress import stamp
@@ -295,7 +295,7 @@ def term_directions(system: System) -> list[tuple[dict, dict]]:
     groups = {}
     for name in system.stiffness:
         if "@" in name:
-            d = name.split("@")[0].split("_")[2]
+            d = term_component(name)
             groups.setdefault(d, {})[name] = 1.0
     out = [(g, {}) for g in groups.values()]
     for name in ("K_railfix", "K_foundation", "K_mount"):

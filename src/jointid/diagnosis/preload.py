@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from jointid.diagnosis.ambiguity import CHI2_1_95
-from jointid.diagnosis.effects import pressure_ratio
+from jointid.diagnosis.effects import contact_directions, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit
 from jointid.diagnosis.variants import EffectSpec, Variant
 
@@ -125,7 +125,7 @@ def stiffness_ratios(fit: Fit, data, beta_ci: tuple[float, float]) -> pd.DataFra
         rho = pressure_ratio(fit.variant.system, d.info, spec.options)
         for c, r in enumerate(rho):
             rows.append({"state": d.name, "reference_state": ref.name, "carriage": c,
-                         "directions": ",".join(spec.options.get("directions") or ("x", "y")),
+                         "directions": ",".join(sorted(contact_directions(fit.variant.system, spec.options))),
                          "stiffness_ratio": float(r ** beta), "ci95_low": float(r ** beta_ci[0]),
                          "ci95_high": float(r ** beta_ci[1])})
     return pd.DataFrame(rows)

@@ -38,7 +38,7 @@ import pandas as pd
 from jointid.config import load_config
 from jointid.data.dataset import write_dataset
 from jointid.diagnosis.effects import apply_effects, enabled_effects
-from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system
+from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system, term_component
 from jointid.errors import ConfigError, JointidError
 from jointid.fe.modal import solve_model
 from jointid.fe.model import build_model
@@ -93,9 +93,9 @@ def _perturb(system, kc, mc, perturbations):
     for p in perturbations or []:
         if p["kind"] == "carriage_joint_scale":
             c = int(p["carriage"])
-            dirs = set(p.get("directions", ["x", "y", "z"]))
+            dirs = set(p.get("directions") or ())  # none given: every direction or component
             for name in list(kc):
-                if name.endswith(f"@{c}") and name.split("@")[0].split("_")[2] in dirs:
+                if name.endswith(f"@{c}") and (not dirs or term_component(name) in dirs):
                     kc[name] *= float(p["factor"])
         elif p["kind"] == "term_scale":
             t = p["term"]

@@ -24,14 +24,14 @@ import scipy.sparse as sp
 
 from jointid.errors import ModelError
 from jointid.fe.fem import Model
-from jointid.fe.model import RAIL_BONDED_N_PER_M3, base_coefficients
+from jointid.fe.model import RAIL_BONDED_N_PER_M3, base_coefficients, joint_layer_terms
 from jointid.geometry.points import dof_labels
 from jointid.geometry.rig import PART_IDS
 
 __all__ = ["BONDED_N_PER_M3", "JOINT_FACES", "StateInfo", "System", "baseline_coefficients", "build_system",
            "carried_mass_kg"]
 
-JOINT_FACES = ("top", "flank")
+JOINT_FACES = ("top", "flank")  # the rig's joint faces (jointid.fe.model.JOINT_FACES)
 BONDED_N_PER_M3 = RAIL_BONDED_N_PER_M3
 
 
@@ -78,6 +78,7 @@ class System:
     support: str
     model: Model
     meta: dict = field(default_factory=dict)
+    layers: frozenset = frozenset()  # the joint-layer terms split per carriage (unsplit names)
 
     @property
     def n_dofs(self) -> int:
@@ -118,8 +119,11 @@ def carried_mass_kg(model: Model) -> float:
     The body formed by the table and the carriages shares no node with the rails or the base (the
     joints are spring layers between duplicated nodes), so the row sums of ``M0`` over its nodes add
     up to its mass (partition of unity).  Nodes on the carriage/table interface are owned by both
-    parts (``dof_part == -1``) and counted with the body.
+    parts (``dof_part == -1``) and counted with the body.  A model read from a mesh file carries the
+    number itself (``meta['carried_mass_kg']``, :mod:`jointid.fe.meshmodel`).
     """
+    if "carried_mass_kg" in model.meta:
+        return float(model.meta["carried_mass_kg"])
     part = model.dof_part
     body = np.isin(part, [PART_IDS["carriage"], PART_IDS["table"]]) | (part < 0)
     M0 = model.mass["M0"]
@@ -143,6 +147,11 @@ def _split_by_carriage(A: sp.csr_matrix, owner: np.ndarray, n: int) -> list[sp.c
     return out
 
 
+def term_component(name: str) -> str:
+    """Direction or component of a layer term, ``K_top_y@2`` -> ``y``, ``K_guide_1_normal`` -> ``normal``."""
+    return name.split("@")[0].rsplit("_", 1)[1]
+
+
 def build_system(model: Model, cfg: dict) -> System:
     """Diagnosis system of ``model``: joint terms per carriage and the clamped support as springs.
 
@@ -159,21 +168,21 @@ def build_system(model: Model, cfg: dict) -> System:
     d2 = ((loc[:, None, :] - xz[None, :, :]) ** 2).sum(axis=2)
     owner = np.repeat(np.argmin(d2, axis=1), 3)
     stiffness = {"K0": model.stiffness["K0"]}
+    layers = joint_layer_terms(model)
     for name, A in model.stiffness.items():
-        face = name.split("_")[1] if name.count("_") == 2 else ""
-        if name.startswith("K_") and face in JOINT_FACES:
+        if name in layers:
             for c, part in enumerate(_split_by_carriage(A, owner, len(xz))):
                 stiffness[f"{name}@{c}"] = part
         elif name != "K0":
             stiffness[name] = A
-    support = model.meta.get("support", cfg["rig"]["support"]["kind"])
+    support = model.meta.get("support") or cfg["rig"]["support"]["kind"]
     fixed = np.asarray(model.fixed, dtype=np.int64)
     if support == "clamped":
         fixed = np.array([], dtype=np.int64)  # bonded foundation layer instead (see module doc)
     pts = pd.DataFrame(model.meta["points"])
     return System(stiffness=stiffness, mass=dict(model.mass), fixed=fixed, probe=model.probe,
                   labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model),
-                  support=support, model=model, meta={"points": pts})
+                  support=support, model=model, meta={"points": pts}, layers=layers)
 
 
 def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) -> tuple[dict, dict]:
@@ -185,7 +194,7 @@ def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) 
     kc0, mc = base_coefficients(cfg, system.model, theta)
     kc = {}
     for name, v in kc0.items():
-        if name.split("_")[1] in JOINT_FACES and name.count("_") == 2:
+        if name in system.layers:
             for c in range(system.n_carriages):
                 kc[f"{name}@{c}"] = float(v)
         else:

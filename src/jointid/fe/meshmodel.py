@@ -6,11 +6,16 @@ Terms (the same affine form as the rig's, :mod:`jointid.fe.model`):
 =====================  ========================================================================
 ``K0``, ``M0``         the bodies (elasticity, consistent mass; materials from ``model.bodies``)
 ``K_<joint>_<comp>``   unit spring layer of a joint in one component (:mod:`jointid.fe.layer`)
-``K_foundation``       unit springs per area to the ground under every support surface
+``K_foundation``       unit springs per area to the ground on the clamped surfaces (coefficient 0:
+                       the clamp holds; the diagnosis' ``base_support`` effect softens it)
+``K_support<i>``       unit springs per area to the ground on the i-th support of kind foundation
 ``M_<mass>``           1 kg spread over the surface of an added mass
 =====================  ========================================================================
 
-Clamped supports fix the DOFs of their surface.  The measuring points of ``model.points`` are
+Clamped supports fix the DOFs of their surface.  ``meta`` holds, besides the rig's keys, the joint
+layers (``joints``: name, components, centre of the first surface) and the mass the joints carry
+(``carried_mass_kg``: the bodies of the first, moving side of the identified joints that touch no
+support, plus their added masses).  The measuring points of ``model.points`` are
 projected onto the nearest surface of the mesh and interpolated there.
 """
 
@@ -46,10 +51,9 @@ def mesh_constant_coefficients(model_cfg: dict) -> tuple[dict[str, float], dict[
         for comp, value in joint["law"].items():
             if not isinstance(value, str):
                 kc[f"K_{joint['name']}_{comp}"] = float(value)
-    k_found = sum(float(s.get("k_N_per_m3", 0.0)) for s in model_cfg.get("supports", [])
-                  if s["kind"] == "foundation")
-    if any(s["kind"] == "foundation" for s in model_cfg.get("supports", [])):
-        kc["K_foundation"] = k_found / max(1, sum(s["kind"] == "foundation" for s in model_cfg["supports"]))
+    for i, s in enumerate(model_cfg.get("supports", [])):
+        if s["kind"] == "foundation":
+            kc[f"K_support{i}"] = float(s["k_N_per_m3"])
     mc = {f"M_{m['name']}": float(m["mass_kg"]) for m in model_cfg.get("masses", [])}
     return kc, mc
 
@@ -159,17 +163,18 @@ def build_mesh_model(cfg: dict, progress=None) -> fem.Model:
         areas[joint["name"]] = info["area_m2"]
         say(f"joint {joint['name']}: {info['area_m2']:.4g} m^2, largest gap {info['max_gap_m']:.2g} m")
     fixed = [np.array([], np.int64)]
-    foundation = None
-    for s in mcfg["supports"]:
+    clamped = None
+    for i, s in enumerate(mcfg["supports"]):
         facets = mf.surfaces[s["surface"]]
+        G = fem.ground_springs(fem.facet_mass(mf.mesh, basis.elem, facets, intorder))
         if s["kind"] == "clamped":
             sdofs = basis.get_dofs(facets=facets).all()
             fixed.append(np.concatenate([3 * sdofs + c for c in range(3)]))
+            clamped = G if clamped is None else clamped + G
         else:
-            G = fem.ground_springs(fem.facet_mass(mf.mesh, basis.elem, facets, intorder))
-            foundation = G if foundation is None else foundation + G
-    if foundation is not None:
-        stiffness["K_foundation"] = foundation.tocsr()
+            stiffness[f"K_support{i}"] = G
+    if clamped is not None:
+        stiffness["K_foundation"] = clamped.tocsr()
     mass = {"M0": M0}
     for m in mcfg["masses"]:
         mass[f"M_{m['name']}"] = fem.surface_mass(fem.facet_mass(mf.mesh, basis.elem, mf.surfaces[m["surface"]], intorder))
@@ -180,11 +185,76 @@ def build_mesh_model(cfg: dict, progress=None) -> fem.Model:
     meta = {"kind": "mesh", "n_elements": int(mf.mesh.t.shape[1]), "n_dofs": int(3 * basis.N),
             "element": mf.element, "bodies": list(mcfg["bodies"]),
             "support": ",".join(sorted({s["kind"] for s in mcfg["supports"]})) or "free",
-            "contact_area_m2": areas, "points": pts.to_dict(orient="list"), "source": mf.path}
+            "contact_area_m2": areas, "points": pts.to_dict(orient="list"), "source": mf.path,
+            "joints": _joint_meta(mf, mcfg), "carried_mass_kg": _carried_mass(mf, mcfg, basis, M0),
+            "carriage_centres_m": _carriage_centres(mf, mcfg)}
     model = fem.Model(stiffness=stiffness, mass=mass, fixed=np.unique(np.concatenate(fixed)), probe=probe,
                       doflocs=basis.doflocs, dof_part=dof_part, meta=meta)
     model.meta["mesh"] = {"p": mf.mesh.p, "t": mf.mesh.t, "part": body}
     return model
+
+
+def _joint_meta(mf: MeshFile, mcfg: dict) -> list[dict]:
+    """Name, components and centre (m, of the first surface's face centres) of each joint layer."""
+    out = []
+    for joint in mcfg["joints"]:
+        facets = mf.surfaces[joint["surfaces"][0]]
+        centre = mf.mesh.p[:, mf.mesh.facets[:, facets]].mean(axis=(1, 2))
+        out.append({"name": joint["name"], "components": list(joint["law"]), "centre_m": centre.tolist(),
+                    "moving": any(isinstance(v, str) for v in joint["law"].values())})
+    return out
+
+
+def _moving_facets(mf: MeshFile, mcfg: dict) -> np.ndarray:
+    """Facets of the first (moving) surface of every joint with an identified component."""
+    moving = [mf.surfaces[j["surfaces"][0]] for j in mcfg["joints"]
+              if any(isinstance(v, str) for v in j["law"].values())]
+    return np.unique(np.concatenate(moving)) if moving else np.array([], np.int64)
+
+
+def _carriage_centres(mf: MeshFile, mcfg: dict) -> list[list[float]]:
+    """Centre (m) of each carriage: each connected patch (faces sharing a node) of the moving sides
+    of the identified joints, e.g. a block's top and flank contacts together."""
+    from scipy.sparse.csgraph import connected_components
+
+    facets = _moving_facets(mf, mcfg)
+    if not len(facets):
+        return []
+    nodes = mf.mesh.facets[:, facets]
+    inc = sp.csr_matrix((np.ones(nodes.size), (np.repeat(np.arange(len(facets)), nodes.shape[0]), nodes.T.ravel())),
+                        shape=(len(facets), mf.mesh.p.shape[1]))
+    n, label = connected_components(inc @ inc.T, directed=False)
+    mid = mf.mesh.p[:, nodes].mean(axis=1)  # (3, n_facets)
+    centres = [mid[:, label == k].mean(axis=1) for k in range(n)]
+    order = np.lexsort(np.array(centres).T[[0, 2]])  # by Z, then X: a fixed numbering
+    return [centres[k].tolist() for k in order]
+
+
+def _carried_mass(mf: MeshFile, mcfg: dict, basis, M0) -> float:
+    """Mass resting on the joints (kg): the bodies (connected by shared nodes) of the first surface of
+    every joint with an identified component — the carried, moving side — that touch no support,
+    plus the added masses on them."""
+    from scipy.sparse.csgraph import connected_components
+
+    t = mf.mesh.t
+    n_cells, n_nodes = t.shape[1], mf.mesh.p.shape[1]
+    incidence = sp.csr_matrix((np.ones(t.size), (np.repeat(np.arange(n_cells), t.shape[0]), t.T.ravel())),
+                              shape=(n_cells, n_nodes))
+    _, comp = connected_components(incidence @ incidence.T, directed=False)
+
+    def comps(surface):
+        return set(comp[mf.mesh.f2t[0, mf.surfaces[surface]]].tolist())
+
+    moving = [j["surfaces"][0] for j in mcfg["joints"] if any(isinstance(v, str) for v in j["law"].values())]
+    joined = set().union(*[comps(s) for s in moving]) if moving else set()
+    supported = set().union(*[comps(s["surface"]) for s in mcfg["supports"]]) if mcfg["supports"] else set()
+    carried = joined - supported
+    cells = np.flatnonzero(np.isin(comp, list(carried)))
+    dofs = np.unique(basis.element_dofs[:, cells])
+    ey = np.zeros(M0.shape[0])
+    ey[1::3] = 1.0
+    mass = float((M0 @ ey)[3 * dofs + 1].sum())
+    return mass + sum(float(m["mass_kg"]) for m in mcfg["masses"] if comps(m["surface"]) <= carried)
 
 
 def _probe(basis, mcfg: dict):

@@ -69,6 +69,20 @@ def joint_terms(joints_cfg: dict, model_cfg: dict | None = None) -> dict[str, li
     return out
 
 
+JOINT_FACES = ("top", "flank")
+"""The rig's carriage-rail joint faces."""
+
+
+def joint_layer_terms(model) -> frozenset:
+    """The carriage-rail joint-layer terms of a model: on the rig ``K_<face>_<d>`` of the faces in
+    :data:`JOINT_FACES`; on a mesh file every component of the joints with an identified component
+    (not the fixed layers such as a bonded rail fixing)."""
+    if model.meta.get("kind") == "mesh":
+        return frozenset(f"K_{j['name']}_{c}" for j in model.meta["joints"] if j["moving"] for c in j["components"])
+    return frozenset(n for n in model.stiffness
+                     if n.startswith("K_") and n.count("_") == 2 and n.split("_")[1] in JOINT_FACES)
+
+
 def is_mesh_model(cfg: dict) -> bool:
     """Whether ``cfg`` describes a model read from a mesh file (``model: {kind: mesh}``)."""
     return (cfg.get("model") or {}).get("kind", "rig") == "mesh"

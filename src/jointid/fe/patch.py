@@ -122,15 +122,22 @@ def patch_probe(model, points: list[str], diameter_m: float, *, n_radial: int = 
     basis, T = _basis(model)
     pts = table.set_index("point").loc[list(points)]
     xz, w = disc_points([0.0, 0.0], diameter_m, n_radial, n_angular)
+    if model.meta.get("kind") == "mesh":  # as the model's probe: projected onto the nearest surface
+        from jointid.fe.layer import surface_interpolation
+
+        facets = basis.mesh.boundary_facets()
+        nudge, probes = 0.0, lambda xyz: surface_interpolation(basis, facets, xyz)[0]
+    else:
+        nudge, probes = _NUDGE_M, basis.probes
     blocks = []
     for _, pt in pts.iterrows():
-        xyz = np.vstack([pt.x_m + xz[0], np.full(w.size, pt.y_m - _NUDGE_M), pt.z_m + xz[1]])
-        P = sp.csr_matrix(basis.probes(xyz))  # (n_q, N)
+        xyz = np.vstack([pt.x_m + xz[0], np.full(w.size, pt.y_m - nudge), pt.z_m + xz[1]])
+        P = sp.csr_matrix(probes(xyz))  # (n_q, N)
         blocks.append(sp.csr_matrix(w[None, :]) @ P)
     out = _vector_rows(sp.vstack(blocks), T)
     if check:
-        centre = np.vstack([pts.x_m, pts.y_m - _NUDGE_M, pts.z_m])
-        ref = _vector_rows(sp.csr_matrix(basis.probes(centre)), T)
+        centre = np.vstack([pts.x_m, pts.y_m - nudge, pts.z_m])
+        ref = _vector_rows(sp.csr_matrix(probes(centre)), T)
         err = abs(ref - model.probe[rows]).max()
         if err > 1e-8:
             raise ModelError(f"patch_probe: the basis rebuilt from the cached mesh does not reproduce the "

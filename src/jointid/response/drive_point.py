@@ -196,10 +196,14 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
 
 
 def joint_stiffness(model, k_coeffs: dict) -> sp.csr_matrix:
-    """Stiffness of the carriage-rail joint layers alone, ``sum_t k_t K_t`` over ``K_top_*``/``K_flank_*`` (N/m)."""
+    """Stiffness of the carriage-rail joint layers alone, ``sum_t k_t K_t`` over the joint-layer terms
+    (:func:`jointid.fe.model.joint_layer_terms`; on the rig ``K_top_*``/``K_flank_*``) (N/m)."""
+    from jointid.fe.model import joint_layer_terms
+
+    layers = joint_layer_terms(model)
     out = sp.csr_matrix(model.stiffness["K0"].shape)
     for name, c in k_coeffs.items():
-        if c and name.startswith(("K_top_", "K_flank_")):
+        if c and name in layers:
             out = out + c * model.stiffness[name]
     return out.tocsr()
 

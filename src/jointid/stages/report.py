@@ -21,6 +21,7 @@ def load_inputs(inputs: dict) -> dict:
     import pandas as pd
 
     from jointid.reporting.checks import check_table1
+    from jointid.stages.tables import PAPER_TABLE1_COLUMNS, read_paper
 
     by_state = lambda key, reader: {Path(p).parent.name: reader(p) for p in _as_list(inputs[key])}  # noqa: E731
     return {
@@ -35,7 +36,7 @@ def load_inputs(inputs: dict) -> dict:
         "diagnostics": pd.read_csv(inputs["diagnostics"]),
         "sheet": pd.read_csv(inputs["sheet"]),
         "points": pd.read_csv(inputs["points"]),
-        "paper_table1": pd.read_csv(inputs["paper_table1"]),
+        "paper_table1": read_paper(inputs.get("paper_table1") or None, PAPER_TABLE1_COLUMNS),
         "mesh_check": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("mesh_check") or []))},
         "rigidity": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("rigidity") or []))},
         "table1_problems": check_table1(inputs["table1"]),

@@ -1,10 +1,28 @@
 """Rules ``tables`` (Tables 2 and 3: natural frequencies) and ``table1`` (dynamic stiffness), each
-beside the paper's values, as CSV and Markdown."""
+beside the paper's values (on the paper's data; on other data the paper columns are empty), as CSV
+and Markdown."""
 
 from __future__ import annotations
 
 from jointid import io
 from jointid.stages.runner import log
+
+PAPER_TABLES_COLUMNS = ("state", "order", "paper_simulation_Hz")
+PAPER_TABLE1_COLUMNS = ("state", "paper_dynamic_stiffness_N_per_mm", "paper_increase_pct")
+
+
+def read_paper(path, columns):
+    """The paper's values (``data/paper/*.csv``), or an empty table with ``columns`` when the run's
+    data are not the paper's (``path`` None or empty)."""
+    import pandas as pd
+
+    return pd.read_csv(path) if path else pd.DataFrame(columns=list(columns))
+
+
+def _paper_note(value: float, fmt: str, suffix: str = "") -> str:
+    import math
+
+    return "" if value is None or not math.isfinite(float(value)) else f" (paper {value:{fmt}}{suffix})"
 
 
 def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, str],
@@ -21,7 +39,7 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
 
     from jointid.reporting.tables import frequency_table, markdown_table
 
-    paper = pd.read_csv(paper_csv)
+    paper = read_paper(paper_csv, PAPER_TABLES_COLUMNS)
     gathered = []
     for state, path in verify_csvs.items():
         tab = frequency_table(pd.read_csv(path), paper, state)
@@ -34,8 +52,8 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
         worst = tab.relative_error_pct.abs().max()
         misfit = "" if unpaired is None or not len(unpaired) else (
             f"; {len(unpaired)} unpaired visible mode(s), misfit up to {unpaired.misfit_pct.abs().max():.2f} %")
-        log(f"table[{state}]: max |error| {worst:.2f} % (paper {tab.paper_relative_error_pct.abs().max():.1f} %)"
-            + misfit)
+        log(f"table[{state}]: max |error| {worst:.2f} %"
+            + _paper_note(tab.paper_relative_error_pct.abs().max(), ".1f", " %") + misfit)
     if unpaired_out:
         frame = pd.concat(gathered, ignore_index=True) if gathered else pd.DataFrame()
         cols = ["state", "model_mode", "freq_Hz", "target_Hz", "misfit_pct", "visibility_rel", "description"]
@@ -54,7 +72,7 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
     from jointid.reporting.tables import reference_state, table1_frame, table1_markdown
 
     docs = [io.read_json(p) for p in stiffness_jsons]
-    df = table1_frame(docs, pd.read_csv(paper_csv))
+    df = table1_frame(docs, read_paper(paper_csv, PAPER_TABLE1_COLUMNS))
     ranges = None
     if points_npz:
         ranges, cases = table1_ranges(docs, points_npz, reference_state(list(df.state)), cfg or {},
@@ -66,14 +84,16 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
     io.write_text(out_md, table1_markdown(df, ranges))
     for _, r in df.iterrows():
         inc = ("" if pd.isna(r.increase_pct)
-               else f", increase {r.increase_pct:+.1f} % (paper {r.paper_increase_pct:+.1f} %)")
+               else f", increase {r.increase_pct:+.1f} %" + _paper_note(r.paper_increase_pct, "+.1f", " %"))
         pinc = "" if pd.isna(r.paired_increase_pct) else f", increase {r.paired_increase_pct:+.1f} %"
         log(f"table1[{r.state}]: {r.status}; band minimum {r.dynamic_stiffness_N_per_mm:,.0f} N/mm (not identified: "
             f"{r.not_identified_dynamic_stiffness_N_per_mm:,.0f}), lowest paired peak "
-            f"{r.paired_dynamic_stiffness_N_per_mm:,.0f} N/mm{pinc} (paper {r.paper_dynamic_stiffness_N_per_mm:,.0f}){inc}")
+            f"{r.paired_dynamic_stiffness_N_per_mm:,.0f} N/mm{pinc}"
+            + _paper_note(r.paper_dynamic_stiffness_N_per_mm, ",.0f") + inc)
     for r in (ranges.itertuples() if ranges is not None else []):
         log(f"table1 range[{r.state}, {r.basis}, {r.over}]: increase {r.increase_low_pct:+.1f} … "
-            f"{r.increase_high_pct:+.1f} % (paper {r.paper_increase_pct:+.1f} % {'inside' if r.paper_inside else 'outside'})")
+            f"{r.increase_high_pct:+.1f} %" + _paper_note(r.paper_increase_pct, "+.1f",
+                                                          f" % {'inside' if r.paper_inside else 'outside'}"))
     return df
 
 
