@@ -109,10 +109,12 @@ def test_layer_patch_test_gives_the_exact_total_force_on_non_matching_meshes():
         assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
 
 
-def test_rigid_block_on_a_non_matching_layer_has_the_analytic_frequencies(tmp_path):
+@pytest.mark.parametrize("ext", [".msh", ".vtu", ".inp"])
+def test_rigid_block_on_a_non_matching_layer_has_the_analytic_frequencies(tmp_path, ext):
+    """Through each file format (gmsh physical groups, VTK cell data, Abaqus element sets)."""
     mesh, groups, surfaces = two_blocks()
-    write_mesh(tmp_path / "blocks.msh", mesh, groups, surfaces)
-    cfg = block_config(tmp_path, str(tmp_path / "blocks.msh"))
+    write_mesh(tmp_path / f"blocks{ext}", mesh, groups, surfaces)
+    cfg = block_config(tmp_path, str(tmp_path / f"blocks{ext}"))
     model = build_model(cfg)
     kc, mc = base_coefficients(cfg, model, {"k_normal_N_per_m3": K_N, "k_feed_N_per_m3": K_T})
     assert kc == {"K_slide_normal": K_N, "K_slide_tangential": K_T}
@@ -199,3 +201,24 @@ def test_linear_cells_need_allow_linear_and_a_surface_off_the_bodies_is_an_error
     with pytest.raises(ModelError, match=r"surface 'stray': 1 of 1 faces use nodes of no solid cell"):
         with pytest.warns(Warning):
             build_model(cfg)
+
+
+def test_measuring_points_from_a_uff_geometry_give_the_probe_of_the_csv(tmp_path):
+    """model.points may be a Universal File's node geometry (dataset 15): same interpolation as the
+    CSV of the same points, named by node number."""
+    import pyuff
+
+    mesh, groups, surfaces = two_blocks()
+    write_mesh(tmp_path / "blocks.msh", mesh, groups, surfaces)
+    cfg = block_config(tmp_path, str(tmp_path / "blocks.msh"))
+    ref = build_model(cfg)
+    xyz = np.array([[L / 2, H_UP, W / 2], [L, H_UP / 2, W / 3]])
+    uff = pyuff.UFF(str(tmp_path / "geometry.unv"))
+    uff.write_sets(pyuff.prepare_15(node_nums=[101, 102], def_cs=[0, 0], disp_cs=[0, 0], color=[1, 1],
+                                    x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2]), mode="overwrite")
+    cfg["model"]["points"] = str(tmp_path / "geometry.unv")
+    model = build_model(cfg)
+    assert model.meta["points"]["point"] == ["101", "102"]
+    read = np.column_stack([model.meta["points"][k] for k in ("x_m", "y_m", "z_m")])
+    np.testing.assert_allclose(read, xyz, atol=1e-6)  # UFF 15 stores coordinates to about 6 digits
+    assert abs(model.probe - ref.probe).max() < 1e-4

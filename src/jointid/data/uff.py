@@ -174,6 +174,18 @@ def _nodes_table(sets, to_m) -> pd.DataFrame:
                         columns=["node", "x_m", "y_m", "z_m"])
 
 
+def uff_points(path, *, length_scale: float | None = None) -> pd.DataFrame:
+    """Measuring points from the node datasets (15 or 2411) of a Universal File: columns ``point``
+    (the node number), ``x_m, y_m, z_m`` (m, by the file's units dataset 164 or ``length_scale``)."""
+    sets = _read_sets(Path(path))
+    to_m, _ = _units(sets, length_scale, [])
+    nodes = _nodes_table(sets, to_m).dropna()
+    if nodes.empty:
+        raise DataError(f"{path}: no node coordinates (datasets 15 or 2411) — export the test geometry with the file")
+    return pd.DataFrame({"point": nodes["node"].astype(str), "x_m": nodes["x_m"], "y_m": nodes["y_m"],
+                         "z_m": nodes["z_m"]})
+
+
 def _realise(values: np.ndarray) -> tuple[np.ndarray, float]:
     """Rotate a complex shape to its best real direction; return (real shape, real-energy share)."""
     if not np.iscomplexobj(values):

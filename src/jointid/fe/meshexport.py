@@ -87,8 +87,9 @@ def model_section(cfg: dict, mesh_path: str, points_path: str, areas: dict[str, 
 
 
 def write_mesh(path: str | Path, mesh, cell_groups: dict[str, np.ndarray], surfaces: dict[str, np.ndarray]) -> None:
-    """Write a corner hexahedral mesh as 27-node hexahedra with named groups (``.msh``: gmsh 2.2 with
-    physical names; ``.vtu``: one integer cell-data array per group)."""
+    """Write a corner hexahedral mesh as quadratic hexahedra with named groups (``.msh``: gmsh 2.2
+    with physical names, 27-node; ``.vtu``: one integer cell-data array per group, 27-node;
+    ``.inp``: Abaqus element sets, 20-node)."""
     import meshio
     from skfem import Basis, ElementHex2
     from skfem.io.meshio import HEX_MAPPING
@@ -107,6 +108,12 @@ def write_mesh(path: str | Path, mesh, cell_groups: dict[str, np.ndarray], surfa
                                for k, s in enumerate(surfaces)]) if surfaces else np.array([], int)
     cells = [("hexahedron27", hexes), ("quad", quads)]
     path = str(path)
+    if path.endswith(".inp"):  # Abaqus: element sets; meshio writes no 27-node brick, so C3D20
+        offsets = np.cumsum([0] + [len(surfaces[s]) for s in surfaces])
+        sets = {name: [np.asarray(c), np.array([], int)] for name, c in cell_groups.items()}
+        sets.update({s: [np.array([], int), np.arange(offsets[k], offsets[k + 1])] for k, s in enumerate(surfaces)})
+        meshio.write(path, meshio.Mesh(points, [("hexahedron20", hexes[:, :20]), ("quad", quads)], cell_sets=sets))
+        return
     if path.endswith(".vtu"):
         data = {name: [(hex_tag == k + 1).astype(np.int32), (face_tag == k + 1).astype(np.int32)]
                 for k, name in enumerate(names)}

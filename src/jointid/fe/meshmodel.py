@@ -114,11 +114,18 @@ def _cell_materials(cfg: dict, mf: MeshFile):
 
 
 def read_points(path: str) -> pd.DataFrame:
-    """Measuring points CSV: ``point, x_m, y_m, z_m`` (``part`` optional)."""
+    """Measuring points: a CSV with ``point, x_m, y_m, z_m`` (``part`` optional), or the node
+    geometry (dataset 15 or 2411) of a Universal File (``.unv``/``.uff``; points named by node number)."""
     from jointid.errors import ConfigError
 
     if not path:
         raise ConfigError("model.points: no measuring-point file — give a CSV with columns point, x_m, y_m, z_m")
+    if Path(path).suffix.lower() in (".unv", ".uff"):
+        from jointid.data.uff import uff_points
+
+        pts = uff_points(path)
+        pts["part"] = ""
+        return pts[["point", "part", "x_m", "y_m", "z_m"]]
     try:
         pts = pd.read_csv(path)
     except FileNotFoundError:
