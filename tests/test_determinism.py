@@ -122,9 +122,9 @@ def test_every_result_table_has_a_matching_provenance_sidecar(coarse_run, cfg):
     ident = json.loads(provenance_path(wd / "results/identify/power_on/params.json").read_text())
     # harmonic: the test band and drive point, which tell the identification which model modes the
     # test would clearly have seen (identify.visible_threshold)
-    assert ident["config_sections"] == ["harmonic", "identify", "joints", "measurements", "mesh", "rig", "solver",
-                                        "states"]
-    one_state = {k: cfg[k] for k in ("identify", "joints", "measurements", "rig")}
+    assert ident["config_sections"] == ["harmonic", "identify", "joints", "measurements", "mesh", "model", "rig",
+                                        "solver", "states"]
+    one_state = {k: cfg[k] for k in ("identify", "joints", "measurements", "model", "rig")}
     one_state["mesh"] = {"extrapolate_edges": cfg["mesh"]["extrapolate_edges"]}
     one_state["solver"] = {k: cfg["solver"][k] for k in ("n_modes", "shift_Hz", "backend", "min_freq_Hz")}
     one_state["states"] = {"power_on": cfg["states"]["power_on"]}

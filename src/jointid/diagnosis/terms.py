@@ -24,14 +24,13 @@ import scipy.sparse as sp
 
 from jointid.errors import ModelError
 from jointid.fe.fem import Model
-from jointid.fe.model import RAIL_BONDED_N_PER_M3, base_coefficients, joint_layer_terms
+from jointid.fe.model import JOINT_FACES, RAIL_BONDED_N_PER_M3, base_coefficients, joint_layer_terms
 from jointid.geometry.points import dof_labels
 from jointid.geometry.rig import PART_IDS
 
 __all__ = ["BONDED_N_PER_M3", "JOINT_FACES", "StateInfo", "System", "baseline_coefficients", "build_system",
            "carried_mass_kg"]
 
-JOINT_FACES = ("top", "flank")  # the rig's joint faces (jointid.fe.model.JOINT_FACES)
 BONDED_N_PER_M3 = RAIL_BONDED_N_PER_M3
 
 
