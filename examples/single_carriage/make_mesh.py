@@ -3,7 +3,7 @@
 The carriage wraps the rail: it touches the rail top (joint ``top``) and the rail's sides below it
 (joint ``flank``).
 
-Run with gmsh's Python API (``pip install gmsh``) from the repository root:
+Run with gmsh's Python API (``pip install -e ".[mesh]"``) from the repository root:
 
     python examples/single_carriage/make_mesh.py
 
