@@ -222,3 +222,17 @@ def test_measuring_points_from_a_uff_geometry_give_the_probe_of_the_csv(tmp_path
     read = np.column_stack([model.meta["points"][k] for k in ("x_m", "y_m", "z_m")])
     np.testing.assert_allclose(read, xyz, atol=1e-6)  # UFF 15 stores coordinates to about 6 digits
     assert abs(model.probe - ref.probe).max() < 1e-4
+
+
+def test_export_mesh_command_writes_a_mesh_and_an_overlay_that_reads_it_back(tmp_path, capsys):
+    from jointid.cli import main
+
+    coarse = ROOT / "tests" / "coarse_config.yaml"
+    assert main(["export-mesh", "--out", str(tmp_path / "own"), "--format", "vtu",
+                 "--config", str(ROOT / "config.yaml"), str(coarse)]) == 0
+    assert "export-mesh: wrote" in capsys.readouterr().out
+    overlay = yaml.safe_load((tmp_path / "own" / "model.yaml").read_text())
+    assert overlay["model"]["path"].endswith("rig.vtu") and overlay["mesh"] == {"extrapolate_edges": False}
+    rig = build_model(load_config(ROOT / "config.yaml", overrides={"mesh": yaml.safe_load(coarse.read_text())["mesh"]}))
+    mesh = build_model(load_config(ROOT / "config.yaml", overrides=overlay))
+    assert mesh.n_dofs == rig.n_dofs and mesh.meta["carriage_centres_m"] and len(mesh.meta["carriage_centres_m"]) == 4

@@ -25,6 +25,7 @@ MODULES = {
     "synth": "jointid.diagnosis.synth",
     "uff": "jointid.data.uff",
     "data": "jointid.data.__main__",
+    "export-mesh": "jointid.fe.meshexport",
 }
 COMMANDS = {
     "diagnose": "diagnose which listed physical effect the model lacks (--dataset DIR --out DIR)",
@@ -33,6 +34,7 @@ COMMANDS = {
     "synth": "write a synthetic dataset from a truth YAML file (--truth FILE --out DIR)",
     "uff": "import a Universal File (.unv/.uff) into a dataset folder",
     "data": "validate dataset folders before any run (check FOLDER ... [--points CSV])",
+    "export-mesh": "write the rig as a mesh file with named groups and its model: config (--out DIR)",
 }
 
 
