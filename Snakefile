@@ -20,7 +20,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("PYTHONHASHSEED", "0")
 
 from jointid.config.datasets import dataset_folder
-from jointid.config.snakefile import validated, sections, merged
+from jointid.config.snakefile import merged, paper_input, sections, validated
 from jointid.stages import doe, identify, modal, model, surface, verify
 
 configfile: "config.yaml"
@@ -61,10 +61,6 @@ CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
-
-def PAPER_INPUT(path):
-    """A file of the paper's values, compared with on the paper's data only (measurements.dataset)."""
-    return path if os.path.normpath(config["measurements"]["dataset"]) == "data/paper" else []
 
 localrules: all, doe, gather_modal, tables, doe_zoom, gather_zoom
 
@@ -392,7 +388,7 @@ rule tables:
     input:
         verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
         unpaired=expand(f"{R}/identify/{{state}}/unpaired_visible.csv", state=STATES),
-        paper=PAPER_INPUT("data/paper/paper_tables.csv"),
+        paper=paper_input(config, "data/paper/paper_tables.csv"),
     output:
         power_off=f"{R}/tables/table2_power_off.csv",
         unpaired=f"{R}/tables/unpaired_visible.csv",

@@ -52,7 +52,7 @@ rule table1:
     input:
         stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
         points=expand(f"{R}/harmonic/{{state}}/drive_points.npz", state=STATES),
-        paper=PAPER_INPUT("data/paper/paper_table1.csv"),
+        paper=paper_input(config, "data/paper/paper_table1.csv"),
     output:
         csv=report(f"{R}/tables/table1_dynamic_stiffness.csv", caption="../report/table1.rst",
                    category="Tables"),
@@ -77,7 +77,7 @@ rule report:
         table1_ranges=rules.table1.output.ranges,
         table2=rules.tables.output.power_off,
         table3=rules.tables.output.power_on,
-        paper_table1=PAPER_INPUT("data/paper/paper_table1.csv"),
+        paper_table1=paper_input(config, "data/paper/paper_table1.csv"),
         verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
         params=expand(f"{R}/identify/{{state}}/params.json", state=STATES),
         rigidity=(expand(f"{R}/identify/{{state}}/carriage_rigidity.json", state=STATES)

@@ -110,3 +110,15 @@ def merged(*cfgs: dict) -> dict:
     for cfg in cfgs:
         out = deep_merge(out, cfg)
     return out
+
+
+PAPER_DATASET = "data/paper"
+"""The paper's measured dataset: its tables are compared with the paper's values."""
+
+
+def paper_input(config: dict, path: str) -> str | list:
+    """``path`` (a file of the paper's values) as a rule input when the run's measured dataset is the
+    paper's, else no input: on other data the tables' paper columns stay empty."""
+    import os
+
+    return path if os.path.normpath(config["measurements"]["dataset"]) == PAPER_DATASET else []

@@ -185,6 +185,16 @@ def spring_layer(S: sp.csr_matrix, doflocs: np.ndarray, direction: int,
     return (D.T @ S @ D).tocsr()
 
 
+def vector_rows(P: sp.spmatrix) -> sp.csr_matrix:
+    """Scalar interpolation rows ``(n_pts, N)`` -> vector rows ``(3 n_pts, 3 N)`` ordered (point,
+    direction), the layout of ``Model.probe``."""
+    Pc = sp.coo_matrix(P)
+    n_pts, n = P.shape
+    return sp.csr_matrix((np.tile(Pc.data, 3), (np.concatenate([3 * Pc.row + c for c in range(3)]),
+                                                 np.concatenate([3 * Pc.col + c for c in range(3)]))),
+                         shape=(3 * n_pts, 3 * n))
+
+
 def ground_springs(S: sp.csr_matrix) -> sp.csr_matrix:
     """Unit springs per area to the ground in all three directions: kron(S, I3)."""
     return sp.kron(S, sp.eye(3), format="csr")

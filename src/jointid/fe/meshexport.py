@@ -23,13 +23,11 @@ _COMPONENT = {("top", "y"): "normal", ("top", "z"): "feed", ("top", "x"): "later
 
 def _facets_in(mesh, owner_part: np.ndarray, part: int, boxes: list[Box]) -> np.ndarray:
     """Boundary facets of cells of ``part`` whose midpoints lie in one of the degenerate ``boxes``."""
+    from jointid.geometry.mesh import _in_patch
+
     bnd = mesh.boundary_facets()
     mid = mesh.p[:, mesh.facets[:, bnd]].mean(axis=1).T
-    sel = np.zeros(len(bnd), bool)
-    for box in boxes:
-        lo, hi = np.asarray(box.lo) - 1e-9, np.asarray(box.hi) + 1e-9
-        sel |= np.all((mid >= lo) & (mid <= hi), axis=1)
-    return bnd[sel & (owner_part[mesh.f2t[0, bnd]] == part)]
+    return bnd[_in_patch(mid, boxes) & (owner_part[mesh.f2t[0, bnd]] == part)]
 
 
 def rig_groups(cfg: dict):

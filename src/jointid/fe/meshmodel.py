@@ -275,12 +275,7 @@ def _probe(basis, mcfg: dict):
         raise ModelError([f"{mcfg['points']}: point {pts['point'].iloc[i]} is {dist[i]:.4g} m from the nearest surface "
                           f"of the mesh (tolerance model.point_tolerance_m = {mcfg['point_tolerance_m']} m) — "
                           "correct its coordinates (m, in the mesh's axes)" for i in far])
-    Pc = P.tocoo()
-    probe = sp.csr_matrix(
-        (np.tile(Pc.data, 3),
-         (np.concatenate([3 * Pc.row + c for c in range(3)]), np.concatenate([3 * Pc.col + c for c in range(3)]))),
-        shape=(3 * len(pts), 3 * basis.N))
-    return pts, probe
+    return pts, fem.vector_rows(P)
 
 
 def resolve(path: str, base: str | Path | None = None) -> str:

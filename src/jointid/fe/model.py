@@ -134,12 +134,7 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     xyz = pts[["x_m", "y_m", "z_m"]].to_numpy().T.copy()
     xyz[1] -= 1e-7  # nudge onto the solid side of the top surfaces
     P = basis.probes(xyz)  # (n_pts, N) scalar
-    P = sp.csr_matrix(P)
-    Pc = P.tocoo()
-    probe = sp.csr_matrix(
-        (np.tile(Pc.data, 3),
-         (np.concatenate([3 * Pc.row + c for c in range(3)]), np.concatenate([3 * Pc.col + c for c in range(3)]))),
-        shape=(3 * len(pts), 3 * basis.N))
+    probe = fem.vector_rows(P)
     dof_part = dof_parts(basis, rmesh)
     areas = {face: float(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder).sum())
              for face in ("top", "flank", "motor", "mount")}

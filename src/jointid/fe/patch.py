@@ -77,11 +77,7 @@ def _vector_rows(P: sp.spmatrix, T) -> sp.csr_matrix:
     as ``model.probe``; ``T`` maps onto the free nodes."""
     if T is not None:
         P = sp.csr_matrix(P) @ T
-    Pc = sp.coo_matrix(P)
-    n_pts, n = P.shape
-    return sp.csr_matrix((np.tile(Pc.data, 3), (np.concatenate([3 * Pc.row + c for c in range(3)]),
-                                                 np.concatenate([3 * Pc.col + c for c in range(3)]))),
-                         shape=(3 * n_pts, 3 * n))
+    return fem.vector_rows(P)
 
 
 def patch_probe(model, points: list[str], diameter_m: float, *, n_radial: int = N_RADIAL,
