@@ -135,3 +135,44 @@ def test_a_mode_the_test_would_have_seen_is_a_misfit_not_a_free_skip(seen):
         misfit = res.residuals[3:] if res.residuals.size > 3 else np.zeros(0)
         paired_it = 2 in list(p)
         assert paired_it or misfit.size == 1, (p, res.residuals)
+
+
+def _seen_doc():
+    doc = _doc()
+    doc["ref_shapes"] = [[1.0, 1.0, 1.0, 1.0], [0.5, 0.5, 0.5, 0.5]]  # every tracked mode shows
+    return doc
+
+
+def test_a_visible_unpaired_mode_suggests_the_swap_with_the_partner_of_its_target():
+    from jointid.identification.updating import misfit_swaps
+
+    doc = _seen_doc()
+    f = four_modes(np.array([5e11, 8e9]))[[0, 1, 3]]
+    x = doe.to_coded(np.array([5e11, 8e9]), LOWER, UPPER)
+    # paired with tracked mode 2, measured mode 2 leaves tracked mode 3 unpaired and scored against it
+    assert misfit_swaps(doc, (0, 1, 3), x, f, _rule()) == [(0, 2, 3)]
+    assert misfit_swaps(doc, (0, 2, 3), x, f, _rule()) == [(0, 1, 3)]
+    assert misfit_swaps(doc, (0, 1, 3), x, f, None) == []  # without a visibility rule: no misfits
+
+
+def test_the_shared_pairing_does_not_depend_on_which_swap_the_starts_found(monkeypatch):
+    from jointid.identification import updating
+
+    doc = _seen_doc()
+    truth = {"off": np.array([5e11, 8e9]), "on": np.array([9e11, 8e9])}
+    f = {s: four_modes(t)[[0, 1, 3]] for s, t in truth.items()}
+    rules = {s: _rule() for s in f}
+    ref_pairing, ref_info = identify_states_jointly(doc, f, LOWER, UPPER, rule=rules, **KW)
+    assert {(0, 1, 3), (0, 2, 3)} <= {tuple(c["pairing"]) for c in ref_info["candidates"]}
+    real = updating.identify_state
+    for only in [(0, 1, 3), (0, 2, 3)]:
+        def one_found(*args, candidates=None, only=only, **kw):  # a multistart that found one pairing only
+            out = real(*args, candidates=candidates, **kw)
+            if candidates is not None:
+                candidates[:] = [(only, 0.0)]
+            return out
+
+        monkeypatch.setattr(updating, "identify_state", one_found)
+        pairing, info = identify_states_jointly(doc, f, LOWER, UPPER, rule=rules, **KW)
+        assert list(pairing) == list(ref_pairing)
+        assert info["candidates"][0]["cost"] == pytest.approx(ref_info["candidates"][0]["cost"], rel=1e-12)

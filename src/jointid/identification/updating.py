@@ -95,6 +95,16 @@ def fit_surfaces(sheet: pd.DataFrame, freqs: np.ndarray, shapes: np.ndarray, des
 
 
 # ------------------------------------------------------------------ 2. identification
+def state_misfits(full, rule, ref_shapes, f_meas, pairing, x) -> tuple[np.ndarray, np.ndarray]:
+    """``(modes, targets)``: the tracked modes the test would clearly have seen that ``pairing`` leaves
+    unpaired at the coded point ``x`` (the surface ``full``), and the frequency each is scored against;
+    empty without a visibility ``rule``."""
+    if rule is None:
+        return np.zeros(0, int), np.zeros(0)
+    f = full(x)
+    return rule.misfits(pairing, f, rule.visibility(ref_shapes, f), f_meas)
+
+
 def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
                    meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
                    seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None,
@@ -122,10 +132,7 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
     caught: list[str] = []
 
     def misfits(pairing, x):
-        if rule is None:
-            return np.zeros(0, int), np.zeros(0)
-        f = full(x)
-        return rule.misfits(pairing, f, rule.visibility(ref_shapes, f), f_meas)
+        return state_misfits(full, rule, ref_shapes, f_meas, pairing, x)
 
     def fit(pairing, pen, tgt):
         model = LogFrequencyModel(surf, pairing)
@@ -193,7 +200,9 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
     states pair it with the same tracked mode.  Each state is identified with every pairing that a
     start of any state converged to; the pairing of least summed cost wins.  Without that rule, with
     model modes inside the band that the test did not see, a state can prefer a pairing that another
-    state rules out.
+    state rules out.  A clearly visible tracked mode left unpaired costs its distance to the measured
+    mode it is scored against, exactly what pairing it with that mode would cost: every swap of the
+    best pairings (:func:`misfit_swaps`) is tried too, and among tied pairings the nearest partners win.
 
     ``f_meas`` maps state -> measured frequencies (equal counts); ``kw`` as :func:`identify_state`
     (``sigma_rel`` and ``rule`` may be mappings state -> value).  Returns ``(pairing, info)``: the summed-cost
@@ -212,20 +221,55 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
         own[state] = tuple(int(c) for c in p)
         for pairing, _ in found:
             cands.setdefault(pairing, None)
-    best, tried = None, []
-    for pairing in sorted(cands):
-        costs = {s: identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[s],
-                                   pairing=pairing, rule=rules[s], **kw)[0].cost for s, f in f_meas.items()}
-        total = sum(costs.values())
-        chi2 = sum(c / sigma[s] ** 2 for s, c in costs.items())
-        tried.append({"pairing": list(pairing), "cost": total, "chi2": chi2, "costs": costs,
-                      "chi2_by_state": {s: c / sigma[s] ** 2 for s, c in costs.items()}})
-        if best is None or total < best[0] - 1e-12:
-            best = (total, pairing, costs)
-    _, pairing, costs = best
-    info = {s: {"cost": costs[s], "own": list(own[s])} for s in f_meas}
-    info["candidates"] = sorted(tried, key=lambda t: t["cost"])
-    return np.asarray(pairing, int), info
+    tried, fits, queue = [], {}, sorted(cands)
+    for _ in range(4):  # the pairings the starts found, then the swaps of the best, until none is new
+        for pairing in queue:
+            fits[pairing] = {s: identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[s],
+                                               pairing=pairing, rule=rules[s], **kw)[0] for s, f in f_meas.items()}
+            costs = {s: r.cost for s, r in fits[pairing].items()}
+            tried.append({"pairing": list(pairing), "cost": sum(costs.values()),
+                          "chi2": sum(c / sigma[s] ** 2 for s, c in costs.items()), "costs": costs,
+                          "chi2_by_state": {s: c / sigma[s] ** 2 for s, c in costs.items()},
+                          "paired_ss": sum(_paired_ss(r, f_meas[s]) for s, r in fits[pairing].items())})
+        low = min(t["cost"] for t in tried)
+        swaps = {q for t in tried if t["cost"] < low + 1e-12 for s, r in fits[tuple(t["pairing"])].items()
+                 for q in misfit_swaps(doc, t["pairing"], r.x_coded, np.asarray(f_meas[s], float), rules[s])}
+        queue = sorted(swaps - set(fits))
+        if not queue:
+            break
+    # least summed cost; among pairings tied with it (within 1e-12: a visible mode paired or left a misfit
+    # against the same measured mode costs the same) the nearest partners, then the first in sorted order,
+    # so the choice does not depend on which of them the starts happened to find
+    win = min((t for t in tried if t["cost"] < low + 1e-12), key=lambda t: (t["paired_ss"], t["pairing"]))
+    info = {s: {"cost": win["costs"][s], "own": list(own[s])} for s in f_meas}
+    info["candidates"] = sorted(tried, key=lambda t: (t["cost"], t["paired_ss"], t["pairing"]))
+    return np.asarray(win["pairing"], int), info
+
+
+def _paired_ss(res, f_meas) -> float:
+    """Sum of the squared log errors of the paired modes alone (how near the partners are)."""
+    return float(np.sum(np.log(np.asarray(res.f_model, float) / np.asarray(f_meas, float)) ** 2))
+
+
+def misfit_swaps(doc: dict, pairing, x, f_meas: np.ndarray, rule) -> list[tuple]:
+    """Pairings that give a measured mode the clearly visible, unpaired tracked mode scored against it
+    (at the coded point ``x``) in place of its partner, the order of the modes kept.
+
+    Such a swap fits about as well as ``pairing`` (the two modes change roles, paired and misfit,
+    against the same measured frequency), so which of the two a multistart finds first is round-off;
+    both are compared.
+    """
+    full = LogFrequencyModel(Surface.from_dict(doc["surface"]))
+    ref = np.asarray(doc["ref_shapes"]) if rule is not None else None
+    cols, targets = state_misfits(full, rule, ref, f_meas, pairing, x)
+    out = []
+    p = [int(c) for c in pairing]
+    for u, t in zip(cols, targets):
+        for i in np.flatnonzero(np.abs(f_meas - t) <= 1e-9 * t):  # scored against measured mode i
+            q = p[:i] + [int(u)] + p[i + 1:]
+            if all(a < b for a, b in zip(q, q[1:])):
+                out.append(tuple(q))
+    return out
 
 
 # ------------------------------------------------------------------ 3. verification

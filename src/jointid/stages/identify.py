@@ -281,6 +281,8 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     names, zoom = doc["names"], doc.get("stage") == "zoom"
     rule = ic.get("pairing", "independent")
     shared, joint_info, pair_msgs = None, None, []
+    log(f"identify[{state}]: {len(f_meas)} measured modes, {len(doc['tracked_modes'])} tracked modes; pairing "
+        f"them on the {'zoomed ' if zoom else ''}response surfaces")
     if states and len(states) > 1 and state in states and shapes is None:
         shared, joint_info, pair_msgs = _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule)
     fixed = shared if rule == "shared" else None
