@@ -1,6 +1,9 @@
 """The whole identification on a mesh file: the rig exported with its named groups and read back
 through ``model: {kind: mesh}`` identifies the same joint parameters on the paper's data as the
-parametric rig itself (coarse mesh, no edge extrapolation: a mesh file is solved as it is)."""
+parametric rig itself (coarse mesh, no edge extrapolation: a mesh file is solved as it is), with the
+same pairing of measured and model modes.  The zoomed second DOE is on: there the paper's data hold
+pairings of equal fit, and which of them a multistart finds first follows the round-off of the DOF
+numbering; the pairing must not."""
 
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ from jointid.fe.meshexport import export_rig
 
 pytestmark = pytest.mark.slow
 
-SAME_RUN = "mesh: {extrapolate_edges: false}\nmesh_check: {enabled: false}\ndoe: {zoom: {enabled: false}}\n"
+SAME_RUN = "mesh: {extrapolate_edges: false}\nmesh_check: {enabled: false}\n"
 TARGETS = ("results/identify/power_off/params.json", "results/identify/power_on/params.json")
 
 
@@ -30,8 +33,9 @@ def test_rig_read_back_from_a_mesh_file_identifies_the_same_parameters(tmp_path)
     run_snakemake(rig_dir, "-j2", *TARGETS, configs=[same], check=True)
     run_snakemake(mesh_dir, "-j2", *TARGETS, configs=[as_mesh], check=True)
     for target in TARGETS:
-        a = json.loads((rig_dir / target).read_text())["parameters"]
-        b = json.loads((mesh_dir / target).read_text())["parameters"]
+        ra, rb = (json.loads((d / target).read_text()) for d in (rig_dir, mesh_dir))
+        assert ra["pairing_columns"] == rb["pairing_columns"], target
+        a, b = ra["parameters"], rb["parameters"]
         assert set(a) == set(b) == {"k_normal_N_per_m3", "k_lateral_N_per_m3", "k_feed_N_per_m3"}
         for name in a:
             assert b[name]["value"] == pytest.approx(a[name]["value"], rel=1e-6), (target, name)
