@@ -176,3 +176,15 @@ def test_the_shared_pairing_does_not_depend_on_which_swap_the_starts_found(monke
         pairing, info = identify_states_jointly(doc, f, LOWER, UPPER, rule=rules, **KW)
         assert list(pairing) == list(ref_pairing)
         assert info["candidates"][0]["cost"] == pytest.approx(ref_info["candidates"][0]["cost"], rel=1e-12)
+
+
+@pytest.mark.parametrize("truth", [[5e11, 8e9], [9e11, 8e9], [2e12, 5e9]])
+def test_one_state_takes_the_nearest_partner_among_tied_pairings(truth):
+    doc = _seen_doc()
+    f = four_modes(np.array(truth))[[0, 1, 3]]
+    fits = {q: identify_state(doc, f, LOWER, UPPER, rule=_rule(), pairing=list(q), **KW)[0]
+            for q in [(0, 1, 3), (0, 2, 3)]}
+    assert fits[(0, 1, 3)].cost == pytest.approx(fits[(0, 2, 3)].cost, rel=1e-9)  # an exact tie
+    nearest = min(fits, key=lambda q: np.sum(np.log(fits[q].f_model / f) ** 2))
+    _, p, _ = identify_state(doc, f, LOWER, UPPER, rule=_rule(), **KW)
+    assert tuple(int(c) for c in p) == nearest

@@ -119,7 +119,9 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
     every start in that last case.  ``rule`` (:class:`jointid.identification.visibility.VisibilityRule`,
     its labels those of ``doc["ref_shapes"]``): tracked modes the test would clearly have seen and
     that no measured mode takes are misfits, extra residuals of the fit (``result.residuals`` beyond
-    the measured modes), and the frequency pairing pays for leaving them unpaired.
+    the measured modes), and the frequency pairing pays for leaving them unpaired; the swaps of such a
+    mode with the partner of the measured mode it is scored against fit exactly alike, so the
+    multistart's winner is compared with them and the nearest partners win (:func:`misfit_swaps`).
     """
     surf = Surface.from_dict(doc["surface"])
     names = doc["names"]
@@ -189,6 +191,14 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
             candidates.append((tuple(int(c) for c in pairing), float(res.cost)))
         if best is None or res.cost < best[0].cost - 1e-12:
             best = (res, pairing, msgs)
+    if rule is not None:  # the winner's tied swaps (see identify_states_jointly): the nearest partners win
+        options = [best]
+        for q in misfit_swaps(doc, best[1], best[0].x_coded, f_meas, rule):
+            res_q, msgs_q = run(np.asarray(q), best[0].x_coded)
+            options.append((res_q, np.asarray(q), msgs_q))
+        low = min(o[0].cost for o in options)
+        best = min((o for o in options if o[0].cost < low + 1e-12),
+                   key=lambda o: (_paired_ss(o[0], f_meas), [int(c) for c in o[1]]))
     return best
 
 
