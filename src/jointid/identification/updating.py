@@ -23,6 +23,7 @@ from jointid.errors import DataError, NumericalWarning
 from jointid.identification.identify import identify
 from jointid.identification.surface import Surface, fit_surface
 from jointid.identification.surface_checks import diagnostics
+from jointid.identification.ties import least_cost_nearest, paired_ss
 from jointid.correlate.mac import mac
 from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
 from jointid.identification.tracking import track_doe
@@ -196,9 +197,7 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
         for q in misfit_swaps(doc, best[1], best[0].x_coded, f_meas, rule):
             res_q, msgs_q = run(np.asarray(q), best[0].x_coded)
             options.append((res_q, np.asarray(q), msgs_q))
-        low = min(o[0].cost for o in options)
-        best = min((o for o in options if o[0].cost < low + 1e-12),
-                   key=lambda o: (_paired_ss(o[0], f_meas), [int(c) for c in o[1]]))
+        best = least_cost_nearest(options, lambda o: o[0].cost, lambda o: paired_ss(o[0], f_meas), lambda o: o[1])
     return best
 
 
@@ -240,25 +239,17 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
             tried.append({"pairing": list(pairing), "cost": sum(costs.values()),
                           "chi2": sum(c / sigma[s] ** 2 for s, c in costs.items()), "costs": costs,
                           "chi2_by_state": {s: c / sigma[s] ** 2 for s, c in costs.items()},
-                          "paired_ss": sum(_paired_ss(r, f_meas[s]) for s, r in fits[pairing].items())})
+                          "paired_ss": sum(paired_ss(r, f_meas[s]) for s, r in fits[pairing].items())})
         low = min(t["cost"] for t in tried)
         swaps = {q for t in tried if t["cost"] < low + 1e-12 for s, r in fits[tuple(t["pairing"])].items()
                  for q in misfit_swaps(doc, t["pairing"], r.x_coded, np.asarray(f_meas[s], float), rules[s])}
         queue = sorted(swaps - set(fits))
         if not queue:
             break
-    # least summed cost; among pairings tied with it (within 1e-12: a visible mode paired or left a misfit
-    # against the same measured mode costs the same) the nearest partners, then the first in sorted order,
-    # so the choice does not depend on which of them the starts happened to find
-    win = min((t for t in tried if t["cost"] < low + 1e-12), key=lambda t: (t["paired_ss"], t["pairing"]))
+    win = least_cost_nearest(tried, lambda t: t["cost"], lambda t: t["paired_ss"], lambda t: t["pairing"])
     info = {s: {"cost": win["costs"][s], "own": list(own[s])} for s in f_meas}
     info["candidates"] = sorted(tried, key=lambda t: (t["cost"], t["paired_ss"], t["pairing"]))
     return np.asarray(win["pairing"], int), info
-
-
-def _paired_ss(res, f_meas) -> float:
-    """Sum of the squared log errors of the paired modes alone (how near the partners are)."""
-    return float(np.sum(np.log(np.asarray(res.f_model, float) / np.asarray(f_meas, float)) ** 2))
 
 
 def misfit_swaps(doc: dict, pairing, x, f_meas: np.ndarray, rule) -> list[tuple]:

@@ -1,0 +1,26 @@
+"""Choosing among pairings of equal fit (:mod:`jointid.identification.updating`).
+
+A clearly visible model mode left unpaired is scored against the measured mode nearest to it with
+the residual that pairing it would give, so swapping it with that measured mode's partner fits
+exactly alike.  Which of such tied pairings a multistart finds first is round-off; the choice among
+them is made here, by a rule: the nearest partners, then the first pairing in order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def least_cost_nearest(options: list, cost, paired_ss, pairing):
+    """The option of least ``cost``; among those tied with it (within 1e-12: a visible mode paired or
+    left a misfit against the same measured mode costs the same) the one of nearest partners (least
+    ``paired_ss``), then the first ``pairing`` in order, so the choice does not depend on which tied
+    pairing a multistart happened to find first."""
+    low = min(cost(o) for o in options)
+    return min((o for o in options if cost(o) < low + 1e-12),
+               key=lambda o: (paired_ss(o), [int(c) for c in pairing(o)]))
+
+
+def paired_ss(res, f_meas) -> float:
+    """Sum of the squared log errors of the paired modes alone (how near the partners are)."""
+    return float(np.sum(np.log(np.asarray(res.f_model, float) / np.asarray(f_meas, float)) ** 2))
