@@ -164,8 +164,9 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
             assert np.isnan(row.dynamic_stiffness_N_per_mm)
             assert row.not_identified_dynamic_stiffness_N_per_mm == pytest.approx(k, rel=1e-9)
         pm = docs[state]["paired_minimum"]
-        if pm is not None:  # the lowest paired peak is never below the band minimum
-            assert row.paired_dynamic_stiffness_N_per_mm >= k * (1 - 1e-12)
+        if pm is not None:  # the lowest paired peak is never below the band minimum (equal to it when the
+            # governing mode is paired; the CSV keeps 10 significant digits, jointid.io.write_csv)
+            assert row.paired_dynamic_stiffness_N_per_mm >= k * (1 - 1e-9)
     ranges = pd.read_csv(wd / "results" / "tables" / "table1_ranges.csv")
     assert set(ranges.basis) == {"paired modes", "all modes"} and len(ranges) == 10
     assert check_table1(wd / t1) == []
