@@ -11,14 +11,21 @@ from __future__ import annotations
 import numpy as np
 
 
+TIE = 1e-12  # cost difference below which two pairings fit alike (exact ties, round-off apart)
+
+
+def least_cost_tied(options: list, cost) -> list:
+    """The options whose ``cost`` lies within :data:`TIE` of the least one."""
+    low = min(cost(o) for o in options)
+    return [o for o in options if cost(o) < low + TIE]
+
+
 def least_cost_nearest(options: list, cost, paired_ss, pairing):
     """The option of least ``cost``; among those tied with it (within 1e-12: a visible mode paired or
     left a misfit against the same measured mode costs the same) the one of nearest partners (least
     ``paired_ss``), then the first ``pairing`` in order, so the choice does not depend on which tied
     pairing a multistart happened to find first."""
-    low = min(cost(o) for o in options)
-    return min((o for o in options if cost(o) < low + 1e-12),
-               key=lambda o: (paired_ss(o), [int(c) for c in pairing(o)]))
+    return min(least_cost_tied(options, cost), key=lambda o: (paired_ss(o), [int(c) for c in pairing(o)]))
 
 
 def paired_ss(res, f_meas) -> float:

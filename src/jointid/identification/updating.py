@@ -23,7 +23,7 @@ from jointid.errors import DataError, NumericalWarning
 from jointid.identification.identify import identify
 from jointid.identification.surface import Surface, fit_surface
 from jointid.identification.surface_checks import diagnostics
-from jointid.identification.ties import least_cost_nearest, paired_ss
+from jointid.identification.ties import least_cost_nearest, least_cost_tied, paired_ss
 from jointid.correlate.mac import mac
 from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
 from jointid.identification.tracking import track_doe
@@ -240,8 +240,7 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
                           "chi2": sum(c / sigma[s] ** 2 for s, c in costs.items()), "costs": costs,
                           "chi2_by_state": {s: c / sigma[s] ** 2 for s, c in costs.items()},
                           "paired_ss": sum(paired_ss(r, f_meas[s]) for s, r in fits[pairing].items())})
-        low = min(t["cost"] for t in tried)
-        swaps = {q for t in tried if t["cost"] < low + 1e-12 for s, r in fits[tuple(t["pairing"])].items()
+        swaps = {q for t in least_cost_tied(tried, lambda t: t["cost"]) for s, r in fits[tuple(t["pairing"])].items()
                  for q in misfit_swaps(doc, t["pairing"], r.x_coded, np.asarray(f_meas[s], float), rules[s])}
         queue = sorted(swaps - set(fits))
         if not queue:
