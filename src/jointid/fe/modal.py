@@ -19,6 +19,8 @@ import scipy.sparse.linalg as spla
 
 from jointid.errors import ModelError, NumericalWarning
 from jointid.fe.backends import _PardisoFactor, _SuperLUFactor
+from jointid.fe.blocklanczos import BLOCK, MIN_DOFS, block_shift_invert, wanted_basis
+from jointid.fe.blocklanczos import TOL as BLOCK_TOL
 
 TWO_PI = 2.0 * np.pi
 
@@ -292,15 +294,18 @@ def _check_count(n_modes: int, n_free: int) -> None:
 
 def shift_invert_lanczos(Kf, Mf, fac, n_modes: int, sigma: float, tol: float = 0.0,
                          v0_seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Shift-invert Lanczos (ARPACK) on the free DOFs: mass-normalised vectors with a fixed sign
-    (largest component positive, for determinism) and frequencies in Hz, ascending.  The start
-    vector is uniform, or seeded random with ``v0_seed``."""
-    op = spla.LinearOperator(Kf.shape, matvec=fac.solve, dtype=np.float64)
-    if v0_seed is None:
-        v0 = np.ones(Kf.shape[0]) / np.sqrt(Kf.shape[0])
-    else:
-        v0 = np.random.default_rng(v0_seed).standard_normal(Kf.shape[0])
-    lam, vec = spla.eigsh(Kf, k=n_modes, M=Mf, sigma=sigma, which="LM", OPinv=op, v0=v0, tol=tol)
+    """Shift-invert Lanczos on the free DOFs: mass-normalised vectors with a fixed sign (largest
+    component positive, for determinism) and frequencies in Hz, ascending.
+
+    From :data:`jointid.fe.blocklanczos.MIN_DOFS` free DOFs on, block Lanczos (ten right-hand sides
+    per solve, :func:`jointid.fe.blocklanczos.block_shift_invert`); below, or should it not converge,
+    single-vector Lanczos (ARPACK, ``tol`` 0: machine precision).  The start is uniform (ARPACK) or
+    a uniform column with seeded random ones (block), random with ``v0_seed``.
+    """
+    found = None
+    if Kf.shape[0] >= MIN_DOFS and _fits_block(n_modes, Kf.shape[0]):
+        found = block_shift_invert(Mf, fac.solve, n_modes, sigma, tol=max(tol, BLOCK_TOL), seed=v0_seed)
+    lam, vec = found if found is not None else _arpack(Kf, Mf, fac, n_modes, sigma, tol, v0_seed)
     order = np.argsort(lam)
     lam, vec = lam[order], vec[:, order]
     if not np.all(np.isfinite(lam)):
@@ -309,6 +314,30 @@ def shift_invert_lanczos(Kf, Mf, fac, n_modes: int, sigma: float, tol: float = 0
         warnings.warn("negative eigenvalues found: the stiffness matrix is indefinite", NumericalWarning)
     mnorm = np.sqrt(np.einsum("ij,ij->j", vec, Mf @ vec))
     vec = vec / mnorm
-    idx = np.argmax(np.abs(vec), axis=0)
-    vec = vec * np.sign(vec[idx, np.arange(vec.shape[1])])
-    return vec, np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
+    return fix_signs(vec), np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
+
+
+def fix_signs(vec: np.ndarray, rel: float = 1e-6) -> np.ndarray:
+    """The columns of ``vec`` signed so that their largest component is positive; among components
+    within ``rel`` of the largest magnitude (symmetric structures have equal ones, which rounding
+    orders either way) the first in DOF order decides."""
+    mag = np.abs(vec)
+    idx = np.argmax(mag >= (1.0 - rel) * mag.max(axis=0), axis=0)
+    sign = np.sign(vec[idx, np.arange(vec.shape[1])])
+    sign[sign == 0] = 1.0
+    return vec * sign
+
+
+def _fits_block(n_modes: int, n: int) -> bool:
+    """The block method's basis (:func:`jointid.fe.blocklanczos.wanted_basis`) is well below ``n``."""
+    return wanted_basis(n_modes, BLOCK, n) < n // 4
+
+
+def _arpack(Kf, Mf, fac, n_modes: int, sigma: float, tol: float, v0_seed: int | None):
+    """Single-vector shift-invert Lanczos (ARPACK): ``(lam, vectors)``, in ARPACK's order."""
+    op = spla.LinearOperator(Kf.shape, matvec=fac.solve, dtype=np.float64)
+    if v0_seed is None:
+        v0 = np.ones(Kf.shape[0]) / np.sqrt(Kf.shape[0])
+    else:
+        v0 = np.random.default_rng(v0_seed).standard_normal(Kf.shape[0])
+    return spla.eigsh(Kf, k=n_modes, M=Mf, sigma=sigma, which="LM", OPinv=op, v0=v0, tol=tol)

@@ -53,7 +53,7 @@ from scipy.linalg import lapack
 
 from jointid import io
 from jointid.errors import ModelError, NumericalWarning
-from jointid.fe.modal import TWO_PI, Modes
+from jointid.fe.modal import TWO_PI, Modes, fix_signs
 
 __all__ = ["ROM", "load_rom", "full_modes", "frequency_error"]
 
@@ -301,11 +301,7 @@ def full_modes(rom: ROM, k_coeffs: dict[str, float], m_coeffs: dict[str, float] 
         ``freqs_Hz (n_modes,)`` Hz, ``phi (n_dofs, n_modes)``, zero at fixed DOFs.
     """
     freqs, _, y = rom.solve(k_coeffs, m_coeffs, n_modes, check=check, return_coords=True)
-    phi = rom.expand(y)
-    idx = np.argmax(np.abs(phi), axis=0)
-    sign = np.sign(phi[idx, np.arange(phi.shape[1])])
-    sign[sign == 0] = 1.0
-    return Modes(freqs_Hz=freqs, phi=phi * sign)
+    return Modes(freqs_Hz=freqs, phi=fix_signs(rom.expand(y)))
 
 
 def frequency_error(f_rom: np.ndarray, f_full: np.ndarray, min_freq_Hz: float = 0.0) -> np.ndarray:
