@@ -370,6 +370,7 @@ rule verify:
     output:
         table=f"{R}/identify/{{state}}/verify.csv",
         unpaired=f"{R}/identify/{{state}}/unpaired_visible.csv",
+        tied=f"{R}/identify/{{state}}/tied_pairings.csv",
     params:
         cfg=CFG_VERIFY,
     log:

@@ -26,6 +26,7 @@ rule harmonic:
         params=rules.identify.output.params,
         matrices=rules.mesh.output.matrices,
         verify=rules.verify.output.table,
+        tied=rules.verify.output.tied,
         dataset=lambda wc: _dataset_folder(config, wc.state),
     output:
         frf=f"{R}/harmonic/{{state}}/frf.csv",

@@ -5,4 +5,4 @@ from jointid.stages import harmonic
 run_script(snakemake, lambda cfg, inp, out: harmonic.run_harmonic(
     cfg, snakemake.wildcards.state, inp.params, inp.matrices, out.frf, out.stiffness,
     out_modes=out.modes, verify_csv=inp.verify, out_points=out.points, out_vtu=out.modes_vtu,
-    out_uff=out.modes_uff), provenance=True)
+    out_uff=out.modes_uff, tied_csv=inp.tied), provenance=True)

@@ -31,3 +31,15 @@ def least_cost_nearest(options: list, cost, paired_ss, pairing):
 def paired_ss(res, f_meas) -> float:
     """Sum of the squared log errors of the paired modes alone (how near the partners are)."""
     return float(np.sum(np.log(np.asarray(res.f_model, float) / np.asarray(f_meas, float)) ** 2))
+
+
+def tied_alternatives(candidates: list[dict], chosen, cost=lambda c: c["cost"]) -> list[list[int]]:
+    """The pairings among ``candidates`` (records ``{"pairing": [...], "cost": ...}``, as
+    ``params.json``'s ``joint_pairing`` keeps them) other than ``chosen`` that fit exactly as well
+    (within :data:`TIE`): the choice between them is the rule's, not the data's."""
+    chosen = [int(c) for c in chosen]
+    ref = [cost(c) for c in candidates if [int(p) for p in c["pairing"]] == chosen]
+    if not ref:
+        return []
+    return [[int(p) for p in c["pairing"]] for c in candidates
+            if [int(p) for p in c["pairing"]] != chosen and abs(cost(c) - ref[0]) < TIE]

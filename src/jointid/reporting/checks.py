@@ -255,7 +255,8 @@ def check_table1(where: str | Path, require_increase: bool = False, ranges: bool
 
         df = pd.read_csv(path, dtype=str, keep_default_na=False).set_index("state")
         for state in STATES:
-            print(f"{path}: {state}: {df.loc[state, 'status']}")
+            tie = df.loc[state, "tie_note"] if str(df.get("status_rests_on_tie", {}).get(state, "")) == "True" else ""
+            print(f"{path}: {state}: {df.loc[state, 'status']}" + (f" (rests on a tie: {tie})" if tie else ""))
         paper = pd.to_numeric(df.get("paper_increase_pct", pd.Series(dtype=str)), errors="coerce").dropna()
         of_paper = f"{paper.iloc[0]:+.1f} %" if len(paper) else None  # on the paper's data only
         if inc is None:

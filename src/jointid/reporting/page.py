@@ -115,6 +115,8 @@ def _summary(data: dict) -> dict:
         value = (f"{r.dynamic_stiffness_N_per_mm:,.0f} N/mm" if r.status == "identified" else
                  f"not identified ({r.not_identified_dynamic_stiffness_N_per_mm:,.0f} N/mm at unpaired FE mode "
                  f"{r.governing_mode}, {r.governing_description})")
+        if bool(getattr(r, "status_rests_on_tie", False)):
+            value += " — rests on a tie: " + str(r.tie_note)
         stiffness.append({"state": r.state.replace("_", "-"), "value": value,
                           "paired": num(r.paired_dynamic_stiffness_N_per_mm, ",.0f"),
                           "paper": f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}"})

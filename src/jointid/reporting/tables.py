@@ -108,7 +108,8 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
         ``paired_governing_mode``, ``paired_governing_freq_Hz``, ``paired_governing_description``,
         ``paired_governing_measured_order``, ``f_at_min_Hz``, ``governing_freq_Hz``,
         ``governing_description``, ``governing_measured_order``, ``damping_model``,
-        ``damping_ratio_governing``, ``drive_point``, ``patch_diameter_m``.
+        ``damping_ratio_governing``, ``drive_point``, ``patch_diameter_m``, ``status_rests_on_tie``
+        (a pairing fitting exactly as well as the chosen one would give the other status), ``tie_note``.
     """
     p = paper.set_index("state") if len(paper) else pd.DataFrame()
     rows = []
@@ -139,6 +140,8 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
             "damping_ratio_governing": g["damping_ratio"],
             "drive_point": f"{d['drive_point']}:{d['direction']}",
             "patch_diameter_m": d.get("patch_diameter_m", 0.0),
+            "status_rests_on_tie": bool((d.get("tie") or {}).get("rests_on_tie", False)),
+            "tie_note": (d.get("tie") or {}).get("note", ""),
         })
     df = pd.DataFrame(rows)
     ref = df.state == reference_state(list(df["state"]))
@@ -212,6 +215,9 @@ def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None) -> str
         if not (pd.isna(o_ref) or pd.isna(r.paired_governing_measured_order)) and o_ref != r.paired_governing_measured_order:
             lines.append(f"The lowest paired peaks are of different measured modes ({ref}: mode {int(o_ref)}, {r.state}: "
                          f"mode {int(r.paired_governing_measured_order)}), so their ratio is not the stiffening of one mode.")
+    if "status_rests_on_tie" in df:
+        for _, r in df[df["status_rests_on_tie"].astype(bool)].iterrows():
+            lines.append(f"**{r.state}: the status rests on a tie.** {r.tie_note[:1].upper() + r.tie_note[1:]}.")
     z = ", ".join(f"{r.state} {r.damping_ratio_governing:.3g}" for _, r in df.iterrows())
     lines += ["", f"Damping model: `{df.damping_model.iloc[0]}`; damping ratio of the governing mode: {z}. "
               "The minimum dynamic stiffness sits at a resonance, K_min ≈ 2 ζ_r k_r, so its absolute value scales "

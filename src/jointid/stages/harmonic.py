@@ -73,7 +73,8 @@ def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
 
 def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv: str, out_json: str,
                  out_modes: str | None = None, verify_csv: str | None = None, out_points: str | None = None,
-                 out_vtu: str | None = None, out_uff: str | None = None, progress=print) -> dict:
+                 out_vtu: str | None = None, out_uff: str | None = None, tied_csv: str | None = None,
+                 progress=print) -> dict:
     """The ``harmonic`` workflow stage of one state.
 
     Reads the identified parameters and the cached model, writes the drive-point FRF (``out_csv``,
@@ -124,6 +125,9 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     order = _measured_order(verify_csv, res.governing)
     out = _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order)
     out.update(_paired_summary(res, desc, pts["measured_order"], band))
+    out["tie"] = tie_note(tied_csv, res.governing, order, float(res.freqs_Hz[res.governing]))
+    if out["tie"]["rests_on_tie"]:
+        progress(f"harmonic[{state}]: {out['tie']['note']}")
     io.write_json(out_json, out)
     if out_points:
         io.write_npz(out_points, **pts)
@@ -153,6 +157,29 @@ def status_text(fe_mode: int, freq_Hz: float, description: str, measured_order) 
         return "identified"
     return (f"not identified: the governing mode (FE mode {fe_mode}, {freq_Hz:.1f} Hz, {description}) has no "
             "measured partner")
+
+
+def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float) -> dict:
+    """Whether Table 1's status rests on the choice among exactly tied pairings: ``rests_on_tie`` is
+    true when a pairing fitting exactly as well as the chosen one pairs the governing FE mode ``g``
+    (0-based) where the chosen one does not, or the reverse; ``note`` says which, in words."""
+    out = {"rests_on_tie": False, "note": "", "tied_pairings": 0}
+    if not tied_csv:
+        return out
+    tied = pd.read_csv(tied_csv)
+    out["tied_pairings"] = int(tied["alternative"].nunique()) if len(tied) else 0
+    for _, grp in tied.groupby("alternative"):
+        hit = grp.loc[grp["fe_mode"] == g + 1, "order"]
+        alt = int(hit.iloc[0]) if len(hit) else None
+        if bool(alt) != bool(order):
+            out["rests_on_tie"] = True
+            out["note"] = (f"an exactly tied pairing pairs the governing mode (FE mode {g + 1}, {freq_Hz:.1f} Hz) "
+                           f"with measured mode {alt}" if alt else
+                           f"an exactly tied pairing leaves the governing mode (FE mode {g + 1}, {freq_Hz:.1f} Hz) "
+                           f"without the measured partner {order} it has here") + \
+                ": frequencies alone cannot choose between them, measured mode shapes would"
+            break
+    return out
 
 
 def _paired_summary(res, desc, measured_order, band) -> dict:

@@ -51,13 +51,36 @@ def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes, rule=None):
     return index, macs
 
 
+def tied_pairings(par: dict, doc: dict, shapes) -> "pd.DataFrame":
+    """The FE modes that the pairings fitting exactly as well as the chosen one pair with each measured
+    mode (columns ``alternative, order, fe_mode``; ``fe_mode`` 0 where none): the tracked modes of each
+    such pairing (``params.json``'s ``joint_pairing``, frequency-only states paired alike) found among
+    the FE modes by MAC, as for the chosen pairing.  Empty where no pairing ties with the chosen one,
+    or the pairing was not shared by frequency."""
+    import pandas as pd
+
+    from jointid.identification.ties import tied_alternatives
+    from jointid.identification.updating import verify_pairing
+
+    rows = []
+    rec = par.get("joint_pairing") or {}
+    if str(par.get("paired_by", "")).startswith("frequency, shared") and rec.get("candidates"):
+        for a, cols in enumerate(tied_alternatives(rec["candidates"], par["pairing_columns"]), start=1):
+            index, _ = verify_pairing(doc, np.asarray(cols), shapes)
+            rows += [{"alternative": a, "order": i + 1, "fe_mode": int(j) + 1} for i, j in enumerate(index)]
+    return pd.DataFrame(rows, columns=["alternative", "order", "fe_mode"])
+
+
 def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
-               edge_matrices: list[str] | None = None, unpaired_csv: str | None = None) -> None:
+               edge_matrices: list[str] | None = None, unpaired_csv: str | None = None,
+               tied_csv: str | None = None) -> None:
     """Full FE re-solve at the identified parameters: the tables' simulated frequencies.
 
     ``unpaired_csv``: the model modes the test would clearly have seen that no measured mode is paired
     with (:mod:`jointid.identification.visibility`; columns ``model_mode, freq_Hz,
     target_Hz, misfit_pct, visibility_rel, description``), the misfits of the tables.
+    ``tied_csv``: the FE partners of the measured modes in every pairing that fits exactly as well as
+    the chosen one (:func:`tied_pairings`).
 
     With ``edge_matrices`` (``mesh.extrapolate_edges``) the simulated frequencies are the
     mesh-extrapolated ones at these parameters (:mod:`jointid.fe.extrapolate`, solved afresh here), and
@@ -109,6 +132,13 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
         for m in seen:
             log(f"verify[{state}]: unpaired but clearly visible: {m['freq_Hz']:.0f} Hz {m['description']} "
                 f"({m['misfit_pct']:+.1f} % from {m['target_Hz']:.0f} Hz, the nearest measured mode or band edge)")
+    if tied_csv:
+        tied = tied_pairings(par, doc, shapes)
+        io.write_csv(tied, tied_csv)
+        for a, grp in tied.groupby("alternative"):
+            moved = [f"measured mode {o} with FE mode {m if m > 0 else 'none'}" for o, m, c in
+                     zip(grp["order"], grp["fe_mode"], index + 1) if m != c]
+            log(f"verify[{state}]: an exactly tied pairing pairs " + ", ".join(moved))
     log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
     if edge_matrices and par.get("fe_polish"):
