@@ -77,6 +77,7 @@ def test_fallback_to_arpack_when_the_block_method_fails(monkeypatch):
     fac = factorize((K - sigma * M).tocsr(), "scipy")
     calls = []
     real = bl.block_shift_invert
+    monkeypatch.setattr(fm, "MIN_DOFS", 5000)  # the block method at this size
 
     def failing(*a, **kw):
         kw["tol"] = 1e-300
@@ -95,7 +96,11 @@ def test_block_and_arpack_agree_through_shift_invert_lanczos(monkeypatch):
     K, M = chain(n)
     sigma = shift_sigma(-10.0)
     fac = factorize((K - sigma * M).tocsr(), "scipy")
+    monkeypatch.setattr(fm, "MIN_DOFS", 5000)  # the block method at this size
+    used = []
+    monkeypatch.setattr(fm, "block_shift_invert", lambda *a, **kw: used.append(1) or bl.block_shift_invert(*a, **kw))
     vb, fb = shift_invert_lanczos(K, M, fac, k, sigma)
+    assert used == [1]
     monkeypatch.setattr(fm, "MIN_DOFS", 10**9)  # ARPACK only
     va, fa = shift_invert_lanczos(K, M, fac, k, sigma)
     assert np.allclose(fb, fa, rtol=1e-12, atol=0)
