@@ -1,4 +1,4 @@
-"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e f g h] [--quick]``.
+"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e f g h i] [--quick]``.
 
 =====  =======================================================================================
 ``a``  default-model assembly + 12-mode modal solve: jointid vs idiomatic scikit-fem, the ratio
@@ -9,6 +9,7 @@
 ``f``  identified joint parameters re-identified on a refined mesh: their change
 ``g``  where the lateral modes lose mesh convergence: grid lines added beside one set of part edges
 ``h``  the loop: enable one effect in the config and rerun the diagnosis target (tmp copy): wall time
+``i``  the eigen-solve alone on one factor: block shift-invert Lanczos vs ARPACK, time and agreement
 =====  =======================================================================================
 
 Every measurement that matters for memory runs in its own subprocess (``benchmarks.worker``), which
@@ -16,4 +17,4 @@ reports its own peak RSS (``resource.getrusage``).  Results go to ``benchmarks/o
 one JSON per benchmark and ``summary.md`` with the table that is printed.
 """
 
-BENCHMARKS = ("a", "b", "c", "d", "e", "f", "g", "h")
+BENCHMARKS = ("a", "b", "c", "d", "e", "f", "g", "h", "i")

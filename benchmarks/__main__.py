@@ -1,4 +1,4 @@
-"""``python -m benchmarks [a b c d e f g h] [--quick] [--blas-threads N]``: run, print one table, save.
+"""``python -m benchmarks [a b c d e f g h i] [--quick] [--blas-threads N]``: run, print one table, save.
 
 Without names every benchmark runs.  ``--quick`` uses the coarse test mesh and small sizes (a few
 minutes in all); the full run builds models up to ~360k DOFs and runs the whole workflow once.
@@ -16,7 +16,7 @@ from .common import OUT, format_table, load_result, write_result
 
 MODULES = {"a": "bench_a_solve", "b": "bench_b_rom", "c": "bench_c_workflow", "d": "bench_d_scaling",
            "e": "bench_e_convergence", "f": "bench_f_param_mesh",
-           "g": "bench_g_edges", "h": "bench_h_loop"}
+           "g": "bench_g_edges", "h": "bench_h_loop", "i": "bench_i_eigen"}
 
 
 def main(argv: list[str] | None = None) -> int:
