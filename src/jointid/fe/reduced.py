@@ -153,9 +153,10 @@ class ReducedSolver:
     def _append(self, W: np.ndarray) -> int:
         """M_ref-orthonormalise ``W`` against the basis, drop dependent columns, project the terms."""
         M = self.M_ref
-        W = np.array(W, float)
+        W = np.ascontiguousarray(W, dtype=float)  # C order (see below); the caller's array is not changed
         norms0 = np.sqrt(np.einsum("ij,ij->j", W, M @ W))
-        W = W[:, norms0 > 0] / norms0[norms0 > 0]
+        # C order: a column selection leaves W in Fortran order, and every sparse product would copy it
+        W = np.ascontiguousarray(W[:, norms0 > 0] / norms0[norms0 > 0])
         for _ in range(2):
             if self.V.shape[1]:
                 W -= self.V @ (self.V.T @ (M @ W))
