@@ -102,6 +102,32 @@ def test_zero_stiffness_at_shift_zero_gives_right_modes_or_a_clear_error(model, 
     np.testing.assert_allclose(got[6:], ref[6:], rtol=1e-8)
 
 
+def test_block_lanczos_on_a_singular_shifted_matrix_falls_back_to_the_right_modes(model, cfg, solved, monkeypatch):
+    """At shift 0 with free joints SuperLU factorises the singular K - 0*M; block Lanczos then
+    converges to wrong elastic pairs (13 and 43 Hz for 990 and 1389 Hz), which only their true
+    residual shows.  The check rejects them and single-vector Lanczos gives the right modes."""
+    import jointid.fe.blocklanczos as bl
+    import jointid.fe.modal as fm
+
+    ref = solved("zero", -10.0, "scipy").freqs_Hz
+    monkeypatch.setattr(fm, "MIN_DOFS", 5000)  # the block method on the coarse model
+    residuals = []
+
+    def spy(Kf, Mf, lam, X):
+        residuals.append(bl.true_residual(Kf, Mf, lam, X))
+        return residuals[-1]
+
+    monkeypatch.setattr(fm, "true_residual", spy)
+    got = _solve(model, cfg, _zero_joints(cfg), 0.0, "scipy").freqs_Hz
+    assert len(residuals) == 1 and residuals[0] > bl.RESIDUAL_TOL  # tried, and rejected
+    assert np.all(got[:6] < 0.5)
+    np.testing.assert_allclose(got[6:], ref[6:], rtol=1e-8)
+    # and at a regular shift the block answer passes the same check
+    residuals.clear()
+    _solve(model, cfg, None, -10.0, "scipy")
+    assert len(residuals) == 1 and residuals[0] <= bl.RESIDUAL_TOL
+
+
 # ------------------------------------------------------------------ shift on an eigenvalue
 @pytest.mark.parametrize("backend, which", [("pardiso", 0), ("pardiso", 2), ("scipy", 2)],
                          ids=["first-pardiso", "third-pardiso", "third-scipy"])

@@ -19,7 +19,8 @@ import scipy.sparse.linalg as spla
 
 from jointid.errors import ModelError, NumericalWarning
 from jointid.fe.backends import _PardisoFactor, _SuperLUFactor
-from jointid.fe.blocklanczos import BLOCK, MIN_DOFS, block_shift_invert, wanted_basis
+from jointid.fe.blocklanczos import (BLOCK, MIN_DOFS, RESIDUAL_TOL, block_shift_invert, true_residual,
+                                     wanted_basis)
 from jointid.fe.blocklanczos import TOL as BLOCK_TOL
 
 TWO_PI = 2.0 * np.pi
@@ -299,12 +300,15 @@ def shift_invert_lanczos(Kf, Mf, fac, n_modes: int, sigma: float, tol: float = 0
 
     From :data:`jointid.fe.blocklanczos.MIN_DOFS` free DOFs on, block Lanczos (ten right-hand sides
     per solve, :func:`jointid.fe.blocklanczos.block_shift_invert`); below, or should it not converge,
-    single-vector Lanczos (ARPACK, ``tol`` 0: machine precision).  The start is uniform (ARPACK) or
+    single-vector Lanczos (ARPACK, ``tol`` 0: machine precision), as also when a block answer's true
+    residual (:func:`jointid.fe.blocklanczos.true_residual`) is above ``RESIDUAL_TOL``.  The start is uniform (ARPACK) or
     a uniform column with seeded random ones (block), random with ``v0_seed``.
     """
     found = None
     if Kf.shape[0] >= MIN_DOFS and _fits_block(n_modes, Kf.shape[0]):
         found = block_shift_invert(Mf, fac.solve, n_modes, sigma, tol=max(tol, BLOCK_TOL), seed=v0_seed)
+        if found is not None and not true_residual(Kf, Mf, *found) <= RESIDUAL_TOL:
+            found = None  # e.g. a singular K - sigma M: single-vector Lanczos copes with it
     lam, vec = found if found is not None else _arpack(Kf, Mf, fac, n_modes, sigma, tol, v0_seed)
     order = np.argsort(lam)
     lam, vec = lam[order], vec[:, order]
@@ -314,7 +318,8 @@ def shift_invert_lanczos(Kf, Mf, fac, n_modes: int, sigma: float, tol: float = 0
         warnings.warn("negative eigenvalues found: the stiffness matrix is indefinite", NumericalWarning)
     mnorm = np.sqrt(np.einsum("ij,ij->j", vec, Mf @ vec))
     vec = vec / mnorm
-    return fix_signs(vec), np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
+    # C order: ARPACK returns Fortran order, which every later sparse product would copy again
+    return np.ascontiguousarray(fix_signs(vec)), np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
 
 
 def fix_signs(vec: np.ndarray, rel: float = 1e-6) -> np.ndarray:
