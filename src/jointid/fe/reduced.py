@@ -192,8 +192,11 @@ class ReducedSolver:
                     blk = W[rows].T @ AW
                 old = red[name]
                 red[name] = np.block([[old, off], [off.T, 0.5 * (blk + blk.T)]])
+        # the probe rows of the basis, extended by the new columns alone (the basis is stored in
+        # Fortran order, which a sparse product with all of it would copy whole at every append)
+        PW = self.P @ W
+        self.PV = PW if V_old.shape[1] == 0 else np.hstack([self.PV, PW])
         self.basis.append(W, base_products.get("K0"), base_products.get("M0"))
-        self.PV = self.P @ self.V
         self._regroup()
         return W.shape[1]
 
