@@ -42,8 +42,11 @@ exact-looking agreement with itself; this check catches them."""
 
 
 def wanted_basis(n_modes: int, block: int, n: int) -> int:
-    """Basis size: the wanted modes, a guard block and four more blocks of Krylov directions."""
-    return min(n, max(4 * n_modes, n_modes + 6 * block))
+    """Basis size: the wanted modes, a guard block and three more blocks of Krylov directions (at
+    least three times the wanted modes).  On the finest edge level (197 139 free DOFs, 20 modes) 60
+    vectors took 9.6 s, 80 vectors 9.7 s and 40 vectors 13.2 s (ARPACK 19.3 s); the basis and its
+    mass products take 16 bytes per DOF and vector (189 MB at 60)."""
+    return min(n, max(3 * n_modes, n_modes + 4 * block))
 
 
 def block_shift_invert(Mf, solve, n_modes: int, sigma: float, tol: float = TOL, seed: int | None = None,
@@ -104,7 +107,8 @@ def block_shift_invert(Mf, solve, n_modes: int, sigma: float, tol: float = TOL, 
             if restarts > MAX_RESTARTS or keep < n_modes:
                 return None
             Yk = Y[:, :keep]
-            V[:keep], MV[:keep] = Yk.T @ V[:m], Yk.T @ MV[:m]
+            V[:keep] = Yk.T @ V[:m]  # one at a time: one temporary (keep, n) alive, not two
+            MV[:keep] = Yk.T @ MV[:m]
             H[:] = 0.0
             H[np.arange(keep), np.arange(keep)] = mu[:keep]
             m = keep
@@ -149,7 +153,9 @@ def true_residual(Kf, Mf, lam: np.ndarray, X: np.ndarray) -> float:
     """Largest relative residual ``|K x - lam M x| / max(|K x|, |lam| |M x|, 1e-12 max |K x|)`` over
     the columns of ``X`` (one sparse product with each matrix)."""
     KX, MX = Kf @ X, Mf @ X
-    r = np.linalg.norm(KX - MX * lam[None, :], axis=0)
-    kx = np.linalg.norm(KX, axis=0)
-    scale = np.maximum.reduce([kx, np.abs(lam) * np.linalg.norm(MX, axis=0), np.full(kx.shape, 1e-12 * kx.max())])
+    kx, mx = np.linalg.norm(KX, axis=0), np.linalg.norm(MX, axis=0)
+    MX *= lam[None, :]
+    KX -= MX  # in place: two (n, n_modes) arrays in all
+    r = np.linalg.norm(KX, axis=0)
+    scale = np.maximum.reduce([kx, np.abs(lam) * mx, np.full(kx.shape, 1e-12 * kx.max())])
     return float(np.max(r / np.where(scale > 0, scale, 1.0)))
