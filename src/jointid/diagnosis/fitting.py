@@ -92,8 +92,8 @@ class Diagnoser:
         self.ensure_solver(variant, x)
         for _ in range(3):
             gen = self.solver.generation
-            sols = [self.solver.solve(*variant.coefficients(x, d.info), self.n_modes, refine=refine)
-                    for d in self.data]
+            sols = self.solver.solve_many([variant.coefficients(x, d.info) for d in self.data], self.n_modes,
+                                          refine=refine)
             if self.solver.generation == gen:
                 return sols
         return sols

@@ -6,8 +6,8 @@ reference point plus their first-order responses ``A^-1 (dK - lambda dM) phi`` t
 directions.  At each refined point the residuals ``K phi - lambda M phi`` of the Ritz pairs are
 checked in the full space; where the estimated relative eigenvalue error exceeds ``tol`` (1e-6 by
 default) the preconditioned residuals join the subspace (Davidson steps, the preconditioner
-re-factorised at a distant point).  :meth:`ReducedSolver.verify` adds a Sturm count.  Used by the
-diagnosis, the hypotheses and the identification's FE polish.
+re-factorised at a distant point; :mod:`jointid.fe.certify`).  :meth:`ReducedSolver.verify` adds a
+Sturm count.  Used by the diagnosis, the hypotheses and the identification's FE polish.
 """
 
 from __future__ import annotations
@@ -20,7 +20,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from jointid.errors import ModelError
+from jointid.fe import certify
 from jointid.fe.basis import GrowingBasis
+from jointid.fe.certify import Check
 from jointid.fe.modal import TWO_PI, count_pencil_modes_below, factorize_pencil, shift_invert_lanczos
 from jointid.fe.pencil import FreePencil
 
@@ -100,6 +102,8 @@ class ReducedSolver:
         self.Mr = {k: np.zeros((0, 0)) for k in self.M_terms}
         self.M_ref = None
         self._refined: dict = {}  # refined solutions by (coefficients, basis), see solve
+        self._certified: dict = {}  # (coefficients, n, generation) -> (basis size, error) of a passed check
+        self.n_checks = self.n_checks_skipped = 0
         self.log = None  # progress lines (certificates), e.g. print
         self._refactor(kc, mc)
         phi, f = self._lanczos(kc, mc, self.n_modes + 4)
@@ -240,15 +244,18 @@ class ReducedSolver:
         lam, Y = sla.eigh(Kr, Mr, check_finite=False, subset_by_index=[0, n - 1], driver="gvx")
         return lam, Y
 
-    def _apply(self, coeffs: dict, Y: np.ndarray, group: str) -> np.ndarray:
+    def _apply(self, coeffs: dict, Y: np.ndarray, group: str, base_product: np.ndarray | None = None) -> np.ndarray:
         """``A(coeffs) V Y`` for the stiffness (``group`` "K") or mass ("M") on the free DOFs: the
-        base term from its cached product with the basis, every other term on the rows it touches."""
+        base term from its cached product with the basis (``base_product``: that product with ``Y``,
+        when already formed), every other term on the rows it touches."""
         terms, base = (self.K_terms, "K0") if group == "K" else (self.M_terms, "M0")
         cached = self.basis.KV if group == "K" else self.basis.MV
         V = self.V
         c0 = 1.0 + coeffs.get(base, 0.0)
         phi = None
-        if cached is not None:
+        if base_product is not None:
+            out = c0 * base_product
+        elif cached is not None:
             out = c0 * (cached @ Y)
         else:
             phi = V @ Y
@@ -270,55 +277,67 @@ class ReducedSolver:
     def _key(self, kc: dict, mc: dict, n: int) -> tuple:
         return (tuple(sorted(kc.items())), tuple(sorted(mc.items())), n, self.generation, self.basis.r)
 
-    def solve(self, kc: dict, mc: dict, n: int | None = None, *, refine: bool = True) -> Solution:
-        """Lowest ``n`` modes at coefficients ``(kc, mc)``, refined until their estimated error < tol."""
+    def _point(self, kc: dict, mc: dict, n: int) -> tuple:
+        return (tuple(sorted(kc.items())), tuple(sorted(mc.items())), n, self.generation)
+
+    def solve(self, kc: dict, mc: dict, n: int | None = None, *, refine: bool = True,
+              recheck: bool = False, first: Check | None = None) -> Solution:
+        """Lowest ``n`` modes at coefficients ``(kc, mc)``, refined until their estimated error < tol.
+
+        A point whose full-space check passed on an earlier, smaller basis of the same generation is
+        not checked again (unless ``recheck``): the basis has only grown since, and on a larger
+        subspace every Ritz value lies between the earlier one and the exact eigenvalue (Poincaré's
+        min-max), so the eigenvalue errors are at most those certified then (``Solution.error``).
+        ``first``: this point's check on the current basis, when already done (:meth:`solve_many`).
+        """
         n = n or self.n_modes
         if refine:
             hit = self._refined.get(self._key(kc, mc, n))
             if hit is not None:  # this point was refined on this very basis: nothing can have changed
                 return hit
-        lam, Y = self._ritz(kc, mc, n)
-        worst = float("nan")
-        if refine:
-            last = np.inf
-            refactored, slow_after = False, 0
-            for it in range(12):
-                R = self._apply(kc, Y[:, :n], "K") - self._apply(mc, Y[:, :n], "M") * lam[None, :n]
-                D = self.fac.solve(R)
-                err = np.abs(np.einsum("ij,ij->j", R, D)) / np.maximum(np.abs(lam[:n]), 1.0)
-                worst = float(err.max())
-                if worst <= self.tol:
-                    break
-                self.n_refine += 1
-                slow = worst > 0.5 * last
-                slow_after += int(refactored and slow)
-                if self.basis.r > self.max_basis:
-                    self._refactor(kc, mc)
-                    self._reset(self._lanczos(kc, mc, n + 4)[0])
-                elif (worst > 1e-2 or slow) and not refactored:
-                    # far from the reference or slow progress: this point becomes the preconditioner
-                    # (Davidson steps with the exact shifted inverse here)
-                    self._refactor(kc, mc)
-                    refactored = True
-                    D = self.fac.solve(R)
-                    self._append(D[:, err > self.tol])
-                elif slow_after >= 2:
-                    # still slow with the local preconditioner: exact modes at this point
-                    self._append(self._lanczos(kc, mc, n + 4)[0])
-                    slow_after = -100
-                else:
-                    self._append(D[:, err > self.tol])
-                last = worst
-                lam, Y = self._ritz(kc, mc, n)
+        prior = None if recheck or not refine else self._certified.get(self._point(kc, mc, n))
+        checked = False
+        if prior is not None and prior[0] <= self.basis.r:
+            self.n_checks_skipped += 1
+            (lam, Y), worst = self._ritz(kc, mc, n), prior[1]
+        elif refine:
+            lam, Y, worst = certify.refine(self, kc, mc, n, first)
+            checked = True
+        else:
+            (lam, Y), worst = self._ritz(kc, mc, n), float("nan")
         lam_n = lam[:n]
         freqs = np.sqrt(np.clip(lam_n, 0.0, None)) / TWO_PI
         sol = Solution(freqs_Hz=freqs, lam=lam_n, Y=Y[:, :n], lam_all=lam, Y_all=Y, kc=dict(kc),
                        mc=dict(mc), shapes=self.PV @ Y[:, :n], generation=self.generation, error=worst)
-        if refine and worst <= self.tol:
+        if checked and worst <= self.tol:  # checked on this very basis
             if len(self._refined) > 64:
                 self._refined.clear()
             self._refined[self._key(kc, mc, n)] = sol
+            self._certify(kc, mc, n, self.basis.r, worst)
         return sol
+
+    def _certify(self, kc: dict, mc: dict, n: int, r: int, worst: float) -> None:
+        if len(self._certified) > 4096:
+            self._certified.clear()
+        self._certified.setdefault(self._point(kc, mc, n), (r, worst))
+
+    def solve_many(self, points: list[tuple[dict, dict]], n: int | None = None, *,
+                   refine: bool = True) -> list[Solution]:
+        """:meth:`solve` at several points (e.g. the states of one parameter vector); the points not
+        yet certified are first checked together (:func:`jointid.fe.certify.check_points`)."""
+        n = n or self.n_modes
+        todo = [(kc, mc) for kc, mc in points if refine and self._key(kc, mc, n) not in self._refined
+                and self._certified.get(self._point(kc, mc, n), (np.inf,))[0] > self.basis.r]
+        firsts = {}
+        if len(todo) > 1:
+            for (kc, mc), chk in zip(todo, certify.check_points(self, todo, n)):
+                if chk.worst <= self.tol:  # certified on this basis, whatever the others add to it
+                    self.n_checks += 1
+                    self._certify(kc, mc, n, chk.basis[1], chk.worst)
+                else:
+                    firsts[self._point(kc, mc, n)] = chk
+        return [self.solve(kc, mc, n, refine=refine, first=firsts.get(self._point(kc, mc, n)))
+                for kc, mc in points]
 
     def _reset(self, phi):
         self.generation += 1
@@ -348,7 +367,7 @@ class ReducedSolver:
         (estimated, or the difference to the full solve).
         """
         n = n or self.n_modes
-        red = self.solve(kc, mc, n, refine=True)
+        red = self.solve(kc, mc, n, refine=True, recheck=True)
         lam = self._ritz(kc, mc, n + 1)[0]
         f = np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
         count = None

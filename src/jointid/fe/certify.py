@@ -1,0 +1,121 @@
+"""Full-space checks of a reduced solver's Ritz pairs, and the refinement after a failed check.
+
+A check takes the lowest ``n`` Ritz pairs ``(lambda, V y)`` of a point ``(kc, mc)`` of a
+:class:`jointid.fe.reduced.ReducedSolver`, forms their residuals ``r = K(c) V y - lambda M(m) V y`` in
+the full space and estimates each relative eigenvalue error as ``|r^T A^-1 r| / lambda`` with the
+solver's factorisation ``A = K - sigma M`` (one sparse solve for all pairs).
+
+:func:`check_points` checks several points together: the products of the base terms with the basis,
+``K0 V`` and ``M0 V`` (the largest arrays), are read once for all of them, and one sparse solve takes
+every residual.  Where the state count of a diagnosis is two, that is one pass over the basis and
+one solve per pair of states instead of two.  :func:`refine` runs the enrichment loop of a point
+that failed its check (Davidson steps, a new preconditioner at a distant point, exact modes when
+progress stalls).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from jointid.fe.reduced import ReducedSolver
+
+MAX_ROUNDS = 12
+"""Most enrichment rounds of one point before its solution is returned unconverged (error > tol)."""
+
+
+@dataclass
+class Check:
+    """One point's check: Ritz pairs, residuals ``R``, ``D = A^-1 R`` and errors, on basis ``(generation, r)``."""
+
+    lam: np.ndarray
+    Y: np.ndarray
+    R: np.ndarray
+    D: np.ndarray
+    err: np.ndarray
+    basis: tuple
+
+    @property
+    def worst(self) -> float:
+        return float(self.err.max())
+
+
+def check_points(rs: ReducedSolver, points: list[tuple[dict, dict]], n: int) -> list[Check]:
+    """Check the lowest ``n`` Ritz pairs of every point on the current basis (one pass, one solve)."""
+    ritz = [rs._ritz(kc, mc, n) for kc, mc in points]
+    Ys = [Y[:, :n] for _, Y in ritz]
+    base_K = _base_products(rs, Ys, "K")
+    base_M = _base_products(rs, Ys, "M")
+    R = [rs._apply(kc, Y, "K", base_K[i]) - rs._apply(mc, Y, "M", base_M[i]) * lam[None, :n]
+         for i, ((kc, mc), (lam, _), Y) in enumerate(zip(points, ritz, Ys))]
+    D_all = rs.fac.solve(np.hstack(R)) if len(R) > 1 else rs.fac.solve(R[0])
+    out, at = [], 0
+    basis = (rs.generation, rs.basis.r)
+    for (lam, Y), Rk in zip(ritz, R):
+        Dk = D_all[:, at: at + Rk.shape[1]]
+        at += Rk.shape[1]
+        err = np.abs(np.einsum("ij,ij->j", Rk, Dk)) / np.maximum(np.abs(lam[:n]), 1.0)
+        out.append(Check(lam, Y, Rk, Dk, err, basis))
+    return out
+
+
+def _base_products(rs: ReducedSolver, Ys: list[np.ndarray], group: str) -> list[np.ndarray | None]:
+    """``K0 V Y`` (or ``M0 V Y``) of every point from the cached product with the basis, as one
+    product when there are several points (None per point when the product is not cached)."""
+    cached = rs.basis.KV if group == "K" else rs.basis.MV
+    if cached is None:
+        return [None] * len(Ys)
+    if len(Ys) == 1:
+        return [cached @ Ys[0]]
+    prod = cached @ np.hstack(Ys)
+    out, at = [], 0
+    for Y in Ys:
+        out.append(prod[:, at: at + Y.shape[1]])
+        at += Y.shape[1]
+    return out
+
+
+def refine(rs: ReducedSolver, kc: dict, mc: dict, n: int, first: Check | None = None):
+    """Enrich the basis until the lowest ``n`` Ritz pairs at ``(kc, mc)`` pass their check.
+
+    ``first``: this point's check on the current basis, when already done (:func:`check_points`).
+    Returns ``(lam, Y, worst)``: all Ritz values and vectors on the final basis and the largest
+    estimated relative eigenvalue error of the lowest ``n`` (above ``rs.tol`` when
+    :data:`MAX_ROUNDS` did not suffice).
+    """
+    rs.n_checks += 1
+    last = np.inf
+    refactored, slow_after = False, 0
+    chk = first if first is not None and first.basis == (rs.generation, rs.basis.r) else None
+    for _ in range(MAX_ROUNDS):
+        chk = chk or check_points(rs, [(kc, mc)], n)[0]
+        lam, Y, R, D, err, worst = chk.lam, chk.Y, chk.R, chk.D, chk.err, chk.worst
+        if worst <= rs.tol:
+            break
+        rs.n_refine += 1
+        slow = worst > 0.5 * last
+        slow_after += int(refactored and slow)
+        if rs.basis.r > rs.max_basis:
+            rs._refactor(kc, mc)
+            rs._reset(rs._lanczos(kc, mc, n + 4)[0])
+        elif (worst > 1e-2 or slow) and not refactored:
+            # far from the reference or slow progress: this point becomes the preconditioner
+            # (Davidson steps with the exact shifted inverse here)
+            rs._refactor(kc, mc)
+            refactored = True
+            D = rs.fac.solve(R)
+            rs._append(D[:, err > rs.tol])
+        elif slow_after >= 2:
+            # still slow with the local preconditioner: exact modes at this point
+            rs._append(rs._lanczos(kc, mc, n + 4)[0])
+            slow_after = -100
+        else:
+            rs._append(D[:, err > rs.tol])
+        last = worst
+        chk = None
+    else:
+        lam, Y = rs._ritz(kc, mc, n)
+    return lam, Y, worst

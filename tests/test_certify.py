@@ -1,0 +1,92 @@
+"""The reduced solver's full-space checks: points checked together, and a point certified on a smaller
+basis not checked again (Poincaré: on a larger subspace every Ritz value moves towards the exact one)."""
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from jointid.fe import fem
+from jointid.fe.reduced import ReducedSolver
+
+N = 300
+TWO_PI = 2 * np.pi
+
+
+def _chain():
+    """A clamped chain of springs and masses with a ground-spring term at the tip and a point mass."""
+    k = np.full(N, 1.0e6)
+    K0 = sp.diags([np.r_[k[:-1] + k[1:], k[-1]], -k[1:], -k[1:]], [0, 1, -1], format="csr")
+    M0 = sp.diags([np.full(N, 4 / 6), np.full(N - 1, 1 / 6), np.full(N - 1, 1 / 6)], [0, 1, -1], format="csr")
+    K1 = sp.diags(np.r_[np.zeros(N - 60), np.ones(60)], format="csr")
+    M1 = sp.csr_matrix(([1.0], ([150], [150])), shape=(N, N))
+    return fem.Model(stiffness={"K0": K0, "K_ground": K1}, mass={"M0": M0, "M_point": M1},
+                     fixed=np.array([0]), probe=sp.csr_matrix(np.eye(N)[::30]), doflocs=np.zeros((3, N // 3)),
+                     dof_part=np.zeros(N // 3, dtype=int))
+
+
+def _exact_Hz(model, kc, mc, n):
+    free = np.setdiff1d(np.arange(N), model.fixed)
+    K = (model.stiffness["K0"] + kc.get("K_ground", 0.0) * model.stiffness["K_ground"]).toarray()[np.ix_(free, free)]
+    M = (model.mass["M0"] + mc.get("M_point", 0.0) * model.mass["M_point"]).toarray()[np.ix_(free, free)]
+    return np.sqrt(sla.eigh(K, M, eigvals_only=True, subset_by_index=[0, n - 1])) / TWO_PI
+
+
+REF = ({"K_ground": 1e4}, {"M_point": 0.5})
+NEAR = ({"K_ground": 1.01e4}, {"M_point": 0.5})
+NEAR2 = ({"K_ground": 1.02e4}, {"M_point": 0.52})
+FAR = ({"K_ground": 3e5}, {"M_point": 20.0})
+N_MODES = 6
+
+
+@pytest.fixture()
+def model():
+    return _chain()
+
+
+def _solver(model):
+    return ReducedSolver(model, *REF, N_MODES, [({"K_ground": 1.0}, {}), ({}, {"M_point": 1.0})], backend="scipy")
+
+
+def test_a_point_certified_on_a_smaller_basis_is_not_checked_again(model):
+    rs = _solver(model)
+    first = rs.solve(*NEAR, N_MODES)
+    assert first.error <= rs.tol
+    checks, r0 = rs.n_checks, rs.basis.r
+    rs.solve(*FAR, N_MODES)  # the basis grows
+    assert rs.basis.r > r0
+    again = rs.solve(*NEAR, N_MODES)
+    assert rs.n_checks == checks + 1  # the far point's check only
+    assert rs.n_checks_skipped == 1 and again.error == first.error
+    # Poincaré: on the larger basis no Ritz value is higher, none below the exact eigenvalue
+    exact = _exact_Hz(model, *NEAR, N_MODES)
+    assert np.all(again.freqs_Hz <= first.freqs_Hz * (1 + 1e-12))
+    assert np.all(again.freqs_Hz >= exact * (1 - 1e-12))
+    assert np.max(np.abs(again.freqs_Hz / exact - 1)) < 1e-6
+    rs.solve(*NEAR, N_MODES, recheck=True)  # a reported point is checked afresh on request
+    assert rs.n_checks == checks + 2
+
+
+def test_points_are_checked_together_with_one_sparse_solve(model):
+    rs = _solver(model)
+    calls = []
+    solve = rs.fac.solve
+    rs.fac.solve = lambda b: (calls.append(b.shape), solve(b))[1]
+    sols = rs.solve_many([NEAR, NEAR2], N_MODES)
+    assert calls == [(N - 1, 2 * N_MODES)]  # one solve takes both points' residuals
+    single = _solver(model)
+    for pt, sol in zip((NEAR, NEAR2), sols):
+        assert sol.error <= rs.tol
+        ref = single.solve(*pt, N_MODES)
+        assert np.allclose(sol.freqs_Hz, ref.freqs_Hz, rtol=1e-12)
+        assert np.max(np.abs(sol.freqs_Hz / _exact_Hz(model, *pt, N_MODES) - 1)) < 1e-6
+
+
+def test_a_point_failing_the_joint_check_is_refined_alone(model):
+    rs = _solver(model)
+    r0 = rs.basis.r
+    near, far = rs.solve_many([NEAR, FAR], N_MODES)
+    assert rs.basis.r > r0 and rs.n_refine > 0
+    for pt, sol in ((NEAR, near), (FAR, far)):
+        assert sol.error <= rs.tol
+        assert np.max(np.abs(sol.freqs_Hz / _exact_Hz(model, *pt, N_MODES) - 1)) < 1e-6
