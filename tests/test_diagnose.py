@@ -186,7 +186,7 @@ def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
 
 
 def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos(coarse, monkeypatch):
-    from jointid.fe import reduced
+    from jointid.fe import certify
     from jointid.fe.modal import solve_modes
 
     cfg, system = coarse
@@ -204,7 +204,7 @@ def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos
     assert err < 1e-6
     assert np.max(np.abs(red.freqs_Hz / full.freqs_Hz - 1)) < 1e-6
     # a count above the Ritz values (a mode the subspace lacks) sends it to a full Lanczos solve
-    monkeypatch.setattr(reduced, "count_pencil_modes_below", lambda *a, **k: 11)
+    monkeypatch.setattr(certify, "count_pencil_modes_below", lambda *a, **k: 11)
     err = solver.verify(kc2, mc2, 10)
     assert solver.n_full_solves == lanczos_runs + 1 and err < 1e-5
     assert "certificate failed (Sturm count 11 for 10 Ritz values): full Lanczos solve" in lines[-1]

@@ -40,6 +40,7 @@ if DIAG_DATASETS:
         params:
             cfg=_diagnosis_cfg,
             history=f"{R}/history.csv",
+            subspace=f"{R}/diagnosis/{{dataset}}/subspace.npz",  # kept for the next run (diagnosis.reuse_subspace)
         wildcard_constraints:
             dataset="|".join(DIAG_DATASETS),
         log:
@@ -68,6 +69,7 @@ if DIAG_DATASETS:
             compare=f"{R}/diagnosis/{{dataset}}/current/compare.csv",
         params:
             cfg=_diagnosis_cfg,
+            subspace=f"{R}/diagnosis/{{dataset}}/subspace.npz",
         wildcard_constraints:
             dataset="|".join(DIAG_DATASETS),
         log:

@@ -6,4 +6,5 @@ from jointid.stages.diagnosis import run_current
 from jointid.stages.runner import run_script
 
 run_script(snakemake, lambda cfg, inp, out: run_current(
-    cfg, cfg["dataset"]["path"], inp.matrices, os.path.dirname(out.ladder)))
+    cfg, cfg["dataset"]["path"], inp.matrices, os.path.dirname(out.ladder),
+    subspace=snakemake.params.subspace))

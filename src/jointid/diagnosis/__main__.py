@@ -82,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         cfg = command_config(args)
         model = build_model(cfg) if args.matrices is None else None
         name = args.dataset.rstrip("/").split("/")[-1]
-        run_diagnosis(cfg, name, args.dataset, args.matrices, args.out, history_csv=args.history, model=model)
+        run_diagnosis(cfg, name, args.dataset, args.matrices, args.out, history_csv=args.history, model=model,
+                      subspace=os.path.join(args.out, "subspace.npz"))
     except JointidError as exc:
         print(str(exc), file=sys.stderr)
         return 1

@@ -68,6 +68,7 @@ class Diagnoser:
         self._tol = tol
         self._shift = float(s.get("shift_Hz", -10.0))
         self._backend = s.get("backend", "auto")
+        self.start_basis = None  # vectors the reduced solver starts from (jointid.fe.warmstart)
 
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):
@@ -82,9 +83,10 @@ class Diagnoser:
             directions.append((dkc, dmc))
         m = max(len(d.f_meas) for d in self.data)
         self.solver = ReducedSolver(self.system, kc, mc, self.n_modes, directions, shift_Hz=self._shift,
-                                    backend=self._backend, tol=self._tol, n_seed=m + 2)
+                                    backend=self._backend, tol=self._tol, n_seed=m + 2, basis=self.start_basis)
         self.solver.log = self.log
-        self.log(f"diagnosis: reduced solver with {self.solver.V.shape[1]} vectors "
+        kept = " (kept from the last run)" if self.start_basis is not None else ""
+        self.log(f"diagnosis: reduced solver with {self.solver.V.shape[1]} vectors{kept} "
                  f"({self.system.n_dofs} DOFs) in {time.time() - t0:.1f} s")
 
     def solve_states(self, variant: Variant, x, refine: bool = True) -> list[Solution]:

@@ -80,7 +80,7 @@ def default_options() -> dict:
 def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: dict | None = None,
              candidates: list[str] | None = None, n_refit: int | None = None, alpha: float | None = None,
              reference_state: str | None = None, solver: ReducedSolver | None = None,
-             compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
+             start_basis=None, compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
     """Run the whole loop on measured states: compare, calibrate, score, refit, combine, rank, ladder, drift.
 
     Parameters
@@ -102,6 +102,9 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     solver : ReducedSolver, optional
         A reduced solver of the same system to reuse (its subspace only grows; saves the set-up when
         several datasets of one rig are diagnosed).
+    start_basis : array (n_free, r), optional
+        Vectors the reduced solver starts from instead of the reference modes and their responses
+        (a subspace kept from an earlier run, :mod:`jointid.fe.warmstart`).
     compare, drift : bool
         Run the comparison step (baseline calibrated on the reference state) and the per-state drift
         fits (both on by default).
@@ -116,6 +119,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     alpha = float(opt["alpha"])
     enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
     diag = Diagnoser(system, cfg, data, solver=solver, log=log)
+    diag.start_basis = start_basis
     notes = []
     base = Variant(system, cfg, [])
     check_enough_data(data, base)

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from jointid.fe.modal import TWO_PI, count_pencil_modes_below
+
 if TYPE_CHECKING:
     from jointid.fe.reduced import ReducedSolver
 
@@ -119,3 +121,34 @@ def refine(rs: ReducedSolver, kc: dict, mc: dict, n: int, first: Check | None = 
     else:
         lam, Y = rs._ritz(kc, mc, n)
     return lam, Y, worst
+
+
+def verify(rs: ReducedSolver, kc: dict, mc: dict, n: int) -> float:
+    """Check the reduced solution at ``(kc, mc)`` against the full model.
+
+    The lowest ``n`` Ritz pairs are checked afresh in the full space (residual test); a Sturm count
+    between the ``n``-th and the next Ritz value (:func:`jointid.fe.modal.count_pencil_modes_below`,
+    one factorisation) then confirms that they are the lowest ``n`` modes, and their estimated error
+    is returned.  Where the count differs (a mode the subspace lacks), a full Lanczos solve, whose
+    modes join the subspace.  Returns the largest relative frequency error over the lowest ``n``
+    modes (estimated, or the difference to the full solve).
+    """
+    red = rs.solve(kc, mc, n, refine=True, recheck=True)
+    lam = rs._ritz(kc, mc, n + 1)[0]
+    f = np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
+    count = None
+    if len(f) > n and f[n] > f[n - 1] * (1.0 + 1e-6) and np.isfinite(red.error):
+        at = 0.5 * (f[n - 1] + f[n])
+        count = count_pencil_modes_below(rs.pencil, kc, mc, at, rs.backend)
+        if count == n:
+            rs._say(f"certificate: residual error {red.error:.1e} (tol {rs.tol:.0e}) and Sturm count "
+                    f"{count} modes below {at:.1f} Hz = the {n} Ritz values")
+            return 0.5 * red.error  # relative frequency error = half the eigenvalue error
+    why = (f"Sturm count {count} for {n} Ritz values" if count is not None
+           else "no gap above the last Ritz value, or the residual check did not converge")
+    rs._say(f"certificate failed ({why}): full Lanczos solve")
+    rs._refactor(kc, mc)
+    phi, f_full = rs._lanczos(kc, mc, n + 2)
+    f_full = f_full[:n]
+    rs._append(phi)
+    return float(np.max(np.abs(red.freqs_Hz - f_full) / np.maximum(f_full, 1.0)))

@@ -23,7 +23,7 @@ from jointid.errors import ModelError
 from jointid.fe import certify
 from jointid.fe.basis import GrowingBasis
 from jointid.fe.certify import Check
-from jointid.fe.modal import TWO_PI, count_pencil_modes_below, factorize_pencil, shift_invert_lanczos
+from jointid.fe.modal import TWO_PI, factorize_pencil, shift_invert_lanczos
 from jointid.fe.pencil import FreePencil
 
 if TYPE_CHECKING:
@@ -72,11 +72,14 @@ class ReducedSolver:
         Negative spectral shift of the factorisation ``A = K - sigma M``.
     tol : float
         Largest accepted estimated relative eigenvalue error of the returned modes.
+    basis : array (n_free, r), optional
+        Vectors to start from instead of the reference modes and their responses (a subspace kept
+        from an earlier run on the same model, :mod:`jointid.fe.warmstart`).
     """
 
     def __init__(self, system: System | Model, kc: dict, mc: dict, n_modes: int, directions=(), *,
                  shift_Hz: float = -10.0, backend: str = "auto", tol: float = 1e-6, max_basis: int = 900,
-                 n_seed: int | None = None):
+                 n_seed: int | None = None, basis: np.ndarray | None = None):
         self.system = system
         self.n_modes = int(n_modes)
         self.tol = tol
@@ -106,6 +109,9 @@ class ReducedSolver:
         self.n_checks = self.n_checks_skipped = 0
         self.log = None  # progress lines (certificates), e.g. print
         self._refactor(kc, mc)
+        if basis is not None:
+            self._append(basis)
+            return
         phi, f = self._lanczos(kc, mc, self.n_modes + 4)
         lam = (TWO_PI * f) ** 2
         self._append(phi)
@@ -357,35 +363,8 @@ class ReducedSolver:
         return phi
 
     def verify(self, kc: dict, mc: dict, n: int | None = None) -> float:
-        """Check the reduced solution at ``(kc, mc)`` against the full model.
-
-        The refined Ritz pairs each satisfy the full-space residual test; a Sturm count between the
-        ``n``-th and the next Ritz value (:func:`jointid.fe.modal.count_modes_below`, one factorisation)
-        then confirms that they are the lowest ``n`` modes, and their estimated error is returned.
-        Where the count differs (a mode the subspace lacks), a full Lanczos solve, whose modes join
-        the subspace.  Returns the largest relative frequency error over the lowest ``n`` modes
-        (estimated, or the difference to the full solve).
-        """
-        n = n or self.n_modes
-        red = self.solve(kc, mc, n, refine=True, recheck=True)
-        lam = self._ritz(kc, mc, n + 1)[0]
-        f = np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
-        count = None
-        if len(f) > n and f[n] > f[n - 1] * (1.0 + 1e-6) and np.isfinite(red.error):
-            at = 0.5 * (f[n - 1] + f[n])
-            count = count_pencil_modes_below(self.pencil, kc, mc, at, self.backend)
-            if count == n:
-                self._say(f"certificate: residual error {red.error:.1e} (tol {self.tol:.0e}) and Sturm count "
-                          f"{count} modes below {at:.1f} Hz = the {n} Ritz values")
-                return 0.5 * red.error  # relative frequency error = half the eigenvalue error
-        why = (f"Sturm count {count} for {n} Ritz values" if count is not None
-               else "no gap above the last Ritz value, or the residual check did not converge")
-        self._say(f"certificate failed ({why}): full Lanczos solve")
-        self._refactor(kc, mc)
-        phi, f_full = self._lanczos(kc, mc, n + 2)
-        f_full = f_full[:n]
-        self._append(phi)
-        return float(np.max(np.abs(red.freqs_Hz - f_full) / np.maximum(f_full, 1.0)))
+        """The certificate of the point ``(kc, mc)``: :func:`jointid.fe.certify.verify`."""
+        return certify.verify(self, kc, mc, n or self.n_modes)
 
     def sensitivity(self, sol: Solution, dkc: dict, dmc: dict) -> np.ndarray:
         """``dlambda / dx`` of the ``n`` modes of ``sol`` for one coefficient direction, ``(n,)``."""

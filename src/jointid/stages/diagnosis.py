@@ -18,7 +18,9 @@ from jointid.diagnosis.loop import Diagnosis, diagnose
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.terms import build_system
 from jointid.diagnosis.variants import dataset_states
+from jointid.fe import warmstart
 from jointid.fe.model import load_model
+from jointid.fe.modal import free_dofs
 from jointid.threads import limit_threads
 
 
@@ -31,17 +33,35 @@ def _system_and_data(cfg: dict, dataset_path: str, matrices: str | None, model=N
     return system, dataset_states(ds, system, cfg, entry.get("states"))
 
 
+def _warm(cfg: dict, system, subspace: str | None, log):
+    """The basis kept by the last run at ``subspace`` (None when there is none, it is of another
+    model, or ``diagnosis.reuse_subspace`` is false); :mod:`jointid.fe.warmstart`."""
+    if subspace is None or not (cfg.get("diagnosis") or {}).get("reuse_subspace", True):
+        return None
+    V, why = warmstart.load(subspace, system, len(free_dofs(system.n_dofs, system.fixed)))
+    log(f"diagnosis: {why}")
+    return V
+
+
+def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis) -> None:
+    if subspace is not None and (cfg.get("diagnosis") or {}).get("reuse_subspace", True) and res.solver:
+        warmstart.save(subspace, res.solver.V, system)
+
+
 def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
-                  history_csv: str | None = None, model=None, log=print_log) -> Diagnosis:
+                  history_csv: str | None = None, model=None, subspace: str | None = None,
+                  log=print_log) -> Diagnosis:
     """Workflow stage: diagnose one dataset and write ``out_dir`` (+ a row of ``history_csv``).
 
     ``cfg`` holds the sections ``rig, joints, solver, identify, effects, states, harmonic`` (the test
-    band and drive point of the observability rule) and ``dataset``
+    band and drive point of the observability rule), ``diagnosis`` and ``dataset``
     (the ``datasets.<name>`` entry: ``path``, ``states``); the model comes from ``matrices`` (the
-    cached ``results/model/matrices.npz``) or ``model``.
+    cached ``results/model/matrices.npz``) or ``model``.  ``subspace``: the file the reduced solver's
+    final basis is kept in and the next run starts from (``diagnosis.reuse_subspace``).
     """
     system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    res = diagnose(system, cfg, data, log=log)
+    res = diagnose(system, cfg, data, start_basis=_warm(cfg, system, subspace, log), log=log)
+    _keep(cfg, system, subspace, res)
     h = config_hash({k: v for k, v in cfg.items() if k != "dataset"})
     run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": h,
            "n_dofs": system.n_dofs, "dataset_path": str(dataset_path), "states": [d.name for d in data]}
@@ -53,17 +73,19 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
 
 
 def run_current(cfg: dict, dataset_path: str, matrices: str | None, out_dir: str, *, model=None,
-                log=print_log) -> Diagnosis:
+                subspace: str | None = None, log=print_log) -> Diagnosis:
     """Workflow stage (rule ``current``): the quick half of the loop of docs/effects.md.
 
     The baseline and the configured effects are calibrated exactly as the diagnosis does it (the same
     steps, so the same numbers), but no candidate is tested: ``out_dir`` gets ``ladder.csv``
     (baseline -> +each configured effect, per-state errors), ``current.csv`` (the current model
     against every measured mode) and ``compare.csv``.  Which effect is still missing is the full
-    diagnosis' answer (``ranking.csv``).
+    diagnosis' answer (``ranking.csv``).  ``subspace`` as for :func:`run_diagnosis` (the same file).
     """
     system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    res = diagnose(system, cfg, data, candidates=[], drift=False, log=log)
+    res = diagnose(system, cfg, data, candidates=[], drift=False, start_basis=_warm(cfg, system, subspace, log),
+                   log=log)
+    _keep(cfg, system, subspace, res)
     out = Path(out_dir)
     io.write_csv(res.ladder, out / "ladder.csv")
     io.write_csv(res.current, out / "current.csv")

@@ -1,0 +1,74 @@
+"""A reduced solver's subspace kept from one run to the next (``diagnosis.reuse_subspace``): the file, its
+model check, and a warm run of the quick half agreeing with a cold one to the solver tolerance."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+
+from jointid.fe import fem, warmstart
+
+HIDDEN = Path(__file__).parent / "hidden"
+
+
+def _model(scale=1.0):
+    n = 30
+    K0 = sp.diags([np.full(n, 2e6), np.full(n - 1, -1e6), np.full(n - 1, -1e6)], [0, 1, -1], format="csr")
+    M0 = sp.identity(n, format="csr")
+    return fem.Model(stiffness={"K0": K0, "K_a": scale * sp.identity(n, format="csr")}, mass={"M0": M0},
+                     fixed=np.array([0]), probe=sp.csr_matrix((1, n)), doflocs=np.zeros((3, n // 3)),
+                     dof_part=np.zeros(n // 3, dtype=int))
+
+
+def test_kept_basis_is_read_back_for_its_model_only(tmp_path):
+    m = _model()
+    V = np.random.default_rng(0).normal(size=(29, 7))
+    path = tmp_path / "sub" / "subspace.npz"
+    assert warmstart.load(path, m, 29)[0] is None  # nothing kept yet
+    warmstart.save(path, V, m)
+    assert sorted(p.name for p in path.parent.iterdir()) == ["subspace.npz"]  # no temporary left behind
+    back, why = warmstart.load(path, m, 29)
+    assert np.array_equal(back, V) and "7 vectors kept" in why
+    other, why = warmstart.load(path, _model(scale=2.0), 29)
+    assert other is None and "another model" in why
+    path.write_bytes(b"not a zip file")
+    broken, why = warmstart.load(path, m, 29)
+    assert broken is None and "unreadable" in why
+
+
+def test_a_warm_quick_half_agrees_with_a_cold_one(tmp_path):
+    """The second run starts from the first run's basis (smaller set-up, no Lanczos solve) and
+    reports the same ladder to the certified tolerance; with reuse_subspace false nothing is kept."""
+    from conftest import diagnosis_rig
+
+    from jointid.diagnosis import synth
+    from jointid.stages.diagnosis import run_current
+
+    rig = diagnosis_rig()
+    cfg = {**rig["cfg"], "effects": {"em_preload": {"beta": 0.1}}}
+    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), rig["cfg"], tmp_path / "ds", model=rig["model"])
+    sub = tmp_path / "subspace.npz"
+    runs = []
+    for k in range(2):
+        lines = []
+        res = run_current(cfg, tmp_path / "ds", None, tmp_path / f"out{k}", model=rig["model"], subspace=sub,
+                          log=lines.append)
+        runs.append((res, lines, pd.read_csv(tmp_path / f"out{k}" / "ladder.csv")))
+    (cold, cold_lines, a), (warm, warm_lines, b) = runs
+    assert any("no subspace kept" in ln for ln in cold_lines)
+    assert any("vectors kept from the last run" in ln for ln in warm_lines)
+    assert warm.solver.n_full_solves == 0 and cold.solver.n_full_solves == 1  # no Lanczos solve when warm
+    # certified to 1e-6 in each eigenvalue: model frequencies within 1e-6, errors within 1e-4 percentage points
+    assert list(a.variant) == list(b.variant) and list(a.state) == list(b.state)
+    pct = ["max_abs_error_pct", "rms_error_pct"]
+    assert np.allclose(b[pct].to_numpy(float), a[pct].to_numpy(float), rtol=0, atol=1e-4)
+    assert np.allclose(b["chi2"], a["chi2"], rtol=1e-6)
+    fa = pd.read_csv(tmp_path / "out0" / "current.csv")
+    fb = pd.read_csv(tmp_path / "out1" / "current.csv")
+    assert np.allclose(fb["freq_model_Hz"], fa["freq_model_Hz"], rtol=1e-6, atol=0, equal_nan=True)
+    off = {**cfg, "diagnosis": {**(cfg.get("diagnosis") or {}), "reuse_subspace": False}}
+    sub2 = tmp_path / "off.npz"
+    lines = []
+    run_current(off, tmp_path / "ds", None, tmp_path / "out2", model=rig["model"], subspace=sub2, log=lines.append)
+    assert not sub2.exists() and not any("kept" in ln for ln in lines)
