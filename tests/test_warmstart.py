@@ -8,6 +8,7 @@ import pandas as pd
 import scipy.sparse as sp
 
 from jointid.fe import fem, warmstart
+from jointid.fe.reduced import ReducedSolver
 
 HIDDEN = Path(__file__).parent / "hidden"
 
@@ -21,20 +22,44 @@ def _model(scale=1.0):
                      dof_part=np.zeros(n // 3, dtype=int))
 
 
+def _solver(model, mc=None, kept=None):
+    return ReducedSolver(model, {"K_a": 1e5}, mc or {}, 4, [({"K_a": 1.0}, {})], backend="scipy", basis=kept)
+
+
 def test_kept_basis_is_read_back_for_its_model_only(tmp_path):
     m = _model()
-    V = np.random.default_rng(0).normal(size=(29, 7))
+    rs = _solver(m)
     path = tmp_path / "sub" / "subspace.npz"
     assert warmstart.load(path, m, 29)[0] is None  # nothing kept yet
-    warmstart.save(path, V, m)
+    warmstart.save(path, rs, m)
     assert sorted(p.name for p in path.parent.iterdir()) == ["subspace.npz"]  # no temporary left behind
-    back, why = warmstart.load(path, m, 29)
-    assert np.array_equal(back, V) and "7 vectors kept" in why
+    kept, why = warmstart.load(path, m, 29)
+    assert np.array_equal(kept.V, rs.V) and f"{rs.V.shape[1]} vectors kept" in why
+    assert set(kept.Kr) == {"K0", "K_a"} and np.array_equal(kept.Kr["K_a"], rs.Kr["K_a"])
     other, why = warmstart.load(path, _model(scale=2.0), 29)
     assert other is None and "another model" in why
     path.write_bytes(b"not a zip file")
     broken, why = warmstart.load(path, m, 29)
     assert broken is None and "unreadable" in why
+
+
+def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
+    m = _model()
+    rs = _solver(m)
+    point = ({"K_a": 3e5}, {})
+    ref = rs.solve(*point, 4)
+    warmstart.save(tmp_path / "s.npz", rs, m)
+    kept = warmstart.load(tmp_path / "s.npz", m, 29)[0]
+    same = _solver(m, kept=kept)
+    assert same.n_full_solves == 0 and np.array_equal(same.V, rs.V)
+    assert np.array_equal(same.solve(*point, 4, refine=False).freqs_Hz, ref.freqs_Hz)
+    # other reference masses: the basis is orthonormalised afresh, the answers stay certified
+    m2 = fem.Model(stiffness=m.stiffness, mass={"M0": m.mass["M0"], "M_b": m.mass["M0"]}, fixed=m.fixed,
+                   probe=m.probe, doflocs=m.doflocs, dof_part=m.dof_part)
+    assert warmstart.load(tmp_path / "s.npz", m2, 29)[0] is None  # another model: its terms differ
+    moved = _solver(m, {"M0": 0.1}, kept)
+    sol = moved.solve(*point, 4)
+    assert sol.error <= moved.tol and np.allclose(sol.freqs_Hz, ref.freqs_Hz, rtol=1e-6)
 
 
 def test_a_warm_quick_half_agrees_with_a_cold_one(tmp_path):

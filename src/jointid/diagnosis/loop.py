@@ -102,9 +102,9 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     solver : ReducedSolver, optional
         A reduced solver of the same system to reuse (its subspace only grows; saves the set-up when
         several datasets of one rig are diagnosed).
-    start_basis : array (n_free, r), optional
-        Vectors the reduced solver starts from instead of the reference modes and their responses
-        (a subspace kept from an earlier run, :mod:`jointid.fe.warmstart`).
+    start_basis : jointid.fe.warmstart.Kept, optional
+        A basis the reduced solver starts from instead of the reference modes and their responses
+        (kept from an earlier run, :mod:`jointid.fe.warmstart`).
     compare, drift : bool
         Run the comparison step (baseline calibrated on the reference state) and the per-state drift
         fits (both on by default).

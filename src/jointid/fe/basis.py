@@ -35,6 +35,13 @@ class GrowingBasis:
     def MV(self) -> np.ndarray | None:
         return None if self._MV is None else self._MV[:, : self.r]
 
+    def adopt(self, V: np.ndarray, KV: np.ndarray, MV: np.ndarray) -> None:
+        """Take ``V`` (Fortran order, the first columns of an empty basis) and its products as they are."""
+        self.r = V.shape[1]
+        self._V = np.asfortranarray(V)
+        self.keep_products = 2 * self.r * V.shape[0] * 8 <= BASE_PRODUCT_BYTES
+        self._KV, self._MV = (np.asfortranarray(KV), np.asfortranarray(MV)) if self.keep_products else (None, None)
+
     def append(self, W: np.ndarray, KW: np.ndarray | None, MW: np.ndarray | None) -> None:
         """Append the columns ``W`` with their products ``K0 W`` and ``M0 W`` (given when kept)."""
         k = W.shape[1]

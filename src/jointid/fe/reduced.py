@@ -72,14 +72,14 @@ class ReducedSolver:
         Negative spectral shift of the factorisation ``A = K - sigma M``.
     tol : float
         Largest accepted estimated relative eigenvalue error of the returned modes.
-    basis : array (n_free, r), optional
-        Vectors to start from instead of the reference modes and their responses (a subspace kept
-        from an earlier run on the same model, :mod:`jointid.fe.warmstart`).
+    basis : jointid.fe.warmstart.Kept, optional
+        A basis to start from instead of the reference modes and their responses (kept from an
+        earlier run on the same model, :mod:`jointid.fe.warmstart`).
     """
 
     def __init__(self, system: System | Model, kc: dict, mc: dict, n_modes: int, directions=(), *,
                  shift_Hz: float = -10.0, backend: str = "auto", tol: float = 1e-6, max_basis: int = 900,
-                 n_seed: int | None = None, basis: np.ndarray | None = None):
+                 n_seed: int | None = None, basis=None):
         self.system = system
         self.n_modes = int(n_modes)
         self.tol = tol
@@ -108,9 +108,10 @@ class ReducedSolver:
         self._certified: dict = {}  # (coefficients, n, generation) -> (basis size, error) of a passed check
         self.n_checks = self.n_checks_skipped = 0
         self.log = None  # progress lines (certificates), e.g. print
+        self.mc_ref = dict(mc)
         self._refactor(kc, mc)
         if basis is not None:
-            self._append(basis)
+            self._start_from(basis)
             return
         phi, f = self._lanczos(kc, mc, self.n_modes + 4)
         lam = (TWO_PI * f) ** 2
@@ -127,6 +128,18 @@ class ReducedSolver:
                 blocks.append(self.fac.solve(R))
         if blocks:
             self._append(np.hstack(blocks))
+
+    def _start_from(self, kept):
+        """Start from a kept basis (:class:`jointid.fe.warmstart.Kept`): taken as it is, with its
+        reduced matrices, when it is M-orthonormal at these reference masses; else orthonormalised."""
+        if kept.mc_ref != self.mc_ref or set(kept.Kr) != set(self.K_terms) or set(kept.Mr) != set(self.M_terms):
+            self._append(np.asarray(kept.V))
+            return
+        V = np.asfortranarray(kept.V)
+        self.basis.adopt(V, self.K_terms["K0"] @ V, self.M_terms["M0"] @ V)
+        self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
+        self.PV = self.P @ V
+        self._regroup()
 
     @property
     def V(self) -> np.ndarray:

@@ -16,7 +16,10 @@ to start from, so it stays bit-reproducible; ``diagnosis.reuse_subspace: false``
 from __future__ import annotations
 
 import hashlib
+import json
 import os
+import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -40,21 +43,38 @@ def fingerprint(system) -> str:
     return h.hexdigest()[:20]
 
 
-def save(path: str | Path, V: np.ndarray, system) -> None:
-    """Write the first :data:`MAX_SAVED` columns of ``V`` (free DOFs) with the model's fingerprint;
-    written to a temporary file and renamed, so a reader never sees half a file."""
+@dataclass
+class Kept:
+    """A basis kept by an earlier run: ``V (n_free, r)`` (M-orthonormal at the reference mass
+    coefficients ``mc_ref``) and the reduced matrices of every term, ``Kr``/``Mr`` (by term name)."""
+
+    V: np.ndarray
+    Kr: dict
+    Mr: dict
+    mc_ref: dict
+
+
+def save(path: str | Path, solver, system) -> None:
+    """Keep the first :data:`MAX_SAVED` columns of ``solver``'s basis with their reduced matrices and
+    the model's fingerprint; written to a temporary file and renamed, so a reader never sees half a
+    file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    r = min(solver.V.shape[1], MAX_SAVED)
+    arrays = {"V": np.asfortranarray(solver.V[:, :r]), "fingerprint": np.array(fingerprint(system)),
+              "mc_ref": np.array(json.dumps(solver.mc_ref, sort_keys=True))}
+    for group, red in (("K", solver.Kr), ("M", solver.Mr)):
+        arrays.update({f"{group}r:{name}": A[:r, :r] for name, A in red.items()})
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
     try:
-        np.savez(tmp, V=np.ascontiguousarray(V[:, :MAX_SAVED]), fingerprint=np.array(fingerprint(system)))
+        np.savez(tmp, **arrays)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
 
 
-def load(path: str | Path, system, n_free: int) -> tuple[np.ndarray | None, str]:
-    """The kept basis of ``system`` at ``path`` and a line saying what was found: ``(None, why)`` when
+def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
+    """The basis kept for ``system`` at ``path`` and a line saying what was found: ``(None, why)`` when
     there is none, it belongs to another model or it cannot be read."""
     path = Path(path)
     if not path.exists():
@@ -63,9 +83,13 @@ def load(path: str | Path, system, n_free: int) -> tuple[np.ndarray | None, str]
         with np.load(path) as f:
             if str(f["fingerprint"]) != fingerprint(system):
                 return None, f"{path}: kept for another model: starting afresh"
-            V = np.array(f["V"])
-    except (OSError, ValueError, KeyError) as exc:
+            V = f["V"]
+            red = {g: {k.split(":", 1)[1]: f[k] for k in f.files if k.startswith(g + "r:")} for g in "KM"}
+            kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])))
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
         return None, f"{path}: unreadable ({exc}): starting afresh"
-    if V.ndim != 2 or V.shape[0] != n_free or not np.isfinite(V).all():
+    r = V.shape[1] if V.ndim == 2 else -1
+    if V.ndim != 2 or V.shape[0] != n_free or not np.isfinite(V).all() or \
+            any(A.shape != (r, r) for red in (kept.Kr, kept.Mr) for A in red.values()):
         return None, f"{path}: not a basis of this model's {n_free} free DOFs: starting afresh"
-    return V, f"starting from the {V.shape[1]} vectors kept from the last run ({path})"
+    return kept, f"starting from the {r} vectors kept from the last run ({path})"

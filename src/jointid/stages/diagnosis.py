@@ -38,14 +38,14 @@ def _warm(cfg: dict, system, subspace: str | None, log):
     model, or ``diagnosis.reuse_subspace`` is false); :mod:`jointid.fe.warmstart`."""
     if subspace is None or not (cfg.get("diagnosis") or {}).get("reuse_subspace", True):
         return None
-    V, why = warmstart.load(subspace, system, len(free_dofs(system.n_dofs, system.fixed)))
+    kept, why = warmstart.load(subspace, system, len(free_dofs(system.n_dofs, system.fixed)))
     log(f"diagnosis: {why}")
-    return V
+    return kept
 
 
 def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis) -> None:
     if subspace is not None and (cfg.get("diagnosis") or {}).get("reuse_subspace", True) and res.solver:
-        warmstart.save(subspace, res.solver.V, system)
+        warmstart.save(subspace, res.solver, system)
 
 
 def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
