@@ -53,7 +53,7 @@ class Diagnoser:
 
     def __init__(self, system: System, cfg: dict, data: list[StateData], *, n_modes: int | None = None,
                  tol: float = 1e-6, mac_threshold: float = 0.5, solver: ReducedSolver | None = None,
-                 log=print_log):
+                 start_basis=None, log=print_log):
         self.system, self.cfg, self.data = system, cfg, data
         s = cfg.get("solver", {})
         self.min_freq = float(s.get("min_freq_Hz", 100.0))
@@ -68,7 +68,7 @@ class Diagnoser:
         self._tol = tol
         self._shift = float(s.get("shift_Hz", -10.0))
         self._backend = s.get("backend", "auto")
-        self.start_basis = None  # vectors the reduced solver starts from (jointid.fe.warmstart)
+        self.start_basis = start_basis  # a basis kept from an earlier run (jointid.fe.warmstart)
 
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):

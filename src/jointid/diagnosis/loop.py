@@ -118,8 +118,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     opt.update({k: v for k, v in (("n_refit", n_refit), ("alpha", alpha)) if v is not None})
     alpha = float(opt["alpha"])
     enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
-    diag = Diagnoser(system, cfg, data, solver=solver, log=log)
-    diag.start_basis = start_basis
+    diag = Diagnoser(system, cfg, data, solver=solver, start_basis=start_basis, log=log)
     notes = []
     base = Variant(system, cfg, [])
     check_enough_data(data, base)

@@ -33,10 +33,15 @@ def _system_and_data(cfg: dict, dataset_path: str, matrices: str | None, model=N
     return system, dataset_states(ds, system, cfg, entry.get("states"))
 
 
+def _kept_file(cfg: dict, subspace: str | None) -> str | None:
+    """``subspace`` unless ``diagnosis.reuse_subspace`` is false (:mod:`jointid.fe.warmstart`)."""
+    return subspace if (cfg.get("diagnosis") or {}).get("reuse_subspace", True) else None
+
+
 def _warm(cfg: dict, system, subspace: str | None, log):
     """The basis kept by the last run at ``subspace`` (None when there is none, it is of another
-    model, or ``diagnosis.reuse_subspace`` is false); :mod:`jointid.fe.warmstart`."""
-    if subspace is None or not (cfg.get("diagnosis") or {}).get("reuse_subspace", True):
+    model, or ``diagnosis.reuse_subspace`` is false)."""
+    if _kept_file(cfg, subspace) is None:
         return None
     kept, why = warmstart.load(subspace, system, len(free_dofs(system.n_dofs, system.fixed)))
     log(f"diagnosis: {why}")
@@ -44,7 +49,7 @@ def _warm(cfg: dict, system, subspace: str | None, log):
 
 
 def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis) -> None:
-    if subspace is not None and (cfg.get("diagnosis") or {}).get("reuse_subspace", True) and res.solver:
+    if _kept_file(cfg, subspace) is not None and res.solver:
         warmstart.save(subspace, res.solver, system)
 
 
