@@ -90,3 +90,28 @@ def test_a_point_failing_the_joint_check_is_refined_alone(model):
     for pt, sol in ((NEAR, near), (FAR, far)):
         assert sol.error <= rs.tol
         assert np.max(np.abs(sol.freqs_Hz / _exact_Hz(model, *pt, N_MODES) - 1)) < 1e-6
+
+
+def test_a_sturm_count_at_a_point_is_made_once_and_kept_with_the_subspace(model, monkeypatch, tmp_path):
+    from jointid.fe import certify, warmstart
+
+    counts = []
+    real = certify.count_pencil_modes_below
+    monkeypatch.setattr(certify, "count_pencil_modes_below", lambda *a, **k: (counts.append(a[3]), real(*a, **k))[1])
+    rs = _solver(model)
+    lines = []
+    rs.log = lines.append
+    assert rs.verify(*NEAR, N_MODES) <= rs.tol
+    assert rs.verify(*NEAR, N_MODES) <= rs.tol
+    assert len(counts) == 1 and "counted before at this point" in lines[-1]
+    rs.verify(*NEAR2, N_MODES)  # another point: counted
+    assert len(counts) == 2
+    # the count is the model's at those coefficients: kept with the subspace, used by the next run
+    warmstart.save(tmp_path / "s.npz", rs, model)
+    kept = warmstart.load(tmp_path / "s.npz", model, N - 1)[0]
+    warm = ReducedSolver(model, *REF, N_MODES, basis=kept, backend="scipy")
+    assert warm.verify(*NEAR2, N_MODES) <= warm.tol and len(counts) == 2
+    # a count below the wrong frequency is not taken: the Ritz values must bracket it
+    warm.sturm_counts = {k: [(1.0, c) for _, c in v] for k, v in warm.sturm_counts.items()}
+    warm.verify(*NEAR2, N_MODES)
+    assert len(counts) == 3

@@ -13,7 +13,7 @@ import itertools
 
 import numpy as np
 
-from jointid.diagnosis.fitting import Diagnoser, Fit
+from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit
 from jointid.progress import Steps
 
 __all__ = ["combine_candidates", "combination_row"]
@@ -57,11 +57,7 @@ def combine_candidates(diag: Diagnoser, current: Fit, singles: dict, n_combine: 
         spec_b = fb.variant.effects[-1]
         var = fa.variant.extended(spec_b)
         log(f"diagnosis: refitting {current.variant.name} + {a} + {b} {steps.next()}")
-        best = None
-        for x0 in _starts(current, fa, fb):
-            f = diag.fit(var, x0, index=fa.ev.index)
-            if best is None or f.chi2 < best.chi2 - 1e-9:
-                best = f
+        best = best_fit([diag.fit(var, x0, index=fa.ev.index) for x0 in _starts(current, fa, fb)])
         fits[f"+{a}+{b}"] = best
         rows.append(combination_row(diag, current, best, (a, b), alpha))
     rows.sort(key=lambda r: (not r["explains"], r["delta_aicc"]))

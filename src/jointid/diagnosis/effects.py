@@ -315,6 +315,7 @@ class Enabled:
     values: dict
     options: dict
     fit: bool = True
+    configured: tuple = ()  # the parameters given a value in the config (the others start at their default)
 
 
 def enabled_effects(effects_cfg: dict | None) -> list[Enabled]:
@@ -367,11 +368,9 @@ def enabled_effects(effects_cfg: dict | None) -> list[Enabled]:
                 hint = f"did you mean {close[0]!r}? " if close else ""
                 problems.append(f"config.yaml: effects.{name}.{key}: unknown key — {hint}allowed keys: "
                                 f"{', '.join(allowed)}")
-        for p in eff.params:
-            if p.name not in values:
-                # start value: the null for a linear parameter, the nominal for a compliance
-                values[p.name] = p.nominal if p.kind == "compliance" else p.null
-        out.append(Enabled(eff, values, opts, bool(fit)))
+        # start values: the null of a linear parameter, the nominal of a compliance, unless configured
+        start = {p.name: p.nominal if p.kind == "compliance" else p.null for p in eff.params}
+        out.append(Enabled(eff, {**start, **values}, opts, bool(fit), tuple(values)))
     if problems:
         raise ConfigError(problems)
     return out

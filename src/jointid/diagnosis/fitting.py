@@ -41,6 +41,8 @@ from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
 from jointid.progress import stamp
 
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
+START_DIGITS = 3  # significant digits of a refit's start taken from a linearised estimate
+TIE_RTOL = 1e-6  # fits from several starts within this relative chi-square are one optimum (best_fit)
 
 
 def print_log(msg: str) -> None:
@@ -53,7 +55,7 @@ class Diagnoser:
 
     def __init__(self, system: System, cfg: dict, data: list[StateData], *, n_modes: int | None = None,
                  tol: float = 1e-6, mac_threshold: float = 0.5, solver: ReducedSolver | None = None,
-                 start_basis=None, log=print_log):
+                 start_basis=None, memo=None, log=print_log):
         self.system, self.cfg, self.data = system, cfg, data
         s = cfg.get("solver", {})
         self.min_freq = float(s.get("min_freq_Hz", 100.0))
@@ -69,6 +71,8 @@ class Diagnoser:
         self._shift = float(s.get("shift_Hz", -10.0))
         self._backend = s.get("backend", "auto")
         self.start_basis = start_basis  # a basis kept from an earlier run (jointid.fe.warmstart)
+        self.memo = memo  # fits remembered from an earlier run (jointid.diagnosis.memo.FitMemo)
+        self._context = None
 
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):
@@ -84,8 +88,9 @@ class Diagnoser:
         m = max(len(d.f_meas) for d in self.data)
         self.solver = ReducedSolver(self.system, kc, mc, self.n_modes, directions, shift_Hz=self._shift,
                                     backend=self._backend, tol=self._tol, n_seed=m + 2, basis=self.start_basis)
+        kept, self.start_basis = self.start_basis, None  # taken over by the solver
         self.solver.log = self.log
-        kept = " (kept from the last run)" if self.start_basis is not None else ""
+        kept = " (kept from the last run)" if kept is not None else ""
         self.log(f"diagnosis: reduced solver with {self.solver.V.shape[1]} vectors{kept} "
                  f"({self.system.n_dofs} DOFs) in {time.time() - t0:.1f} s")
 
@@ -237,8 +242,42 @@ class Diagnoser:
         return out
 
     def fit(self, variant: Variant, x0, *, index=None, max_loops: int = 4, verify: bool = False) -> "Fit":
-        """Bounded least squares of ``variant`` from ``x0``; pairing re-done until stable."""
+        """Bounded least squares of ``variant`` from ``x0``; pairing re-done until stable.
+
+        With a :class:`jointid.diagnosis.memo.FitMemo` (``memo``), a fit asked with exactly the inputs
+        of a recorded one is evaluated at the recorded optimum, pairing and misfit set (re-checked
+        in the full space) instead of being searched again; every fit searched is recorded.
+        ``verify``: the optimum is certified (:meth:`ReducedSolver.verify`) and refitted if it fails.
+        """
         x0 = np.clip(np.asarray(x0, float), variant.lower, variant.upper)
+        key = rec = None
+        if self.memo is not None:
+            if self._context is None:
+                self._context = self.memo.context(self.cfg, self.data, self.n_modes, self._tol, self.mac_threshold)
+            key = self.memo.key(self._context, variant, x0, index, max_loops)
+            rec = self.memo.get(key)
+        if rec is not None:
+            ev = self.evaluate(variant, rec["x"], rec["index"], refine=True,
+                               misfits=[(c, t, None) for c, t in rec["misfits"]])
+        else:
+            ev = self._search(variant, x0, index, max_loops)
+            if key is not None:
+                self.memo.put(key, ev)
+        if verify:
+            coeffs = []
+            for d in self.data:  # states with identical coefficients need one check only
+                c = variant.coefficients(ev.x, d.info)
+                if c not in coeffs:
+                    coeffs.append(c)
+            worst = max(self.solver.verify(kc, mc, self.n_modes) for kc, mc in coeffs)
+            if worst > 1e-5:
+                self.log(f"diagnosis: reduced vs full FE {worst:.2e} at the optimum of {variant.name}; refitting")
+                return self.fit(variant, ev.x, index=ev.index, max_loops=2, verify=False)
+        return Fit(variant, ev, self.pair(ev.solutions))
+
+    def _search(self, variant: Variant, x0: np.ndarray, index, max_loops: int) -> Evaluation:
+        """The search of :meth:`fit`: least squares on the subspace, refinement at the optimum, pairing
+        re-done, until the pairing and the subspace are stable; returns the final evaluation."""
         if index is None:
             index = [p.model_index for p in self.pair(self.solve_states(variant, x0))]
         ev = None
@@ -277,17 +316,7 @@ class Diagnoser:
             x0 = x_opt
             if same_pairs and (not changed_space or not variant.n_params):
                 break
-        if verify:
-            coeffs = []
-            for d in self.data:  # states with identical coefficients need one check only
-                c = variant.coefficients(ev.x, d.info)
-                if c not in coeffs:
-                    coeffs.append(c)
-            worst = max(self.solver.verify(kc, mc, self.n_modes) for kc, mc in coeffs)
-            if worst > 1e-5:
-                self.log(f"diagnosis: reduced vs full FE {worst:.2e} at the optimum of {variant.name}; refitting")
-                return self.fit(variant, ev.x, index=ev.index, max_loops=2, verify=False)
-        return Fit(variant, ev, self.pair(ev.solutions))
+        return ev
 
 
 def term_directions(system: System) -> list[tuple[dict, dict]]:
@@ -318,7 +347,7 @@ def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
     lo, hi = p.t_bounds
     hi = hi if math.isfinite(hi) else 1e6
     span = hi - lo
-    base = float(np.clip(t_hat, lo + 1e-3 * span, hi))
+    base = float(np.clip(rounded_start(t_hat), lo + 1e-3 * span, hi))
     out = [base]
     for s in (3.0 * base, lo + 0.3 * span):
         s = float(np.clip(s, lo + 1e-3 * span, hi))
@@ -332,17 +361,28 @@ def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
     return out
 
 
+def best_fit(fits: list[Fit]) -> Fit:
+    """The fit of least chi-square over several starts; fits within :data:`TIE_RTOL` of it are one
+    optimum reached twice, and the first start's is taken.  Each chi-square is certified to the
+    solver tolerance only, so a strict minimum would pick between such twins by round-off, and an
+    identical question in another run could be answered from the other twin."""
+    low = min(f.chi2 for f in fits)
+    return next(f for f in fits if f.chi2 <= low + TIE_RTOL * abs(low) + 1e-9)
+
+
+def rounded_start(t: float) -> float:
+    """A start value from an estimate, to :data:`START_DIGITS` significant digits: a start is a guess,
+    and an estimate's last digits change with the subspace that computed it, so that rounded, a fit
+    asked again from the same estimate is the same question (:mod:`jointid.diagnosis.memo`)."""
+    return float(f"{float(t):.{START_DIGITS}g}")
+
+
 def refit(diag: Diagnoser, fit: Fit, spec: EffectSpec, t_hat: np.ndarray, *, verify: bool = True) -> Fit:
     """Fit ``fit.variant + spec`` from several starts of the new parameters; best by chi-square."""
     var = fit.variant.extended(spec)
     q = var.n_params - fit.variant.n_params
-    best = None
-    starts = refit_starts(spec, float(t_hat[0])) if q == 1 else [list(np.clip(t_hat, 0, None))]
-    for s in starts:
-        x0 = np.concatenate([fit.x, np.atleast_1d(s)])
-        f = diag.fit(var, x0, index=fit.ev.index)
-        if best is None or f.chi2 < best.chi2 - 1e-9:
-            best = f
+    starts = refit_starts(spec, float(t_hat[0])) if q == 1 else [[rounded_start(t) for t in np.clip(t_hat, 0, None)]]
+    best = best_fit([diag.fit(var, np.concatenate([fit.x, np.atleast_1d(s)]), index=fit.ev.index) for s in starts])
     if verify:
         best = diag.fit(var, best.x, index=best.ev.index, verify=True)
     return best

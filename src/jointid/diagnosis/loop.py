@@ -28,7 +28,7 @@ from jointid.correlate import pairing as correlate
 from jointid.diagnosis.ambiguity import absorption_notes, explain_tie, tie_groups
 from jointid.diagnosis.combine import combine_candidates
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
-from jointid.diagnosis.fitting import Diagnoser, Fit, print_log, refit
+from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, print_log, refit
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
 from jointid.diagnosis.statistics import extra_jacobian, identifiability, score_test, state_contrasts
@@ -80,7 +80,7 @@ def default_options() -> dict:
 def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: dict | None = None,
              candidates: list[str] | None = None, n_refit: int | None = None, alpha: float | None = None,
              reference_state: str | None = None, solver: ReducedSolver | None = None,
-             start_basis=None, compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
+             start_basis=None, memo=None, compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
     """Run the whole loop on measured states: compare, calibrate, score, refit, combine, rank, ladder, drift.
 
     Parameters
@@ -94,8 +94,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     candidates : list of str, optional
         Library effects to test (default: all not enabled).
     n_refit, alpha : optional
-        Override ``diagnosis.n_refit`` (leading candidates refitted) and ``diagnosis.alpha`` (a variant
-        explains the data when its chi-square p-value >= alpha).
+        Override ``diagnosis.n_refit`` (candidates refitted) and ``diagnosis.alpha`` (p-value to explain).
     reference_state : str, optional
         State the baseline is calibrated on for the comparison step (default: the state with the
         smallest motor force, first in order).
@@ -105,6 +104,8 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     start_basis : jointid.fe.warmstart.Kept, optional
         A basis the reduced solver starts from instead of the reference modes and their responses
         (kept from an earlier run, :mod:`jointid.fe.warmstart`).
+    memo : jointid.diagnosis.memo.FitMemo, optional
+        Fits recorded on the same model (:meth:`Diagnoser.fit`); every fit is recorded in it.
     compare, drift : bool
         Run the comparison step (baseline calibrated on the reference state) and the per-state drift
         fits (both on by default).
@@ -118,7 +119,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     opt.update({k: v for k, v in (("n_refit", n_refit), ("alpha", alpha)) if v is not None})
     alpha = float(opt["alpha"])
     enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
-    diag = Diagnoser(system, cfg, data, solver=solver, start_basis=start_basis, log=log)
+    diag = Diagnoser(system, cfg, data, solver=solver, start_basis=start_basis, memo=memo, log=log)
     notes = []
     base = Variant(system, cfg, [])
     check_enough_data(data, base)
@@ -186,7 +187,7 @@ def compare_reference(diag: Diagnoser, base: Variant, reference_state: str | Non
     if not compare:
         return x0, None
     sub = Diagnoser(diag.system, diag.cfg, [d for d in data if d.name == ref], n_modes=diag.n_modes,
-                    solver=diag.solver, log=log)
+                    solver=diag.solver, memo=diag.memo, log=log)
     log(f"diagnosis: calibrating the baseline on {ref}")
     fit_ref = sub.fit(base, x0)
     return fit_ref.x, compare_tables(diag, base, fit_ref.x)
@@ -205,14 +206,22 @@ def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log
         spec = EffectSpec(en.effect, dict(en.values), dict(en.options),
                           [p.name for p in en.effect.params] if en.fit else [])
         var = current.variant.extended(spec)
-        x0 = np.concatenate([current.x, [en.effect.param(n).to_t(en.values[n]) for n in spec.free]])
         log(f"diagnosis: calibrating {var.name}")
-        # from the configured values and from the effect at (almost) its null: a strong start can lock
-        # onto a pairing of its own, with the new modes it brings into the band as misfits
-        near = np.concatenate([current.x, [en.effect.param(n).t_near_null() for n in spec.free]])
-        starts = [x0] if np.allclose(near, x0) else [x0, near]
-        tried = [diag.fit(var, x, index=current.ev.index) for x in starts]
-        best = min(tried, key=lambda f: f.chi2)
+        if spec.free and not set(spec.free) & set(en.configured):
+            # no value given: fitted exactly as the candidate search refits it (the same starts), so
+            # the ladder's row is the refit the ranking reported for this effect
+            ev = diag.evaluate(current.variant, current.x, current.ev.index)
+            at = Fit(current.variant, ev, current.pairings)
+            st = score_candidate(diag, at, spec, np.zeros((0, len(ev.r))), {})
+            best = refit(diag, at, spec, st["t_hat"], verify=False)
+        else:
+            # from the configured values and from the effect at (almost) its null: a strong start can
+            # lock onto a pairing of its own, with the new modes it brings into the band as misfits
+            x0 = np.concatenate([current.x, [en.effect.param(n).to_t(en.values[n]) for n in spec.free]])
+            near = np.concatenate([current.x, [en.effect.param(n).t_near_null() for n in spec.free]])
+            starts = [x0] if np.allclose(near, x0) else [x0, near]
+            tried = [diag.fit(var, x, index=current.ev.index) for x in starts]
+            best = best_fit(tried)
         current = diag.fit(var, best.x, index=best.ev.index, verify=True) if en is enabled[-1] else best
         label = "+" + en.effect.name
         fits[label] = current

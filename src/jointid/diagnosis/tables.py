@@ -113,8 +113,8 @@ def drift_table(diag: Diagnoser, current: Fit, log, skip: bool = False) -> pd.Da
     one = Variant(diag.system, diag.cfg, fixed_specs, theta_fixed=var.theta_fixed)
     rows = []
     for k, d in enumerate(diag.data):
-        sub = Diagnoser(diag.system, diag.cfg, [d], n_modes=diag.n_modes, log=log)
-        sub.solver = diag.solver
+        sub = Diagnoser(diag.system, diag.cfg, [d], n_modes=diag.n_modes, solver=diag.solver, memo=diag.memo,
+                        log=log)
         if sum(np.asarray(current.ev.index[k]) >= 0) <= one.n_params:
             continue
         f = sub.fit(one, current.x[: one.n_params], index=[current.ev.index[k]])

@@ -107,10 +107,12 @@ class ReducedSolver:
         self._refined: dict = {}  # refined solutions by (coefficients, basis), see solve
         self._certified: dict = {}  # (coefficients, n, generation) -> (basis size, error) of a passed check
         self.n_checks = self.n_checks_skipped = 0
+        self.sturm_counts: dict = {}  # point_key -> [(frequency Hz, full-model modes below it)]
         self.log = None  # progress lines (certificates), e.g. print
         self.mc_ref = dict(mc)
         self._refactor(kc, mc)
         if basis is not None:
+            self.sturm_counts = {k: list(v) for k, v in getattr(basis, "sturm", {}).items()}
             self._start_from(basis)
             return
         phi, f = self._lanczos(kc, mc, self.n_modes + 4)
@@ -132,10 +134,10 @@ class ReducedSolver:
     def _start_from(self, kept):
         """Start from a kept basis (:class:`jointid.fe.warmstart.Kept`): taken as it is, with its
         reduced matrices, when it is M-orthonormal at these reference masses; else orthonormalised."""
+        V, kept.V = np.asfortranarray(kept.V), None  # taken over: the basis's first growth frees it
         if kept.mc_ref != self.mc_ref or set(kept.Kr) != set(self.K_terms) or set(kept.Mr) != set(self.M_terms):
-            self._append(np.asarray(kept.V))
+            self._append(V)
             return
-        V = np.asfortranarray(kept.V)
         self.basis.adopt(V, self.K_terms["K0"] @ V, self.M_terms["M0"] @ V)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
@@ -295,6 +297,12 @@ class ReducedSolver:
 
     def _key(self, kc: dict, mc: dict, n: int) -> tuple:
         return (tuple(sorted(kc.items())), tuple(sorted(mc.items())), n, self.generation, self.basis.r)
+
+    @staticmethod
+    def point_key(kc: dict, mc: dict) -> str:
+        """A text key of the coefficients ``(kc, mc)`` (exact: each value's hexadecimal float)."""
+        return ";".join(f"{k}={float(v).hex()}" for k, v in sorted(kc.items())) + "|" + \
+            ";".join(f"{k}={float(v).hex()}" for k, v in sorted(mc.items()))
 
     def _point(self, kc: dict, mc: dict, n: int) -> tuple:
         return (tuple(sorted(kc.items())), tuple(sorted(mc.items())), n, self.generation)

@@ -11,6 +11,11 @@ Every answer is certified as before (each point's full-space residual check at t
 tolerance, a Sturm count at the reported optima), so a warm run agrees with a run from scratch to
 that tolerance (1e-6 relative in each eigenvalue), not bit for bit.  A run from clean has no file
 to start from, so it stays bit-reproducible; ``diagnosis.reuse_subspace: false`` makes every run so.
+
+The file also keeps what the run learnt at single points of the model: its Sturm counts (a count is
+the model's, at those coefficients, whatever the subspace) and the records of its fits
+(:class:`jointid.diagnosis.memo.FitMemo`: a fit asked again with exactly the same inputs starts at
+its recorded optimum and is re-checked there).
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import hashlib
 import json
 import os
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -46,23 +51,30 @@ def fingerprint(system) -> str:
 @dataclass
 class Kept:
     """A basis kept by an earlier run: ``V (n_free, r)`` (M-orthonormal at the reference mass
-    coefficients ``mc_ref``) and the reduced matrices of every term, ``Kr``/``Mr`` (by term name)."""
+    coefficients ``mc_ref``) and the reduced matrices of every term, ``Kr``/``Mr`` (by term name).
+    A :class:`jointid.fe.reduced.ReducedSolver` started from it takes ``V`` over (sets it to None)."""
 
     V: np.ndarray
     Kr: dict
     Mr: dict
     mc_ref: dict
+    sturm: dict = field(default_factory=dict)
+    """Sturm counts made at points of this model (:attr:`jointid.fe.reduced.ReducedSolver.sturm_counts`)."""
+    fits: dict = field(default_factory=dict)
+    """Records of the fits made on this model (:class:`jointid.diagnosis.memo.FitMemo`)."""
 
 
-def save(path: str | Path, solver, system) -> None:
-    """Keep the first :data:`MAX_SAVED` columns of ``solver``'s basis with their reduced matrices and
-    the model's fingerprint; written to a temporary file and renamed, so a reader never sees half a
-    file."""
+def save(path: str | Path, solver, system, fits: dict | None = None) -> None:
+    """Keep the first :data:`MAX_SAVED` columns of ``solver``'s basis with their reduced matrices, its
+    Sturm counts, the records of the fits made (``fits``) and the model's fingerprint; written to a
+    temporary file and renamed, so a reader never sees half a file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     r = min(solver.V.shape[1], MAX_SAVED)
     arrays = {"V": np.asfortranarray(solver.V[:, :r]), "fingerprint": np.array(fingerprint(system)),
-              "mc_ref": np.array(json.dumps(solver.mc_ref, sort_keys=True))}
+              "mc_ref": np.array(json.dumps(solver.mc_ref, sort_keys=True)),
+              "sturm": np.array(json.dumps(solver.sturm_counts, sort_keys=True)),
+              "fits": np.array(json.dumps(fits or {}))}
     for group, red in (("K", solver.Kr), ("M", solver.Mr)):
         arrays.update({f"{group}r:{name}": A[:r, :r] for name, A in red.items()})
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
@@ -85,8 +97,10 @@ def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
                 return None, f"{path}: kept for another model: starting afresh"
             V = f["V"]
             red = {g: {k.split(":", 1)[1]: f[k] for k in f.files if k.startswith(g + "r:")} for g in "KM"}
-            kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])))
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+            extra = {k: json.loads(str(f[k])) if k in f.files else {} for k in ("sturm", "fits")}
+            sturm = {k: [(float(a), int(c)) for a, c in v] for k, v in extra["sturm"].items()}
+            kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])), sturm, extra["fits"])
+    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         return None, f"{path}: unreadable ({exc}): starting afresh"
     r = V.shape[1] if V.ndim == 2 else -1
     if V.ndim != 2 or V.shape[0] != n_free or not np.isfinite(V).all() or \

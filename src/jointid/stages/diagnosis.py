@@ -15,6 +15,7 @@ from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
 from jointid.diagnosis.history import append_history, history_row
 from jointid.diagnosis.loop import Diagnosis, diagnose
+from jointid.diagnosis.memo import FitMemo
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.terms import build_system
 from jointid.diagnosis.variants import dataset_states
@@ -38,19 +39,23 @@ def _kept_file(cfg: dict, subspace: str | None) -> str | None:
     return subspace if (cfg.get("diagnosis") or {}).get("reuse_subspace", True) else None
 
 
-def _warm(cfg: dict, system, subspace: str | None, log):
-    """The basis kept by the last run at ``subspace`` (None when there is none, it is of another
-    model, or ``diagnosis.reuse_subspace`` is false)."""
+def _warm(cfg: dict, system, subspace: str | None, log) -> tuple:
+    """What the last run kept at ``subspace``: its basis and a :class:`FitMemo` of its fits (an empty
+    one when there is nothing to start from); ``(None, None)`` when ``diagnosis.reuse_subspace`` is
+    false."""
     if _kept_file(cfg, subspace) is None:
-        return None
+        return None, None
     kept, why = warmstart.load(subspace, system, len(free_dofs(system.n_dofs, system.fixed)))
     log(f"diagnosis: {why}")
-    return kept
+    return kept, FitMemo(kept.fits if kept is not None else None)
 
 
-def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis) -> None:
+def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis, memo: FitMemo | None, log) -> None:
+    if memo is not None and memo.hits:
+        log(f"diagnosis: {memo.hits} of {memo.hits + memo.misses} fits asked exactly as in an earlier run: "
+            "evaluated at the recorded optimum and re-checked, not searched again")
     if _kept_file(cfg, subspace) is not None and res.solver:
-        warmstart.save(subspace, res.solver, system)
+        warmstart.save(subspace, res.solver, system, memo.records if memo is not None else None)
 
 
 def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
@@ -65,8 +70,9 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
     final basis is kept in and the next run starts from (``diagnosis.reuse_subspace``).
     """
     system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    res = diagnose(system, cfg, data, start_basis=_warm(cfg, system, subspace, log), log=log)
-    _keep(cfg, system, subspace, res)
+    kept, memo = _warm(cfg, system, subspace, log)
+    res = diagnose(system, cfg, data, start_basis=kept, memo=memo, log=log)
+    _keep(cfg, system, subspace, res, memo, log)
     h = config_hash({k: v for k, v in cfg.items() if k != "dataset"})
     run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": h,
            "n_dofs": system.n_dofs, "dataset_path": str(dataset_path), "states": [d.name for d in data]}
@@ -88,9 +94,9 @@ def run_current(cfg: dict, dataset_path: str, matrices: str | None, out_dir: str
     diagnosis' answer (``ranking.csv``).  ``subspace`` as for :func:`run_diagnosis` (the same file).
     """
     system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    res = diagnose(system, cfg, data, candidates=[], drift=False, start_basis=_warm(cfg, system, subspace, log),
-                   log=log)
-    _keep(cfg, system, subspace, res)
+    kept, memo = _warm(cfg, system, subspace, log)
+    res = diagnose(system, cfg, data, candidates=[], drift=False, start_basis=kept, memo=memo, log=log)
+    _keep(cfg, system, subspace, res, memo, log)
     out = Path(out_dir)
     io.write_csv(res.ladder, out / "ladder.csv")
     io.write_csv(res.current, out / "current.csv")

@@ -1,0 +1,96 @@
+"""Fits remembered from one diagnosis run to the next (jointid.diagnosis.memo): the digest changes with
+every input of a fit, records read back exactly, and a fit asked again is evaluated at its recorded
+optimum (no search) with the answer of a search to the solver tolerance."""
+
+from pathlib import Path
+
+import numpy as np
+
+from jointid.diagnosis.memo import FitMemo, _feed
+
+HIDDEN = Path(__file__).parent / "hidden"
+
+
+def _digest(obj):
+    import hashlib
+
+    h = hashlib.sha256()
+    _feed(h, obj)
+    return h.hexdigest()
+
+
+def test_the_digest_is_exact_and_sees_every_input():
+    x = np.array([1.0, 2.0, 3.0])
+    base = {"a": x, "b": [1, "s", None, 0.1], "c": {"d": 2.5}}
+    assert _digest(base) == _digest({"a": x.copy(), "b": [1, "s", None, 0.1], "c": {"d": 2.5}})
+    y = x.copy()
+    y[1] = np.nextafter(y[1], 3.0)  # one ulp
+    assert _digest({**base, "a": y}) != _digest(base)
+    assert _digest({**base, "b": [1, "s", None, 0.1 + 1e-17 * 8]}) != _digest(base)
+    assert _digest({**base, "c": {"d": 2.5, "e": 0}}) != _digest(base)
+    assert _digest([1, 2]) != _digest((1, 2, 3)) and _digest(1) != _digest(1.0) and _digest("1") != _digest(1)
+
+
+class _Ev:
+    def __init__(self):
+        self.x = np.array([np.pi, -1 / 3, 1e-300])
+        self.index = [np.array([0, 2, -1]), np.array([1, 2, 3])]
+        self.misfits = [(np.array([4]), np.array([1234.5678901234]), np.array([1300.0])), (np.zeros(0, int), np.zeros(0), np.zeros(0))]
+
+
+def test_records_read_back_exactly_and_count_hits():
+    m = FitMemo()
+    assert m.get("k") is None and m.misses == 1
+    m.put("k", _Ev())
+    again = FitMemo(m.records)  # as read back from the kept file
+    rec = again.get("k")
+    ev = _Ev()
+    assert again.hits == 1 and np.array_equal(rec["x"], ev.x)
+    assert all(np.array_equal(a, b) for a, b in zip(rec["index"], ev.index))
+    assert np.array_equal(rec["misfits"][0][0], [4]) and rec["misfits"][0][1][0] == 1234.5678901234
+    assert rec["misfits"][1][0].size == 0
+
+
+def test_a_fit_asked_again_is_evaluated_at_its_recorded_optimum(tmp_path):
+    from conftest import diagnosis_rig
+
+    from jointid.diagnosis import synth
+    from jointid.diagnosis.fitting import Diagnoser
+    from jointid.diagnosis.variants import Variant
+    from jointid.stages.diagnosis import _system_and_data
+
+    rig = diagnosis_rig()
+    cfg = rig["cfg"]
+    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), cfg, tmp_path / "ds", model=rig["model"])
+    system, data = _system_and_data(cfg, tmp_path / "ds", None, rig["model"])
+    memo = FitMemo()
+    first = Diagnoser(system, cfg, data, memo=memo, log=lambda m: None)
+    base = Variant(system, cfg, [])
+    f1 = first.fit(base, base.x_start())
+    assert memo.misses == 1 and len(memo.records) == 1
+    searched = first.solver.n_checks
+    second = Diagnoser(system, cfg, data, memo=FitMemo(memo.records), log=lambda m: None)
+    f2 = second.fit(base, base.x_start())
+    assert second.memo.hits == 1
+    assert np.array_equal(f2.x, f1.x) and np.isclose(f2.chi2, f1.chi2, rtol=1e-6)
+    assert [list(i) for i in f2.ev.index] == [list(i) for i in f1.ev.index]
+    assert second.solver.n_checks < searched  # one evaluation at the optimum, no search
+    # another start is another question: searched, and recorded
+    f3 = second.fit(base, base.x_start() + 0.1)
+    assert second.memo.misses == 1 and len(second.memo.records) == 2 and np.isfinite(f3.chi2)
+    # other data: another context, nothing recorded applies
+    other = Diagnoser(system, cfg, data[:1], memo=FitMemo(memo.records), log=lambda m: None)
+    other.fit(base, base.x_start())
+    assert other.memo.hits == 0
+
+
+def test_starts_differing_in_their_last_digits_are_one_start():
+    from types import SimpleNamespace
+
+    var = SimpleNamespace(joint_names=["a"], theta_fixed={}, lower=np.zeros(2), upper=np.ones(2), effects=[])
+    x = np.array([26.7, 0.123456789])
+    k = FitMemo.key("ctx", var, x, None, 4)
+    assert FitMemo.key("ctx", var, x * (1 + 1e-13), None, 4) == k
+    assert FitMemo.key("ctx", var, x + np.array([0, 1e-6]), None, 4) != k
+    assert FitMemo.key("ctx", var, x, [np.array([0, 1])], 4) != k
+    assert FitMemo.key("ctx", var, x, None, 2) != k and FitMemo.key("other", var, x, None, 4) != k
