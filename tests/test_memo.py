@@ -94,3 +94,32 @@ def test_starts_differing_in_their_last_digits_are_one_start():
     assert FitMemo.key("ctx", var, x + np.array([0, 1e-6]), None, 4) != k
     assert FitMemo.key("ctx", var, x, [np.array([0, 1])], 4) != k
     assert FitMemo.key("ctx", var, x, None, 2) != k and FitMemo.key("other", var, x, None, 4) != k
+
+
+def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
+    """The loop of docs/effects.md: the diagnosis refits em_preload as a candidate; enabling it
+    without a value, the next run calibrates it from the same starts, so its ladder row is that refit,
+    taken from the record (no search, the Sturm counts at its optimum not made again)."""
+    from conftest import diagnosis_rig
+
+    from jointid.diagnosis import synth
+    from jointid.diagnosis.loop import diagnose
+    from jointid.stages.diagnosis import _system_and_data
+
+    rig = diagnosis_rig()
+    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), rig["cfg"], tmp_path / "ds", model=rig["model"])
+    system, data = _system_and_data(rig["cfg"], tmp_path / "ds", None, rig["model"])
+    memo = FitMemo()
+    first = diagnose(system, rig["cfg"], data, candidates=["em_preload"], drift=False, memo=memo, log=lambda m: None)
+    refit = first.ranking.set_index("effect").loc["em_preload"]
+    assert refit["explains"] and memo.hits == 0
+    lines = []
+    again = FitMemo(memo.records)
+    cfg = {**rig["cfg"], "effects": {"em_preload": {}}}
+    first.solver.log = lines.append  # the solver keeps its Sturm counts (a next run reads them from the kept file)
+    second = diagnose(system, cfg, data, candidates=[], drift=False, memo=again, solver=first.solver,
+                      log=lines.append)
+    row = second.ladder[second.ladder.variant == "+em_preload"]
+    assert np.allclose(row["chi2"], refit["fit_chi2"], rtol=1e-9)
+    assert again.misses == 0 and again.hits >= 4  # two baseline calibrations, the starts, the certified optimum
+    assert any("counted before at this point" in ln for ln in lines)
