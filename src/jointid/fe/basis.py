@@ -1,8 +1,7 @@
 """Storage of a growing subspace basis and its products with the two base terms.
 
-The columns live in Fortran-ordered buffers that grow by a quarter (:data:`GROWTH`) when full, so an
-append rarely copies what is stored, and a basis of a few hundred vectors (a kept one, or a long
-diagnosis) does not hold twice the room it needs in each of its three arrays.  ``K0 V`` and ``M0 V`` are kept beside ``V`` while the two products fit in
+The columns live in Fortran-ordered buffers that double when full, so appending copies nothing
+already stored.  ``K0 V`` and ``M0 V`` are kept beside ``V`` while the two products fit in
 :data:`BASE_PRODUCT_BYTES`: a full-space residual ``K(c) V y - lambda M(m) V y`` then needs neither
 an assembly nor a product with the whole stiffness (the other terms touch few rows).
 """
@@ -11,8 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-GROWTH = 1.25
-"""Capacity factor of a full buffer (at least 64 columns more)."""
 BASE_PRODUCT_BYTES = 1.5e9
 """Largest memory for the cached products ``K0 V`` and ``M0 V`` together (beyond it: sparse products)."""
 
@@ -60,7 +57,7 @@ class GrowingBasis:
         n, cap0 = self._V.shape
         if self.r + extra <= cap0:
             return
-        cap = max(self.r + extra, int(GROWTH * cap0), cap0 + 64)
+        cap = max(self.r + extra, 2 * cap0, 64)
         self.keep_products = self.keep_products and 2 * cap * n * 8 <= BASE_PRODUCT_BYTES
         self._V = self._copy(self._V, cap)
         if self.keep_products:
