@@ -123,3 +123,16 @@ def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
     assert np.allclose(row["chi2"], refit["fit_chi2"], rtol=1e-9)
     assert again.misses == 0 and again.hits >= 4  # two baseline calibrations, the starts, the certified optimum
     assert any("counted before at this point" in ln for ln in lines)
+
+
+def test_near_tied_optima_are_taken_in_start_order_and_rounded_starts():
+    from types import SimpleNamespace
+
+    from jointid.diagnosis.fitting import best_fit, rounded_start
+
+    a, b, c = (SimpleNamespace(chi2=v) for v in (100.00001, 100.0, 150.0))
+    assert best_fit([a, b, c]) is a  # within 1e-6: one optimum reached twice, the first start's
+    assert best_fit([c, SimpleNamespace(chi2=99.0), a]).chi2 == 99.0
+    assert best_fit([SimpleNamespace(chi2=float("nan")), c]) is c
+    assert rounded_start(0.2978484991548744) == 0.298 and rounded_start(0.2978502) == 0.298
+    assert rounded_start(1.2345e-5) == 1.23e-5

@@ -366,8 +366,11 @@ def best_fit(fits: list[Fit]) -> Fit:
     optimum reached twice, and the first start's is taken.  Each chi-square is certified to the
     solver tolerance only, so a strict minimum would pick between such twins by round-off, and an
     identical question in another run could be answered from the other twin."""
-    low = min(f.chi2 for f in fits)
-    return next(f for f in fits if f.chi2 <= low + TIE_RTOL * abs(low) + 1e-9)
+    finite = [f for f in fits if np.isfinite(f.chi2)]
+    if not finite:
+        return fits[0]
+    low = min(f.chi2 for f in finite)
+    return next(f for f in finite if f.chi2 <= low + TIE_RTOL * abs(low) + 1e-9)
 
 
 def rounded_start(t: float) -> float:
