@@ -82,7 +82,8 @@ def profile_preload(diag: Diagnoser, fit: Fit, log) -> tuple[Fit, pd.DataFrame, 
     minimize_scalar(lambda v: at(math.exp(v) - 25.0).chi2, bounds=(u(lo_P), u(hi_P)), method="bounded",
                           options={"xatol": 0.02})
     P_best = min(done, key=lambda q: done[q].chi2)
-    level = done[P_best].chi2 + CHI2_1_95
+    # the profile's 95 % level, widened as the intervals are when the fit is worse than the noise
+    level = done[P_best].chi2 + CHI2_1_95 * done[P_best].interval_scale(1) ** 2
     g = lambda v: at(math.exp(v) - 25.0).chi2 - level  # noqa: E731
     ends = []
     for side in (-1, 1):
@@ -185,7 +186,7 @@ def identifiable_text(ratios: pd.DataFrame, curve: pd.DataFrame | None, profile:
 
 
 def _beta_ci(fit: Fit, j: int) -> tuple[float, float]:
-    sd = float(np.sqrt(max(fit.covariance()[j, j], 0.0)))
+    sd = float(np.sqrt(max(fit.scaled_covariance()[j, j], 0.0)))
     b = float(fit.x[j])
     return max(b - 1.96 * sd, 0.0), min(b + 1.96 * sd, 1.0)
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 from jointid.diagnosis.statistics import aicc, chi2_p_value
@@ -78,9 +80,24 @@ class Fit:
         return aicc(self.chi2, self.n, self.k)
 
     def covariance(self) -> np.ndarray:
-        """Covariance of ``x``: ``(J^T J)^+`` (residuals in units of sigma)."""
+        """Covariance of ``x``: ``(J^T J)^+`` (residuals in units of sigma): right when the model fits
+        within the noise; the reported intervals use :meth:`scaled_covariance`."""
         J = self.ev.J
         return np.linalg.pinv(J.T @ J)
+
+    def interval_scale(self, extra_params: int = 0) -> float:
+        """``max(1, sqrt(chi2 / dof))``: how much wider than the noise alone the intervals are taken.
+        A fit worse than the measurement uncertainty misses something the noise does not cover, and
+        its local curvature then understates how far the parameters could move (in a flat valley
+        far above the noise, by the same factor).  ``extra_params`` counts parameters chosen
+        outside ``x`` (e.g. a profiled preload): they take degrees of freedom too."""
+        dof = max(self.n - self.k - extra_params, 1)
+        return max(1.0, math.sqrt(self.chi2 / dof))
+
+    def scaled_covariance(self, extra_params: int = 0) -> np.ndarray:
+        """:meth:`covariance` times :meth:`interval_scale` squared: the covariance every reported
+        95 % interval of the diagnosis comes from (as the identification's and the hypotheses')."""
+        return self.covariance() * self.interval_scale(extra_params) ** 2
 
     def errors_pct(self, data: list[StateData]) -> list[np.ndarray]:
         """Frequency error (%) per measured mode and state (NaN unpaired)."""
@@ -123,7 +140,7 @@ def refit_row(f: Fit, current: Fit, data: list[StateData], alpha: float, extra_p
     ``extra_params`` counts parameters profiled outside ``x`` (e.g. a preload chosen on a grid): they
     enter the AICc and the degrees of freedom.
     """
-    cov = f.covariance()
+    cov = f.scaled_covariance(extra_params)
     j = f.variant.n_params - 1
     p0 = f.variant.slots[-1][1]
     t, sd = float(f.x[j]), float(np.sqrt(max(cov[j, j], 0.0)))
@@ -134,6 +151,6 @@ def refit_row(f: Fit, current: Fit, data: list[StateData], alpha: float, extra_p
     p_value = chi2_p_value(f.chi2, max(f.n - k, 1))
     return {"delta_aicc": aicc(f.chi2, f.n, k) - current.aicc, "fit_chi2": f.chi2, "fit_p_value": p_value,
             "explains": bool(p_value >= alpha), "estimate": p0.from_t(t), "ci95_low": vals[0],
-            "ci95_high": vals[1],
+            "ci95_high": vals[1], "interval_scale": f.interval_scale(extra_params),
             "max_abs_error_pct_after": max(s["max_abs_error_pct"] for s in summ) if summ else np.nan,
             "rms_error_pct_after": float(np.sqrt(np.mean([s["rms_error_pct"] ** 2 for s in summ]))) if summ else np.nan}

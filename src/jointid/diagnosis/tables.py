@@ -37,7 +37,7 @@ def ranking_frame(rows: list[dict]) -> pd.DataFrame:
     """The candidate ranking: refitted candidates first (explaining ones, then by delta AICc), then
     the rest by score; ``rank`` numbers the rows from 1."""
     cols = ["rank", "effect", "explained_fraction", "score", "p_value", "delta_aicc", "explains", "parameter",
-            "unit", "estimate", "ci95_low", "ci95_high", "linear_estimate", "fit_chi2", "fit_p_value",
+            "unit", "estimate", "ci95_low", "ci95_high", "interval_scale", "linear_estimate", "fit_chi2", "fit_p_value",
             "max_abs_error_pct_after", "rms_error_pct_after", "between_states_fraction",
             "between_states_p_value", "collinearity", "title", "note", "identifiable", "enable_with"]
     df = pd.DataFrame(rows)
@@ -56,10 +56,11 @@ def ranking_frame(rows: list[dict]) -> pd.DataFrame:
 
 
 def parameter_table(fits: dict) -> pd.DataFrame:
-    """Fitted parameters of every fit (physical units) with 95 % intervals and an on-bound flag."""
+    """Fitted parameters of every fit (physical units) with 95 % intervals (widened by the fit's
+    :meth:`~jointid.diagnosis.results.Fit.interval_scale`) and an on-bound flag."""
     rows = []
     for label, f in fits.items():
-        cov = f.covariance()
+        cov = f.scaled_covariance()
         for j, (lab, val) in enumerate(f.variant.physical(f.x).items()):
             sd = float(np.sqrt(max(cov[j, j], 0.0)))
             if j < f.variant.p:
@@ -71,6 +72,7 @@ def parameter_table(fits: dict) -> pd.DataFrame:
                 v = sorted([p.from_t(a) if a != 0 else p.null, p.from_t(b)])
                 lo, hi = v
             rows.append({"variant": label, "parameter": lab, "value": val, "ci95_low": lo, "ci95_high": hi,
+                         "interval_scale": f.interval_scale(),
                          "on_bound": bool(min(f.x[j] - f.variant.lower[j], f.variant.upper[j] - f.x[j]) < 1e-6)})
     return pd.DataFrame(rows)
 
@@ -118,7 +120,7 @@ def drift_table(diag: Diagnoser, current: Fit, log, skip: bool = False) -> pd.Da
         if sum(np.asarray(current.ev.index[k]) >= 0) <= one.n_params:
             continue
         f = sub.fit(one, current.x[: one.n_params], index=[current.ev.index[k]])
-        cov = f.covariance()
+        cov = f.scaled_covariance()  # a drift is judged against what the fit leaves, not the noise alone
         for j, n in enumerate(one.joint_names):
             sd = float(np.sqrt(max(cov[j, j], 0.0)))
             rows.append({"parameter": n, "state": d.name, "value": math.exp(f.x[j]),
