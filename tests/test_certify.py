@@ -115,3 +115,24 @@ def test_a_sturm_count_at_a_point_is_made_once_and_kept_with_the_subspace(model,
     warm.sturm_counts = {k: [(1.0, c) for _, c in v] for k, v in warm.sturm_counts.items()}
     warm.verify(*NEAR2, N_MODES)
     assert len(counts) == 3
+
+
+def test_single_precision_base_products_leave_the_error_estimate_unchanged(model):
+    """``K0 V`` and ``M0 V`` are kept in single precision (jointid.fe.basis): the check's estimate
+    agrees with the one from double-precision sparse products to well within what a check decides."""
+    from jointid.fe import certify
+
+    rs = _solver(model)
+    assert rs.basis.KV.dtype == np.float32
+    for pt in (NEAR, NEAR2, FAR):
+        single = certify.check_points(rs, [pt], N_MODES)[0]
+        kept = rs.basis._KV, rs.basis._MV
+        rs.basis._KV = rs.basis._MV = None  # the residuals from the sparse terms, in double precision
+        double = certify.check_points(rs, [pt], N_MODES)[0]
+        rs.basis._KV, rs.basis._MV = kept
+        np.testing.assert_allclose(single.err, double.err, rtol=1e-3, atol=1e-12)
+        # and it stays an estimate of the true eigenvalue error: never below it by more than round-off
+        # (conservative far from the reference, where the shift is far from the eigenvalue)
+        exact = (TWO_PI * _exact_Hz(model, *pt, N_MODES)) ** 2
+        true = (single.lam[:N_MODES] - exact) / exact
+        assert np.all(single.err >= 0.5 * true - 1e-12) and np.all(single.err <= 5.0 * true + 1e-11)

@@ -63,6 +63,29 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     assert sol.error <= moved.tol and np.allclose(sol.freqs_Hz, ref.freqs_Hz, rtol=1e-6)
 
 
+def test_points_certified_on_the_kept_columns_are_not_checked_again(tmp_path):
+    m = _model()
+    rs = _solver(m)
+    point = ({"K_a": 3e5}, {})
+    first = rs.solve(*point, 4)  # checked in the full space on this basis
+    assert first.error <= rs.tol
+    warmstart.save(tmp_path / "s.npz", rs, m)
+    kept = warmstart.load(tmp_path / "s.npz", m, 29)[0]
+    assert len(kept.certified) >= 1
+    warm = _solver(m, kept=kept)
+    checks = warm.n_checks
+    again = warm.solve(*point, 4)
+    assert warm.n_checks == checks and warm.n_checks_skipped == 1  # the kept certificate answers
+    np.testing.assert_allclose(again.freqs_Hz, first.freqs_Hz, rtol=1e-12)
+    assert again.error == first.error
+    # a point the last run never checked is checked as always
+    warm.solve({"K_a": 7e5}, {}, 4)
+    assert warm.n_checks == checks + 1
+    # a certificate asks for a fresh check (recheck), whatever was kept
+    warm.verify(*point, 4)
+    assert warm.n_checks == checks + 2
+
+
 def test_a_warm_quick_half_agrees_with_a_cold_one(tmp_path):
     """The second run starts from the first run's basis (smaller set-up, no Lanczos solve) and
     reports the same ladder to the certified tolerance; with reuse_subspace false nothing is kept."""

@@ -245,8 +245,9 @@ class Diagnoser:
         """Bounded least squares of ``variant`` from ``x0``; pairing re-done until stable.
 
         With a :class:`jointid.diagnosis.memo.FitMemo` (``memo``), a fit asked with exactly the inputs
-        of a recorded one is evaluated at the recorded optimum, pairing and misfit set (re-checked
-        in the full space) instead of being searched again; every fit searched is recorded.
+        of a recorded one is evaluated at the recorded optimum, pairing and misfit set (checked in
+        the full space, or certified by a check kept with the subspace) instead of being searched
+        again; every fit searched is recorded.
         ``verify``: the optimum is certified (:meth:`ReducedSolver.verify`) and refitted if it fails.
         """
         x0 = np.clip(np.asarray(x0, float), variant.lower, variant.upper)

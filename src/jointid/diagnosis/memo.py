@@ -15,8 +15,9 @@ depends on:
   solver's mode count and tolerance.
 
 A fit asked again with the same digest is not searched again: the Diagnoser evaluates the variant
-at the recorded optimum with the recorded pairing and misfit set, re-checked in the full space as
-every answer is (:meth:`jointid.diagnosis.fitting.Diagnoser.fit`), and certifies it there when asked
+at the recorded optimum with the recorded pairing and misfit set, checked in the full space as
+every answer is (:meth:`jointid.diagnosis.fitting.Diagnoser.fit`; a check that passed on the kept
+basis vectors holds on them still, :mod:`jointid.fe.warmstart`), and certifies it there when asked
 (Sturm counts at the same point are themselves kept, :mod:`jointid.fe.warmstart`).  The answer equals
 the search's to the solver tolerance; the model is the one the records were made on (the kept file's
 fingerprint).  A run from clean has no records and stays bit-reproducible.

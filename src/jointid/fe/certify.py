@@ -67,12 +67,9 @@ def check_points(rs: ReducedSolver, points: list[tuple[dict, dict]], n: int) -> 
 def _base_products(rs: ReducedSolver, Ys: list[np.ndarray], group: str) -> list[np.ndarray | None]:
     """``K0 V Y`` (or ``M0 V Y``) of every point from the cached product with the basis, as one
     product when there are several points (None per point when the product is not cached)."""
-    cached = rs.basis.KV if group == "K" else rs.basis.MV
-    if cached is None:
-        return [None] * len(Ys)
-    if len(Ys) == 1:
-        return [cached @ Ys[0]]
-    prod = cached @ np.hstack(Ys)
+    prod = rs.basis.product(group, Ys[0] if len(Ys) == 1 else np.hstack(Ys))
+    if prod is None or len(Ys) == 1:
+        return [prod] * len(Ys)
     out, at = [], 0
     for Y in Ys:
         out.append(prod[:, at: at + Y.shape[1]])

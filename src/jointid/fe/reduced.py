@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from jointid.errors import ModelError
 from jointid.fe import certify
-from jointid.fe.basis import GrowingBasis
+from jointid.fe.basis import PRODUCT_DTYPE, GrowingBasis
 from jointid.fe.certify import Check
 from jointid.fe.modal import TWO_PI, factorize_pencil, shift_invert_lanczos
 from jointid.fe.pencil import FreePencil
@@ -97,8 +97,7 @@ class ReducedSolver:
                 rows = np.flatnonzero(np.diff(A.indptr) > 0)
                 self._rows[k] = (rows, A[rows][:, rows].tocsr()) if len(rows) < 0.5 * A.shape[0] else None
         self.P = system.probe[:, sel].tocsr() if len(sel) < n else system.probe.tocsr()
-        self.n_full_solves = 0
-        self.n_refine = 0
+        self.n_full_solves = self.n_refine = 0
         self.generation = 0
         self.basis = GrowingBasis(len(sel))
         self.Kr = {k: np.zeros((0, 0)) for k in self.K_terms}
@@ -138,9 +137,12 @@ class ReducedSolver:
         if kept.mc_ref != self.mc_ref or set(kept.Kr) != set(self.K_terms) or set(kept.Mr) != set(self.M_terms):
             self._append(V)
             return
-        self.basis.adopt(V, self.K_terms["K0"] @ V, self.M_terms["M0"] @ V)
+        # each product cast to the basis's storage as formed (one double-precision product at a time)
+        self.basis.adopt(V, *((self.K_terms["K0"] @ V).astype(PRODUCT_DTYPE, order="F"),
+                              (self.M_terms["M0"] @ V).astype(PRODUCT_DTYPE, order="F")))
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
+        self._certified.update(kept.certified_at(self.generation) if hasattr(kept, "certified_at") else {})
         self._regroup()
 
     @property
@@ -270,14 +272,12 @@ class ReducedSolver:
         base term from its cached product with the basis (``base_product``: that product with ``Y``,
         when already formed), every other term on the rows it touches."""
         terms, base = (self.K_terms, "K0") if group == "K" else (self.M_terms, "M0")
-        cached = self.basis.KV if group == "K" else self.basis.MV
         V = self.V
         c0 = 1.0 + coeffs.get(base, 0.0)
         phi = None
+        base_product = base_product if base_product is not None else self.basis.product(group, Y)
         if base_product is not None:
             out = c0 * base_product
-        elif cached is not None:
-            out = c0 * (cached @ Y)
         else:
             phi = V @ Y
             out = c0 * (terms[base] @ phi)

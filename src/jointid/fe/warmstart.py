@@ -13,9 +13,11 @@ that tolerance (1e-6 relative in each eigenvalue), not bit for bit.  A run from 
 to start from, so it stays bit-reproducible; ``diagnosis.reuse_subspace: false`` makes every run so.
 
 The file also keeps what the run learnt at single points of the model: its Sturm counts (a count is
-the model's, at those coefficients, whatever the subspace) and the records of its fits
+the model's, at those coefficients, whatever the subspace), the points whose full-space check passed
+on the kept columns (still passed on the same columns: a run that asks them again checks nothing
+there unless it re-certifies an optimum) and the records of its fits
 (:class:`jointid.diagnosis.memo.FitMemo`: a fit asked again with exactly the same inputs starts at
-its recorded optimum and is re-checked there).
+its recorded optimum and is checked there, unless a kept check already passed there).
 """
 
 from __future__ import annotations
@@ -62,6 +64,21 @@ class Kept:
     """Sturm counts made at points of this model (:attr:`jointid.fe.reduced.ReducedSolver.sturm_counts`)."""
     fits: dict = field(default_factory=dict)
     """Records of the fits made on this model (:class:`jointid.diagnosis.memo.FitMemo`)."""
+    certified: dict = field(default_factory=dict)
+    """Points whose full-space check passed on the first ``r`` columns of ``V``: ``"<point key>#<n>"``
+    -> ``(r, estimated error)`` (see :func:`certified_entries`)."""
+
+    def certified_at(self, generation: int) -> dict:
+        """The kept certificates as :class:`jointid.fe.reduced.ReducedSolver` keys of ``generation``.
+        A check passed on the first ``r`` columns holds on any basis that contains them: a Ritz value
+        on a larger subspace lies between the earlier one and the exact eigenvalue (Poincaré)."""
+        out = {}
+        for key, (r, worst) in self.certified.items():
+            point, n = key.rsplit("#", 1)
+            kc, mc = (tuple(sorted((k, float.fromhex(v)) for k, v in (e.split("=") for e in part.split(";") if e)))
+                      for part in point.split("|"))
+            out[(kc, mc, int(n), generation)] = (int(r), float(worst))
+        return out
 
 
 def save(path: str | Path, solver, system, fits: dict | None = None) -> None:
@@ -74,7 +91,8 @@ def save(path: str | Path, solver, system, fits: dict | None = None) -> None:
     arrays = {"V": np.asfortranarray(solver.V[:, :r]), "fingerprint": np.array(fingerprint(system)),
               "mc_ref": np.array(json.dumps(solver.mc_ref, sort_keys=True)),
               "sturm": np.array(json.dumps(solver.sturm_counts, sort_keys=True)),
-              "fits": np.array(json.dumps(fits or {}))}
+              "fits": np.array(json.dumps(fits or {})),
+              "certified": np.array(json.dumps(certified_entries(solver, r), sort_keys=True))}
     for group, red in (("K", solver.Kr), ("M", solver.Mr)):
         arrays.update({f"{group}r:{name}": A[:r, :r] for name, A in red.items()})
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
@@ -83,6 +101,16 @@ def save(path: str | Path, solver, system, fits: dict | None = None) -> None:
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def certified_entries(solver, r: int) -> dict:
+    """The points ``solver`` certified on its present generation within the first ``r`` basis columns
+    (those kept): ``"<point key>#<n>"`` -> ``(basis size, estimated error)``."""
+    out = {}
+    for (kc, mc, n, generation), (size, worst) in solver._certified.items():
+        if generation == solver.generation and size <= r:
+            out[f"{solver.point_key(dict(kc), dict(mc))}#{n}"] = (int(size), float(worst))
+    return out
 
 
 def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
@@ -97,9 +125,9 @@ def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
                 return None, f"{path}: kept for another model: starting afresh"
             V = f["V"]
             red = {g: {k.split(":", 1)[1]: f[k] for k in f.files if k.startswith(g + "r:")} for g in "KM"}
-            extra = {k: json.loads(str(f[k])) if k in f.files else {} for k in ("sturm", "fits")}
+            extra = {k: json.loads(str(f[k])) if k in f.files else {} for k in ("sturm", "fits", "certified")}
             sturm = {k: [(float(a), int(c)) for a, c in v] for k, v in extra["sturm"].items()}
-            kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])), sturm, extra["fits"])
+            kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])), sturm, extra["fits"], extra["certified"])
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         return None, f"{path}: unreadable ({exc}): starting afresh"
     r = V.shape[1] if V.ndim == 2 else -1

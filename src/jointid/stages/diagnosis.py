@@ -53,7 +53,8 @@ def _warm(cfg: dict, system, subspace: str | None, log) -> tuple:
 def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis, memo: FitMemo | None, log) -> None:
     if memo is not None and memo.hits:
         log(f"diagnosis: {memo.hits} of {memo.hits + memo.misses} fits asked exactly as in an earlier run: "
-            "evaluated at the recorded optimum and re-checked, not searched again")
+            "evaluated at the recorded optimum (re-checked there unless its check passed on the kept subspace), "
+            "not searched again")
     if _kept_file(cfg, subspace) is not None and res.solver:
         warmstart.save(subspace, res.solver, system, memo.records if memo is not None else None)
 
