@@ -9,9 +9,8 @@ Produced by :class:`jointid.diagnosis.fitting.Diagnoser`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
