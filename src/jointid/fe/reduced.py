@@ -142,7 +142,7 @@ class ReducedSolver:
                               (self.M_terms["M0"] @ V).astype(PRODUCT_DTYPE, order="F")))
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
-        self._certified.update(kept.certified_at(self.generation) if hasattr(kept, "certified_at") else {})
+        self._certified.update(kept.certified_at(self.generation))
         self._regroup()
 
     @property
