@@ -24,6 +24,7 @@ from jointid.diagnosis import synth
 from jointid.diagnosis.effects import pressure_ratio
 from jointid.diagnosis.history import history_row
 from jointid.diagnosis.loop import diagnose
+from jointid.diagnosis.memo import FitMemo
 from jointid.diagnosis.outputs import write_outputs
 from jointid.diagnosis.terms import StateInfo
 from jointid.diagnosis.variants import dataset_states
@@ -137,6 +138,33 @@ def test_two_effects_at_once_are_named_as_a_pair(rig, tmp_path):
     no_nan_anywhere(res, tmp_path)
     SUMMARY["two effects"] = dict(text=res.verdict, truth="em_preload+added_mass_edge", rank="pair first",
                                   verdict=res.explained_by, ladder=ladder_text(res.ladder))
+
+
+def test_enabling_one_of_two_hidden_effects_ranks_the_other_as_the_last_runs_pair(rig, tmp_path):
+    """The loop on two hidden effects: enable the first effect of the suggested pair (no value given)
+    and the next run ranks the second first on top of it, explaining the data, with the fit the last
+    run made of the pair (the same question, so the recorded fits answer it)."""
+    t = truth({"em_preload": {"beta": 0.2}, "added_mass_edge": {"mass_kg": 1.0}}, seed=33)
+    memo = FitMemo()
+    first, data = run_case(rig, t, tmp_path / "ds", memo=memo, drift=False)
+    a, b = first.explained_by.split("+")
+    pair = first.combinations.set_index("effects").loc[f"{a}+{b}"]
+    again = FitMemo(memo.records)
+    cfg = {**rig["cfg"], "effects": {a: {}}}
+    second = diagnose(rig["system"], cfg, data, memo=again, solver=first.solver, drift=False, log=lambda m: None)
+    top = second.ranking.iloc[0]
+    assert top.effect == b and bool(top.explains) and second.explained_by == b, second.verdict
+    # the pair's optimum, to the solver tolerance (1e-6 in each eigenvalue: 5e-7 / sigma in each residual)
+    n = sum(len(d.f_meas) for d in data)
+    assert abs(top.fit_chi2 - pair.fit_chi2) <= 2 * np.sqrt(pair.fit_chi2 * n) * 5e-7 / data[0].sigma_rel
+    assert again.hits > 0
+    now = second.ladder[second.ladder.variant == f"+{a}"]
+    after = second.ladder[second.ladder.variant == f"+{b} (suggested)"]
+    assert float(now.max_abs_error_pct.max()) > 4 * 0.2  # one of the two enabled: the error is still there
+    assert after.p_value.iloc[0] >= 0.01 and float(after.max_abs_error_pct.max()) < 4 * 0.2
+    SUMMARY["two effects, one enabled"] = dict(text=second.verdict, truth="em_preload+added_mass_edge",
+                                               rank=1, verdict=second.explained_by,
+                                               ladder=ladder_text(second.ladder))
 
 
 def test_contact_law_with_three_force_levels_identifies_beta_and_preload(rig, tmp_path):

@@ -13,15 +13,18 @@ import itertools
 
 import numpy as np
 
-from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit
+from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, refit
+from jointid.diagnosis.statistics import score_candidate
+from jointid.diagnosis.variants import EffectSpec
 from jointid.progress import Steps
 
-__all__ = ["combine_candidates", "combination_row"]
+__all__ = ["combine_candidates", "combination_row", "continuation_starts", "refit_at", "refit_on_ladder"]
 
 
-def _starts(current: Fit, fa: Fit, fb: Fit) -> list[np.ndarray]:
-    """Start vectors of ``current + a + b``: each single refit continued with the other effect at
-    (almost) its null, so the pair never ends worse than either single."""
+def continuation_starts(current: Fit, fa: Fit, fb: Fit) -> list[np.ndarray]:
+    """Start vectors of ``current + a + b`` from the single refits ``fa`` (``current + a``) and ``fb``
+    (``current + b``): each continued with the other effect at (almost) its null, so the pair never
+    ends worse than either single."""
     p = current.variant.n_params
     ta, tb = fa.x[p:], fb.x[p:]
     na = np.array([pa.t_near_null() for _, pa in fa.variant.slots[len(current.variant.slots):]])
@@ -57,8 +60,39 @@ def combine_candidates(diag: Diagnoser, current: Fit, singles: dict, n_combine: 
         spec_b = fb.variant.effects[-1]
         var = fa.variant.extended(spec_b)
         log(f"diagnosis: refitting {current.variant.name} + {a} + {b} {steps.next()}")
-        best = best_fit([diag.fit(var, x0, index=fa.ev.index) for x0 in _starts(current, fa, fb)])
+        best = best_fit([diag.fit(var, x0, index=fa.ev.index) for x0 in continuation_starts(current, fa, fb)])
         fits[f"+{a}+{b}"] = best
         rows.append(combination_row(diag, current, best, (a, b), alpha))
     rows.sort(key=lambda r: (not r["explains"], r["delta_aicc"]))
     return rows, fits
+
+
+def refit_at(diag: Diagnoser, fit: Fit, spec: EffectSpec) -> Fit:
+    """``fit`` plus the candidate ``spec``, refitted from the starts its score test at ``fit`` gives
+    (``fit`` re-evaluated on the present subspace first, as the candidate search does)."""
+    ev = diag.evaluate(fit.variant, fit.x, fit.ev.index)
+    at = Fit(fit.variant, ev, fit.pairings)
+    st = score_candidate(diag, at, spec, np.zeros((0, len(ev.r))), {})
+    return refit(diag, at, spec, st["t_hat"], verify=False)
+
+
+def refit_on_ladder(diag: Diagnoser, rungs: list[Fit], current: Fit, spec: EffectSpec, *,
+                    verify: bool = False) -> Fit:
+    """``current + spec`` refitted as the pair it is: ``current`` is the top of a ladder of enabled
+    effects and ``rungs`` the ladder's fits below it (bottom first); the candidate is refitted on
+    the rung below (:func:`refit_at` on the bottom rung, this function above it) and that refit
+    and ``current`` are continued with the other's effect at (almost) its null
+    (:func:`continuation_starts`).
+
+    This is the fit of the pair (last enabled effect + candidate) that a diagnosis without the last
+    effect enabled makes, from the same starts: enabling the suggested effect, the next run's
+    ranking of the other candidates is the last run's pairs, not a search of its own.  It never ends
+    worse than ``current`` nor than the candidate on the rung below.
+    """
+    below = rungs[-1]
+    fb = refit_at(diag, below, spec) if len(rungs) == 1 else refit_on_ladder(diag, rungs[:-1], below, spec)
+    var = current.variant.extended(spec)
+    best = best_fit([diag.fit(var, x0, index=current.ev.index) for x0 in continuation_starts(below, current, fb)])
+    if verify:
+        best = diag.fit(var, best.x, index=best.ev.index, verify=True)
+    return best

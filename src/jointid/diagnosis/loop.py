@@ -26,12 +26,12 @@ import pandas as pd
 
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis.ambiguity import absorption_notes, explain_tie, tie_groups
-from jointid.diagnosis.combine import combine_candidates
+from jointid.diagnosis.combine import combine_candidates, refit_at, refit_on_ladder
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, print_log, refit
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
-from jointid.diagnosis.statistics import extra_jacobian, identifiability, score_test, state_contrasts
+from jointid.diagnosis.statistics import identifiability, score_candidate, state_contrasts
 from jointid.diagnosis.tables import (compare_tables, drift_table, parameter_table, ranking_frame,
                                       state_errors_table)
 from jointid.diagnosis.terms import System
@@ -130,7 +130,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     fits, current, ladder_rows = calibrate_ladder(diag, fit_base, enabled, log)
     current_table = compare_tables(diag, current.variant, current.x)[0]
     current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects_cfg)
-    refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log)
+    refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log, list(fits.values())[:-1])
     profile_candidate(diag, current, rows, fits, alpha, log)
     needed = current.p_value < alpha
     for row, _, _ in rows:  # nothing needs explaining when the current model fits within the noise
@@ -210,10 +210,7 @@ def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log
         if spec.free and not set(spec.free) & set(en.configured):
             # no value given: fitted exactly as the candidate search refits it (the same starts), so
             # the ladder's row is the refit the ranking reported for this effect
-            ev = diag.evaluate(current.variant, current.x, current.ev.index)
-            at = Fit(current.variant, ev, current.pairings)
-            st = score_candidate(diag, at, spec, np.zeros((0, len(ev.r))), {})
-            best = refit(diag, at, spec, st["t_hat"], verify=False)
+            best = refit_at(diag, current, spec)
         else:
             # from the configured values and from the effect at (almost) its null: a strong start can
             # lock onto a pairing of its own, with the new modes it brings into the band as misfits
@@ -259,39 +256,16 @@ def score_candidates(diag: Diagnoser, current: Fit, enabled: list[Enabled], cand
     return current, rows, between_share
 
 
-def score_candidate(diag: Diagnoser, current: Fit, spec: EffectSpec, C: np.ndarray, row: dict) -> dict:
-    """Score tests of one applicable candidate; fills ``row`` and returns the all-states test."""
-    ev = current.ev
-    var = current.variant.extended(spec)
-    x_ext = np.concatenate([current.x, np.zeros(var.n_params - current.variant.n_params)])
-    cols = list(range(current.variant.n_params, var.n_params))
-    Jt = extra_jacobian(diag, var, x_ext, ev, cols)
-    lower = np.array([var.lower[c] for c in cols])
-    st = score_test(ev.r, ev.J, Jt, lower)
-    st["Jt"] = Jt
-    p0 = spec.effect.params[0]
-    row.update({"explained_fraction": st["explained_fraction"], "score": st["score"],
-                "p_value": st["p_value"], "linear_estimate": p0.from_t(float(st["t_hat"][0])),
-                "collinearity": st["collinearity"], "note": ""})
-    if len(C):
-        sd = score_test(C @ ev.r, C @ ev.J, C @ Jt, lower, scale_x=np.linalg.norm(ev.J, axis=0),
-                        scale_t=np.linalg.norm(Jt, axis=0))
-        row.update({"between_states_fraction": sd["explained_fraction"],
-                    "between_states_p_value": sd["p_value"]})
-    if st["collinearity"] < 1e-3:
-        row["note"] = "collinear with the fitted parameters (cannot be told apart from them)"
-    elif not st["sign_ok"]:
-        row["note"] = "would need a value outside its physical range (wrong sign)"
-    return st
-
-
 def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_refit: int, alpha: float,
-                     log) -> None:
+                     log, rungs: list[Fit] = ()) -> None:
     """Step 4: refit the ``n_refit`` leading candidates (by score); fills their ranking rows and ``fits``.
 
     A measured mode that no model mode pairs with is a residual without a sensitivity: the score test
     cannot see that a candidate would bring the missing mode.  With such modes every applicable
     candidate is refitted (the score-led ones first), its pairing re-done during the fit.
+    With effects enabled (``rungs``: the ladder's fits below ``current``) a candidate is refitted as
+    the pair of the last enabled effect and itself (:func:`refit_on_ladder`), from the starts the
+    pair has in a run without that effect enabled.
     """
     order = sorted([r for r in rows if r[1] is not None and r[2]["sign_ok"] and r[0]["score"] > 0
                     and r[2]["collinearity"] >= 1e-3 and r[0]["explained_fraction"] >= 0.01],
@@ -303,7 +277,8 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
     steps = Steps(min(n_refit, len(order)))
     for i, (row, spec, st) in enumerate(order[:n_refit]):
         log(f"diagnosis: refitting {current.variant.name} + {row['effect']} {steps.next()}")
-        f = refit(diag, current, spec, st["t_hat"], verify=i == 0)
+        f = refit_on_ladder(diag, rungs, current, spec, verify=i == 0) if rungs else \
+            refit(diag, current, spec, st["t_hat"], verify=i == 0)
         row.update(refit_row(f, current, diag.data, alpha))
         fits["+" + row["effect"]] = f
 

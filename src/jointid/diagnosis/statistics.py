@@ -22,8 +22,8 @@ from scipy.stats import chi2 as chi2_dist
 from jointid.fe.reduced import Solution
 
 if TYPE_CHECKING:
-    from jointid.diagnosis.fitting import Diagnoser, Evaluation
-    from jointid.diagnosis.variants import Variant
+    from jointid.diagnosis.fitting import Diagnoser, Evaluation, Fit
+    from jointid.diagnosis.variants import EffectSpec, Variant
 
 # a Jacobian column that a projection shrinks below this fraction of its norm is round-off (the
 # reduced solver's eigenvalues are accurate to 1e-6; a real between-state sensitivity is O(1))
@@ -123,6 +123,33 @@ def score_test(r: np.ndarray, Jx: np.ndarray, Jt: np.ndarray, t_lower: np.ndarra
     return {"score": lm if sign_ok else 0.0, "score_two_sided": lm, "p_value": p if lm > 0 else 1.0,
             "explained_fraction": float(min(explained, 1.0)), "t_hat": t_hat, "sign_ok": sign_ok,
             "collinearity": coll}
+
+
+def score_candidate(diag: Diagnoser, current: Fit, spec: EffectSpec, C: np.ndarray, row: dict) -> dict:
+    """Score tests of one applicable candidate; fills ``row`` and returns the all-states test."""
+    ev = current.ev
+    var = current.variant.extended(spec)
+    x_ext = np.concatenate([current.x, np.zeros(var.n_params - current.variant.n_params)])
+    cols = list(range(current.variant.n_params, var.n_params))
+    Jt = extra_jacobian(diag, var, x_ext, ev, cols)
+    lower = np.array([var.lower[c] for c in cols])
+    st = score_test(ev.r, ev.J, Jt, lower)
+    st["Jt"] = Jt
+    p0 = spec.effect.params[0]
+    row.update({"explained_fraction": st["explained_fraction"], "score": st["score"],
+                "p_value": st["p_value"], "linear_estimate": p0.from_t(float(st["t_hat"][0])),
+                "collinearity": st["collinearity"], "note": ""})
+    if len(C):
+        sd = score_test(C @ ev.r, C @ ev.J, C @ Jt, lower, scale_x=np.linalg.norm(ev.J, axis=0),
+                        scale_t=np.linalg.norm(Jt, axis=0))
+        row.update({"between_states_fraction": sd["explained_fraction"],
+                    "between_states_p_value": sd["p_value"]})
+    if st["collinearity"] < 1e-3:
+        row["note"] = "collinear with the fitted parameters (cannot be told apart from them)"
+    elif not st["sign_ok"]:
+        row["note"] = "would need a value outside its physical range (wrong sign)"
+    return st
+
 
 
 def state_contrasts(ev: Evaluation, n_states: int) -> np.ndarray:
