@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from jointid.fe import fem, warmstart
+from jointid.fe import basis, fem, warmstart
 from jointid.fe.reduced import ReducedSolver
 
 HIDDEN = Path(__file__).parent / "hidden"
@@ -50,9 +50,13 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     ref = rs.solve(*point, 4)
     warmstart.save(tmp_path / "s.npz", rs, m)
     kept = warmstart.load(tmp_path / "s.npz", m, 29)[0]
+    assert kept.KV is not None and kept.KV.dtype == basis.PRODUCT_DTYPE
+    formed = [(A @ kept.V).astype(basis.PRODUCT_DTYPE) for A in (rs.K_terms["K0"], rs.M_terms["M0"])]
     same = _solver(m, kept=kept)
     assert same.n_full_solves == 0 and np.array_equal(same.V, rs.V)
-    assert kept.V is None  # taken over by the solver (no second copy held while it grows)
+    assert kept.V is None and kept.KV is None  # taken over by the solver (no second copy held while it grows)
+    # the kept products are the very bits the solver would form from the kept basis
+    assert np.array_equal(same.basis.KV, formed[0]) and np.array_equal(same.basis.MV, formed[1])
     assert np.array_equal(same.solve(*point, 4, refine=False).freqs_Hz, ref.freqs_Hz)
     # other reference masses: the basis is orthonormalised afresh, the answers stay certified
     m2 = fem.Model(stiffness=m.stiffness, mass={"M0": m.mass["M0"], "M_b": m.mass["M0"]}, fixed=m.fixed,

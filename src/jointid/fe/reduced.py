@@ -137,9 +137,11 @@ class ReducedSolver:
         if kept.mc_ref != self.mc_ref or set(kept.Kr) != set(self.K_terms) or set(kept.Mr) != set(self.M_terms):
             self._append(V)
             return
-        # each product cast to the basis's storage as formed (one double-precision product at a time)
-        self.basis.adopt(V, *((self.K_terms["K0"] @ V).astype(PRODUCT_DTYPE, order="F"),
-                              (self.M_terms["M0"] @ V).astype(PRODUCT_DTYPE, order="F")))
+        # the kept products, else each cast to the basis's storage as formed (one at a time)
+        prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
+        if prods[0] is None or prods[0].dtype != PRODUCT_DTYPE:
+            prods = ((A @ V).astype(PRODUCT_DTYPE, order="F") for A in (self.K_terms["K0"], self.M_terms["M0"]))
+        self.basis.adopt(V, *prods)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
         self._certified.update(kept.certified_at(self.generation))
@@ -256,13 +258,9 @@ class ReducedSolver:
                     out += c * red[name]
         return out
 
-    def reduced(self, kc: dict, mc: dict):
-        """Reduced stiffness and mass matrices ``(r, r)`` at coefficients ``(kc, mc)``."""
-        return self._grouped(kc, self.Kr, "K0"), self._grouped(mc, self.Mr, "M0")
-
     # ------------------------------------------------------------ solve
     def _ritz(self, kc, mc, n=None):
-        Kr, Mr = self.reduced(kc, mc)
+        Kr, Mr = self._grouped(kc, self.Kr, "K0"), self._grouped(mc, self.Mr, "M0")
         n = min(n or self.n_modes, Kr.shape[0])
         lam, Y = sla.eigh(Kr, Mr, check_finite=False, subset_by_index=[0, n - 1], driver="gvx")
         return lam, Y

@@ -67,6 +67,10 @@ class Kept:
     certified: dict = field(default_factory=dict)
     """Points whose full-space check passed on the first ``r`` columns of ``V``: ``"<point key>#<n>"``
     -> ``(r, estimated error)`` (see :func:`certified_entries`)."""
+    KV: np.ndarray | None = None
+    """``K0 V`` in the basis's storage precision (:data:`jointid.fe.basis.PRODUCT_DTYPE`), or None;
+    with ``MV`` (``M0 V``) it spares the solver the two largest sparse products of its start."""
+    MV: np.ndarray | None = None
 
     def certified_at(self, generation: int) -> dict:
         """The kept certificates as :class:`jointid.fe.reduced.ReducedSolver` keys of ``generation``.
@@ -95,6 +99,8 @@ def save(path: str | Path, solver, system, fits: dict | None = None) -> None:
               "certified": np.array(json.dumps(certified_entries(solver, r), sort_keys=True))}
     for group, red in (("K", solver.Kr), ("M", solver.Mr)):
         arrays.update({f"{group}r:{name}": A[:r, :r] for name, A in red.items()})
+    if solver.basis.KV is not None:  # the products as the solver holds them (the same bits it would form)
+        arrays.update(KV=solver.basis.KV[:, :r], MV=solver.basis.MV[:, :r])
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
     try:
         np.savez(tmp, **arrays)
@@ -128,6 +134,8 @@ def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
             extra = {k: json.loads(str(f[k])) if k in f.files else {} for k in ("sturm", "fits", "certified")}
             sturm = {k: [(float(a), int(c)) for a, c in v] for k, v in extra["sturm"].items()}
             kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])), sturm, extra["fits"], extra["certified"])
+            if "KV" in f.files and "MV" in f.files and f["KV"].shape == f["MV"].shape == V.shape:
+                kept.KV, kept.MV = f["KV"], f["MV"]
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         return None, f"{path}: unreadable ({exc}): starting afresh"
     r = V.shape[1] if V.ndim == 2 else -1
