@@ -285,9 +285,10 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
 
 def combinations(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt: dict, log) -> pd.DataFrame:
     """Step 5: pairs of the leading single refits (:func:`combine_candidates`) when ``max_effects``
-    allows; their fits join ``fits`` under ``+a+b``."""
+    allows: it counts the library effects of one model, the enabled ones included (a pair on top of
+    one enabled effect is a model of three); their fits join ``fits`` under ``+a+b``."""
     singles = {r[0]["effect"]: fits["+" + r[0]["effect"]] for r in rows if "+" + r[0]["effect"] in fits}
-    if int(opt["max_effects"]) < 2 or len(singles) < 2:
+    if int(opt["max_effects"]) < len(current.variant.effects) + 2 or len(singles) < 2:
         return pd.DataFrame()
     combo_rows, combo_fits = combine_candidates(diag, current, singles, int(opt["n_combine"]), float(opt["alpha"]), log)
     fits.update(combo_fits)
