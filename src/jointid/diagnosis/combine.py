@@ -4,7 +4,8 @@ When no single library effect brings the model to the noise level, two effects m
 once.  Before the verdict says "outside the library", :func:`combine_candidates` refits the
 current model plus every pair of the ``n_combine`` leading refitted candidates (best AICc first, so
 the forward-selection step — the best single plus each other — comes first), each from the two
-single refits it continues, and keeps those whose chi-square is consistent with the noise.
+single refits it continues, and keeps those whose chi-square is consistent with the noise.  The
+leading pair is certified at its optimum (a Sturm count), as the leading single refit is.
 """
 
 from __future__ import annotations
@@ -53,16 +54,21 @@ def combine_candidates(diag: Diagnoser, current: Fit, singles: dict, n_combine: 
     fits by label ``+a+b``.
     """
     lead = sorted(singles, key=lambda n: singles[n].aicc)[:n_combine]
-    rows, fits = [], {}
+    fits, names = {}, {}
     steps = Steps(len(lead) * (len(lead) - 1) // 2)
     for a, b in itertools.combinations(lead, 2):
         fa, fb = singles[a], singles[b]
         spec_b = fb.variant.effects[-1]
         var = fa.variant.extended(spec_b)
         log(f"diagnosis: refitting {current.variant.name} + {a} + {b} {steps.next()}")
-        best = best_fit([diag.fit(var, x0, index=fa.ev.index) for x0 in continuation_starts(current, fa, fb)])
-        fits[f"+{a}+{b}"] = best
-        rows.append(combination_row(diag, current, best, (a, b), alpha))
+        starts = continuation_starts(current, fa, fb)
+        fits[f"+{a}+{b}"] = best_fit([diag.fit(var, x0, index=fa.ev.index) for x0 in starts])
+        names[f"+{a}+{b}"] = (a, b)
+    if fits:  # the leading pair is a reported optimum (verdict, ladder): certified as the leading single
+        lead_pair = min(fits, key=lambda k: fits[k].aicc)
+        f = fits[lead_pair]
+        fits[lead_pair] = diag.fit(f.variant, f.x, index=f.ev.index, verify=True)
+    rows = [combination_row(diag, current, f, names[k], alpha) for k, f in fits.items()]
     rows.sort(key=lambda r: (not r["explains"], r["delta_aicc"]))
     return rows, fits
 
