@@ -167,6 +167,29 @@ def test_enabling_one_of_two_hidden_effects_ranks_the_other_as_the_last_runs_pai
                                                ladder=ladder_text(second.ladder))
 
 
+def test_candidates_on_top_of_two_enabled_effects_never_end_worse_than_the_model(rig, tmp_path):
+    """Two effects enabled (the ladder baseline -> +A -> +A+B): every candidate on top is refitted as
+    the pair it makes with B, from B's rung below (itself refitted on A's rung, then on the
+    baseline), and no refit ends above the current model's chi-square."""
+    t = truth({"em_preload": {"beta": 0.2}, "added_mass_edge": {"mass_kg": 1.0}}, seed=33)
+    cfg = {**rig["cfg"], "effects": {"em_preload": {}, "added_mass_edge": {}}}
+    out = synth.synthesise(t, rig["cfg"], model=rig["model"])
+    write_dataset(tmp_path / "ds", out["modes"], out["shapes"], out["frf"], conditions=out["conditions"],
+                  measuring_points=out["points"])
+    data = dataset_states(read_dataset(tmp_path / "ds", measuring_points=rig["system"].meta["points"]),
+                          rig["system"], cfg)
+    res = diagnose(rig["system"], cfg, data, candidates=["added_mass_table", "base_support"], drift=False,
+                   compare=False, log=lambda m: None)
+    assert list(dict.fromkeys(res.ladder.variant))[:3] == ["baseline", "+em_preload", "+added_mass_edge"]
+    current = res.ladder[res.ladder.variant == "+added_mass_edge"]
+    assert current.p_value.iloc[0] >= 0.01  # both hidden effects in the model: within the noise
+    refitted = res.ranking[res.ranking.fit_chi2.notna()]
+    assert len(refitted) >= 1
+    chi2_now = float(current.chi2.iloc[0])
+    assert (refitted.fit_chi2 <= chi2_now * (1 + 1e-6) + 1e-6).all(), refitted[["effect", "fit_chi2"]]
+    assert res.explained_by == "none needed" and not res.ranking.explains.any()
+
+
 def test_contact_law_with_three_force_levels_identifies_beta_and_preload(rig, tmp_path):
     """Force levels 0, 1000 and 2000 N, true beta 0.4 and block preload 300 N: the profile over the
     preload recovers both within their intervals."""
