@@ -151,7 +151,6 @@ def score_candidate(diag: Diagnoser, current: Fit, spec: EffectSpec, C: np.ndarr
     return st
 
 
-
 def state_contrasts(ev: Evaluation, n_states: int) -> np.ndarray:
     """Orthonormal between-state contrasts ``C`` of the residual vector ``(n_c, n)``.
 
