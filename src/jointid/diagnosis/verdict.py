@@ -183,13 +183,13 @@ def unexplained_text(current: Fit, ranking: pd.DataFrame, cur_txt: str, combos: 
         part += (f" No pair of the leading candidates does either: the best, {c['effects']}, leaves max "
                  f"{c['max_abs_error_pct_after']:.2f} % (p = {c['fit_p_value']:.2g}).")
     tried = "single effects" if max_effects <= 1 or not len(combos) else f"up to {min(max_effects, 2)} effects at once"
-    enabled = [s.effect.name for s in current.variant.effects]
+    enabled, why = [s.effect.name for s in current.variant.effects], ""
     if enabled:
         tried += f" on top of {', '.join(enabled)}"
         if not len(combos) and 1 < max_effects < len(enabled) + 2:
-            tried += f"; pairs on top would exceed diagnosis.max_effects = {max_effects} effects in one model"
+            why = f"; pairs on top would exceed diagnosis.max_effects = {max_effects} effects in one model"
     return (f"No listed effect explains the residual: the current model misses something outside the library "
-            f"({tried} tried; "
+            f"({tried} tried{why}; "
             f"{cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
             f"p = {current.p_value:.2g})." + part)
 
