@@ -121,11 +121,14 @@ def test_near_collinear_effects_are_named_together_and_a_measurement_decides(rig
                                                     verdict=res2.explained_by, ladder=ladder_text(res2.ladder))
 
 
-def test_two_effects_at_once_are_named_as_a_pair(rig, tmp_path):
+def test_two_effects_at_once_are_named_as_a_pair_and_enabling_one_leaves_the_other_first(rig, tmp_path):
     """The contact law (state-dependent) and a mass on the table edge (not): no single candidate
-    explains, the pair does, and the ladder shows baseline -> +A -> +A+B at the noise level."""
+    explains, the pair does, and the ladder shows baseline -> +A -> +A+B at the noise level.  Then the
+    loop: enable A (no value given) and the next run ranks B first on top of it, explaining the data,
+    with the fit the last run made of the pair (the same question, so the recorded fits answer it)."""
     t = truth({"em_preload": {"beta": 0.2}, "added_mass_edge": {"mass_kg": 1.0}}, seed=33)
-    res, _ = run_case(rig, t, tmp_path / "ds")
+    memo = FitMemo()
+    res, data = run_case(rig, t, tmp_path / "ds", memo=memo)
     assert set(res.explained_by.split("+")) == {"em_preload", "added_mass_edge"}, res.verdict
     assert res.verdict.startswith("Missing effects:")
     assert not res.ranking.explains.any()
@@ -139,19 +142,11 @@ def test_two_effects_at_once_are_named_as_a_pair(rig, tmp_path):
     SUMMARY["two effects"] = dict(text=res.verdict, truth="em_preload+added_mass_edge", rank="pair first",
                                   verdict=res.explained_by, ladder=ladder_text(res.ladder))
 
-
-def test_enabling_one_of_two_hidden_effects_ranks_the_other_as_the_last_runs_pair(rig, tmp_path):
-    """The loop on two hidden effects: enable the first effect of the suggested pair (no value given)
-    and the next run ranks the second first on top of it, explaining the data, with the fit the last
-    run made of the pair (the same question, so the recorded fits answer it)."""
-    t = truth({"em_preload": {"beta": 0.2}, "added_mass_edge": {"mass_kg": 1.0}}, seed=33)
-    memo = FitMemo()
-    first, data = run_case(rig, t, tmp_path / "ds", memo=memo, drift=False)
-    a, b = first.explained_by.split("+")
-    pair = first.combinations.set_index("effects").loc[f"{a}+{b}"]
+    a, b = res.explained_by.split("+")
+    pair = res.combinations.set_index("effects").loc[f"{a}+{b}"]
     again = FitMemo(memo.records)
     cfg = {**rig["cfg"], "effects": {a: {}}}
-    second = diagnose(rig["system"], cfg, data, memo=again, solver=first.solver, drift=False, log=lambda m: None)
+    second = diagnose(rig["system"], cfg, data, memo=again, solver=res.solver, drift=False, log=lambda m: None)
     top = second.ranking.iloc[0]
     assert top.effect == b and bool(top.explains) and second.explained_by == b, second.verdict
     # the pair's optimum, to the solver tolerance (1e-6 in each eigenvalue: 5e-7 / sigma in each residual)
