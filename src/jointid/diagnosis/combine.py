@@ -66,8 +66,7 @@ def combine_candidates(diag: Diagnoser, current: Fit, singles: dict, n_combine: 
         names[f"+{a}+{b}"] = (a, b)
     if fits:  # the leading pair is a reported optimum (verdict, ladder): certified as the leading single
         lead_pair = min(fits, key=lambda k: fits[k].aicc)
-        f = fits[lead_pair]
-        fits[lead_pair] = diag.fit(f.variant, f.x, index=f.ev.index, verify=True)
+        fits[lead_pair] = diag.certify(fits[lead_pair])
     rows = [combination_row(diag, current, f, names[k], alpha) for k, f in fits.items()]
     rows.sort(key=lambda r: (not r["explains"], r["delta_aicc"]))
     return rows, fits
@@ -100,5 +99,5 @@ def refit_on_ladder(diag: Diagnoser, rungs: list[Fit], current: Fit, spec: Effec
     var = current.variant.extended(spec)
     best = best_fit([diag.fit(var, x0, index=current.ev.index) for x0 in continuation_starts(below, current, fb)])
     if verify:
-        best = diag.fit(var, best.x, index=best.ev.index, verify=True)
+        best = diag.certify(best)
     return best

@@ -276,6 +276,10 @@ class Diagnoser:
                 return self.fit(variant, ev.x, index=ev.index, max_loops=2, verify=False)
         return Fit(variant, ev, self.pair(ev.solutions))
 
+    def certify(self, fit: "Fit") -> "Fit":
+        """``fit`` asked again from its optimum with the certificate (:meth:`fit` with ``verify``)."""
+        return self.fit(fit.variant, fit.x, index=fit.ev.index, verify=True)
+
     def _search(self, variant: Variant, x0: np.ndarray, index, max_loops: int) -> Evaluation:
         """The search of :meth:`fit`: least squares on the subspace, refinement at the optimum, pairing
         re-done, until the pairing and the subspace are stable; returns the final evaluation."""
@@ -388,5 +392,5 @@ def refit(diag: Diagnoser, fit: Fit, spec: EffectSpec, t_hat: np.ndarray, *, ver
     starts = refit_starts(spec, float(t_hat[0])) if q == 1 else [[rounded_start(t) for t in np.clip(t_hat, 0, None)]]
     best = best_fit([diag.fit(var, np.concatenate([fit.x, np.atleast_1d(s)]), index=fit.ev.index) for s in starts])
     if verify:
-        best = diag.fit(var, best.x, index=best.ev.index, verify=True)
+        best = diag.certify(best)
     return best

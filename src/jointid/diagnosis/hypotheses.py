@@ -155,7 +155,7 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, log=print_log) -
         if best is None or fit.chi2 < best[0].chi2 - 1e-9:
             best = (fit, P)
     fit, P = best
-    fit = diag.fit(fit.variant, fit.x, index=fit.ev.index, verify=True)  # checked against the full model
+    fit = diag.certify(fit)  # checked against the full model
     return fit_record(fit, data, P if linked else None, profile, n_choices=len(classes))
 
 

@@ -219,7 +219,7 @@ def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log
             starts = [x0] if np.allclose(near, x0) else [x0, near]
             tried = [diag.fit(var, x, index=current.ev.index) for x in starts]
             best = best_fit(tried)
-        current = diag.fit(var, best.x, index=best.ev.index, verify=True) if en is enabled[-1] else best
+        current = diag.certify(best) if en is enabled[-1] else best
         label = "+" + en.effect.name
         fits[label] = current
         ladder_rows += state_errors_table(diag, current, label)
