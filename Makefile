@@ -27,8 +27,9 @@ TABLES := results/tables/table1_dynamic_stiffness.csv results/tables/table2_powe
 tables: $(STAMP)
 	$(BIN)/snakemake -j2 --rerun-incomplete $(TABLES)
 
+# two workers; tests/conftest.py groups the tests that share fixtures and starts the slowest first
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadgroup --no-loadscope-reorder
 
 benchmark: $(STAMP)
 	$(BIN)/python -m benchmarks
