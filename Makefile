@@ -29,7 +29,7 @@ tables: $(STAMP)
 
 # two workers; tests/conftest.py groups the tests that share fixtures and starts the slowest first
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --dist loadgroup --no-loadscope-reorder
+	$(BIN)/python -m pytest -q -n 2
 
 benchmark: $(STAMP)
 	$(BIN)/python -m benchmarks

@@ -57,32 +57,41 @@ RUN_TIMEOUT_S = 900
 
 
 # ------------------------------------------------------------------ two workers (make test: pytest -n 2)
-# Tests run in two pytest-xdist workers (``--dist loadgroup --no-loadscope-reorder``).  Each test is
-# put in one group that a single worker runs: the tests of the shared coarse reference run
-# (``coarse_run``/``resumed_run``, session fixtures built once per worker) in one group, every other
-# test with its file (module fixtures, e.g. the hidden-effect cases' shared solver, built once).  The
-# groups are handed out in collection order, so the slowest go first: seconds of the slowest groups
-# measured on the idle 2-core CI machine (2026-11-25, ``--durations=0``); they only order the work.
+# ``make test`` runs the tests in two pytest-xdist workers.  Each worker takes whole groups: a test
+# file (its module fixtures, e.g. the hidden-effect cases' shared solver, are built once), and the
+# files of the shared coarse reference run (session fixtures ``coarse_run``/``resumed_run``, built
+# once per worker that uses them) as one group.  Groups are handed out in collection order, the
+# slowest first: seconds of the slowest groups measured on the idle 2-core CI machine (2026-11-25,
+# ``--durations=0``); they only order the work.
+SHARED_RUN_FILES = ("test_determinism.py", "test_interrupt.py", "test_reruns.py", "test_report.py",
+                    "test_workflow_e2e.py")
 GROUP_SECONDS = {"coarse_run": 400, "test_hidden_effects.py": 261, "test_ambiguity.py": 198,
                  "test_meshin_workflow.py": 106, "test_hypotheses.py": 87,
                  "test_example_single_carriage.py": 57, "test_rom.py": 26, "test_cluster.py": 24,
                  "test_diagnose.py": 22}
-SHARED_RUN_FIXTURES = ("coarse_run", "resumed_run")
 
 
-def test_group(item) -> str:
-    """The worker group of a test: ``coarse_run`` if it uses the shared reference run, else its file."""
-    if any(f in item.fixturenames for f in SHARED_RUN_FIXTURES):
-        return "coarse_run"
-    return item.path.name
+def test_group(nodeid: str) -> str:
+    """The worker group of a test (by its node id): ``coarse_run`` or its file name."""
+    name = Path(nodeid.split("::", 1)[0]).name
+    return "coarse_run" if name in SHARED_RUN_FILES else name
 
 
-@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Group the tests for the workers and put the slowest groups first (stable otherwise)."""
-    for item in items:
-        item.add_marker(pytest.mark.xdist_group(test_group(item)))
-    items.sort(key=lambda item: -GROUP_SECONDS.get(test_group(item), 0))
+    """The slowest groups first (the order is otherwise kept)."""
+    items.sort(key=lambda item: -GROUP_SECONDS.get(test_group(item.nodeid), 0))
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """pytest-xdist: hand out whole groups (:func:`test_group`), in collection order."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class GroupScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return test_group(nodeid)
+
+    config.option.loadscopereorder = False
+    return GroupScheduling(config, log)
 
 
 # ------------------------------------------------------------------ diagnosis on synthetic data
