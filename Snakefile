@@ -61,6 +61,13 @@ CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
+# Scheduling on few cores: the chain to Tables 1-3 (mesh -> DOE -> surfaces -> identify -> verify ->
+# harmonic -> tables) goes first whenever one of its jobs is ready, so the tables land as early as the
+# chain allows; the diagnosis (the longest job off that chain) next; the hypotheses fill the rest.
+# Priorities only order ready jobs: the results are the same, and a run of one target is unaffected.
+PRIORITY_TABLES = 20
+PRIORITY_DIAGNOSIS = 10
+
 
 localrules: all, doe, gather_modal, tables, doe_zoom, gather_zoom
 
@@ -87,6 +94,7 @@ rule mesh:
         "logs/mesh.log",
     benchmark:
         "benchmarks/out/mesh.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=3000,
@@ -107,6 +115,7 @@ rule mesh_edges:
         "logs/mesh_edges/plus{extra}.log",
     benchmark:
         "benchmarks/out/mesh_edges/plus{extra}.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=4000,
@@ -122,6 +131,7 @@ rule doe:
         cfg=CFG_DOE,
     log:
         "logs/doe.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=500,
@@ -150,6 +160,7 @@ rule rom:
         "logs/rom.log",
     benchmark:
         "benchmarks/out/rom.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=4000,
@@ -172,6 +183,7 @@ rule modal:
         "logs/modal/{point}.log",
     benchmark:
         "benchmarks/out/modal/{point}.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=3000,
@@ -191,6 +203,7 @@ rule gather_modal:
         cfg=CFG_MODAL_CHAIN,  # nothing of its own: for the provenance
     log:
         "logs/gather_modal.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=1000,
@@ -212,6 +225,7 @@ rule fit_surface:
         "logs/fit_surface.log",
     benchmark:
         "benchmarks/out/fit_surface.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=1000,
@@ -248,6 +262,7 @@ rule scout:
         states=STATES,
     log:
         "logs/scout/{state}.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=1000,
@@ -267,6 +282,7 @@ rule doe_zoom:
         states=STATES,
     log:
         "logs/doe_zoom.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=500,
@@ -288,6 +304,7 @@ rule modal_zoom:
         "logs/modal_zoom/{point}.log",
     benchmark:
         "benchmarks/out/modal_zoom/{point}.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=3000,
@@ -307,6 +324,7 @@ rule gather_zoom:
         cfg=CFG_MODAL_CHAIN,  # nothing of its own: for the provenance
     log:
         "logs/gather_zoom.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=1000,
@@ -327,6 +345,7 @@ rule fit_zoom:
         cfg=CFG_FIT_SURFACE,
     log:
         "logs/fit_zoom.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=1000,
@@ -353,6 +372,7 @@ rule identify:
         "logs/identify/{state}.log",
     benchmark:
         "benchmarks/out/identify/{state}.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=5000,  # 3.4-4.1 GB measured with mesh.extrapolate_edges (the largest edge level's factorisation)
@@ -377,6 +397,7 @@ rule verify:
         "logs/verify/{state}.log",
     benchmark:
         "benchmarks/out/verify/{state}.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=4000,  # 3.8 GB measured with mesh.extrapolate_edges
@@ -400,6 +421,7 @@ rule tables:
         cfg=CFG_TABLES_CHAIN,  # nothing of its own: for the provenance
     log:
         "logs/tables.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=500,

@@ -47,6 +47,7 @@ if DIAG_DATASETS:
             "logs/diagnosis/{dataset}.log",
         benchmark:
             "benchmarks/out/diagnosis/{dataset}.tsv"
+        priority: PRIORITY_DIAGNOSIS
         threads: 1
         resources:
             mem_mb=4500,

@@ -41,6 +41,7 @@ rule harmonic:
         "logs/harmonic/{state}.log",
     benchmark:
         "benchmarks/out/harmonic/{state}.tsv"
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=3000,
@@ -64,6 +65,7 @@ rule table1:
         cfg=CFG_TABLE1_CHAIN,  # harmonic.band_Hz / n_freq for the ranges; the rest for the provenance
     log:
         "logs/table1.log",
+    priority: PRIORITY_TABLES
     threads: 1
     resources:
         mem_mb=500,
