@@ -82,3 +82,49 @@ def test_saved_model_loads_mapped_and_solves_the_same(tmp_path):
     kc, mc = base_coefficients(cfg, model)
     a, b = solve_model(model, kc, mc, 6), solve_model(loaded, kc, mc, 6)
     assert np.allclose(a.freqs_Hz, b.freqs_Hz, rtol=1e-10)
+
+
+def _resident_kB(a: np.ndarray) -> int:
+    """Resident kB of the mapping that holds ``a``'s data (its entry in /proc/self/smaps)."""
+    addr = a.__array_interface__["data"][0]
+    inside = False
+    with open("/proc/self/smaps") as fh:
+        for line in fh:
+            head = line.split()[0]
+            if "-" in head and not head.endswith(":"):
+                lo, hi = (int(x, 16) for x in head.split("-"))
+                inside = lo <= addr < hi
+            elif inside and head == "Rss:":
+                return int(line.split()[1])
+    raise AssertionError("no mapping holds the array")
+
+
+@pytest.mark.skipif(not hasattr(mmap, "MADV_DONTNEED") or not __import__("os").path.exists("/proc/self/smaps"),
+                    reason="needs madvise and /proc/self/smaps (Linux)")
+def test_released_pages_leave_the_process_and_come_back_unchanged(tmp_path):
+    a = np.arange(2_000_000, dtype=np.float64)  # 16 MB: many pages
+    io.write_npz_mappable(tmp_path / "a.npz", {"a": a, "b": a[:10].copy()})
+    mapped = io.map_npz(tmp_path / "a.npz")
+    total = float(mapped["a"].sum())  # touches every page
+    assert _resident_kB(mapped["a"]) >= 15_000
+    assert io.release_mapped([mapped["a"], mapped["b"]]) == 1  # one file, one map
+    assert _resident_kB(mapped["a"]) < 1_000
+    assert float(mapped["a"].sum()) == total and np.array_equal(mapped["b"], a[:10])
+    assert io.release_mapped([a, np.zeros(3)]) == 0  # arrays of their own: nothing to release
+
+
+def test_a_solve_releases_the_model_file_and_leaves_the_model_unchanged(tmp_path):
+    from conftest import coarse_config_dict
+    from jointid.config import load_config
+    from jointid.fe.modal import solve_model
+    from jointid.fe.model import base_coefficients, build_model, load_model, save_model
+
+    cfg = load_config(coarse_config_dict())
+    save_model(build_model(cfg), tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz")
+    kc, mc = base_coefficients(cfg, loaded)
+    first = solve_model(loaded, kc, mc, 6)
+    if hasattr(mmap, "MADV_DONTNEED") and __import__("os").path.exists("/proc/self/smaps"):
+        assert _resident_kB(loaded.stiffness["K0"].data) < 0.1 * loaded.stiffness["K0"].data.nbytes / 1024
+    again = solve_model(loaded, kc, mc, 6)  # the released pages are read back as they were
+    assert np.array_equal(first.freqs_Hz, again.freqs_Hz)

@@ -254,3 +254,35 @@ def map_npz(path) -> dict[str, np.ndarray]:
                     arr = np.lib.format.read_array(member, allow_pickle=False)
             out[name] = arr
     return out
+
+
+def _mapping_of(arr):
+    """The :class:`mmap.mmap` an array is a view of (:func:`map_npz`), or None."""
+    import mmap
+
+    obj = arr
+    for _ in range(8):  # ndarray views -> the memoryview np.frombuffer made -> the map
+        obj = obj.obj if isinstance(obj, memoryview) else getattr(obj, "base", None)
+        if obj is None or isinstance(obj, mmap.mmap):
+            return obj
+    return None
+
+
+def release_mapped(arrays) -> int:
+    """Drop the pages of the memory maps behind ``arrays`` (views made by :func:`map_npz`) from this
+    process (``MADV_DONTNEED``), once the arrays have been copied into what a computation keeps.
+
+    The file's pages stay in the page cache and come back on the next touch, with the same contents
+    (the maps are read-only), but no longer count in this process's resident memory while a
+    factorisation runs.  Returns the number of maps released; arrays not backed by a map are
+    skipped, and so is every map where the platform has no ``madvise``.
+    """
+    import mmap
+
+    maps = {id(m): m for m in map(_mapping_of, arrays) if m is not None and not m.closed}
+    if not hasattr(mmap, "MADV_DONTNEED"):
+        return 0
+    for m in maps.values():
+        m.madvise(mmap.MADV_DONTNEED)
+    return len(maps)
+

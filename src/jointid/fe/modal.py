@@ -246,6 +246,7 @@ def solve_model(model, kc: dict, mc: dict, n_modes: int, *, shift_Hz: float = -1
     """
     free = free_dofs(model.n_dofs, model.fixed)
     Kf, Mf = restrict(model.K(kc), free), restrict(model.M(mc), free)
+    release_model_pages(model)
     ordering = getattr(model, "ordering", None)
     modes = _solve_free(Kf, Mf, free, model.n_dofs, n_modes, shift_Hz, backend, 0.0, None, ordering)
     fc = check_frequency(modes.freqs_Hz) if certify else None
@@ -261,6 +262,15 @@ def solve_model(model, kc: dict, mc: dict, n_modes: int, *, shift_Hz: float = -1
         warnings.warn(check.describe() + ": the modal solve is not complete", NumericalWarning)
     modes.sturm = check
     return modes
+
+
+def release_model_pages(model) -> int:
+    """Drop the model file's memory-mapped pages from this process once its matrices are assembled
+    (:func:`jointid.io.release_mapped`): at 2 x 10^5 DOFs the stiffness and mass terms' pages are
+    about 0.5 GB of resident memory that the factorisation and the Lanczos run never touch."""
+    from jointid.io import release_mapped
+
+    return release_mapped([A.data for terms in (model.stiffness, model.mass) for A in terms.values()])
 
 
 def free_dofs(n: int, fixed) -> np.ndarray:

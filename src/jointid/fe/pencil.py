@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from jointid.fe.modal import free_dofs, restrict
+from jointid.fe.modal import free_dofs, release_model_pages, restrict
 
 
 class FreePencil:
@@ -46,6 +46,7 @@ class FreePencil:
         for A in (*self.K_terms.values(), *self.M_terms.values()):
             A.sum_duplicates()
             A.sort_indices()
+        release_model_pages(system)  # the terms are copied: the model file's pages are not needed
         self.pattern = _union_pattern([*self.K_terms.values(), *self.M_terms.values()])
         # K0 (nearly the whole pattern) is kept aligned with the pattern, and is the stiffness term
         # K0 itself (no second copy): assembling is one copy plus a scatter of the few entries of

@@ -251,9 +251,11 @@ def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
     """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`), and
     the modal data of every table point (:func:`point_data`)."""
     from jointid.fe.describe import describe_modes
+    from jointid.fe.modal import release_model_pages
 
     h, s = cfg["harmonic"], cfg["solver"]
     K, M = model.K(kc), model.M(mc)
+    release_model_pages(model)  # assembled: the model file's pages are not needed while factorising
     modes, shifted = solve_band_modes(K, M, band[1], fixed=model.fixed, n_start=max(int(s["n_modes"]), 12),
                                       shift_Hz=s["shift_Hz"], backend=s["backend"], progress=progress,
                                       keep_factor=True, ordering=model.ordering)
