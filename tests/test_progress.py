@@ -17,3 +17,31 @@ def test_time_left_is_the_mean_step_time_times_the_steps_left(monkeypatch):
 
 def test_every_progress_line_carries_the_wall_clock():
     assert re.fullmatch(r"\[\d\d:\d\d:\d\d\] diagnosis: refitting", progress.stamp("diagnosis: refitting"))
+
+
+def test_steps_of_unequal_size_scale_the_time_left_by_the_work_still_to_do(monkeypatch):
+    clock = iter([0.0, 10.0, 40.0, 50.0])  # t0, then the end of each step (and the last t0)
+    monkeypatch.setattr(progress.time, "monotonic", lambda: next(clock))
+    work = progress.Work([1.0, 2.0, 1.0])  # e.g. solves weighted by their expected cost
+    assert work.done() == "(1/3 done, about 30 s left)"   # 1 unit in 10 s, 3 units to go
+    assert work.done() == "(2/3 done, about 13 s left)"   # 3 units in 40 s, 1 unit to go
+    assert progress.Work([5.0]).done() == "(1/1 done)"    # nothing left: no estimate
+
+
+def test_edge_levels_report_the_time_left_weighted_by_their_size(monkeypatch):
+    from jointid.identification import polish
+
+    lines = []
+    monkeypatch.setattr(polish, "solve_point", lambda cfg, model, theta, n_modes, describe: (None, None, None, None))
+    monkeypatch.setattr(polish, "edge_limit", lambda solves: solves)
+
+    class Model:
+        def __init__(self, n):
+            self.n_dofs, self.stiffness = n, {}
+
+    cfg = {"joints": {"parameters": {}}, "solver": {"n_modes": 4}}
+    monkeypatch.setattr(polish, "joint_terms", lambda joints, model: {})
+    polish.edge_limit_at(cfg, [Model(100), Model(200), Model(300)], {}, log=lines.append, base=("f", "s"),
+                         sizes=[100, 200, 300])
+    assert [re.sub(r"about \d+ s", "about N s", ln) for ln in lines] == [
+        "edge level +1: 200 DOFs solved (1/2 done, about N s left)", "edge level +2: 300 DOFs solved (2/2 done)"]

@@ -31,3 +31,24 @@ class Steps:
             return f"({self.k}/{self.n} done)"
         per = (time.monotonic() - self.t0) / self.k
         return f"({self.k}/{self.n} done, about {per * (self.n - self.k):.0f} s left)"
+
+
+class Work:
+    """Counter of a loop whose steps differ in size: ``weights`` (one per step, e.g. the expected cost
+    of each solve).  :meth:`done` after step k gives ``"(k/n done, about X s left)"``, the time left
+    being the time so far scaled by the weight still to do over the weight done."""
+
+    def __init__(self, weights):
+        self.w = [float(x) for x in weights]
+        self.k, self.t0 = 0, time.monotonic()
+
+    def done(self) -> str:
+        self.k += 1
+        n = len(self.w)
+        if self.k >= n:
+            return f"({self.k}/{n} done)"
+        did, left = sum(self.w[: self.k]), sum(self.w[self.k:])
+        if did <= 0:
+            return f"({self.k}/{n} done)"
+        return f"({self.k}/{n} done, about {(time.monotonic() - self.t0) * left / did:.0f} s left)"
+

@@ -29,10 +29,10 @@ from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
 from jointid.identification.rom import ROM, load_rom
 from jointid.identification.updating import fe_polish, log_jacobian
-from jointid.progress import stamp
+from jointid.progress import Work, stamp
 
 __all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "corrected", "edge_limit_at", "extrapolated_polish",
-           "polish_on_model", "polish_optimum", "solve_point"]
+           "model_sizes", "polish_on_model", "polish_optimum", "solve_point"]
 
 EXTRAPOLATION_PASSES = 3  # polishes on extrapolated frequencies, each with factors taken at the last optimum
 EXTRAPOLATION_SETTLED = 2e-3  # the factors have settled once their first-order change over a polish is below this
@@ -87,12 +87,14 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
     say = lambda m: _log(f"identify[{state}]: {m}")  # noqa: E731
     # each level is loaded when its turn comes and dropped after its solve (peak memory: one level)
     models = [partial(load_model, p) for p in (matrices, *edge_matrices)]
+    sizes = model_sizes([matrices, *edge_matrices])
     theta_mesh = dict(zip(doc["names"], map(float, polish["theta"])))
     passes = []
     for k in range(EXTRAPOLATION_PASSES):
         at = np.asarray(polish["theta"], float)
         say(f"mesh extrapolation over the edge levels at {'the base-mesh optimum' if k == 0 else 'the new optimum'}")
-        lim = edge_limit_at(cfg, models, dict(zip(doc["names"], map(float, at))), log=say, sensitivities=True)
+        lim = edge_limit_at(cfg, models, dict(zip(doc["names"], map(float, at))), log=say, sensitivities=True,
+                            sizes=sizes)
         shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= cfg["solver"]["min_freq_Hz"]]
         say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
         say("polish on the extrapolated frequencies")
@@ -178,18 +180,25 @@ def corrected(solve, correction):
     return solve_corrected
 
 
+SOLVE_COST_EXPONENT = 1.3  # a modal solve's time grows about as DOFs^1.3 (benchmark d)
+
+
 def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, base=None,
-                  sensitivities: bool = False):
+                  sensitivities: bool = False, sizes: list[int] | None = None):
     """:class:`jointid.fe.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta``; ``models``:
     the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
     those, so that the highest base modes find their partner), each a model or a function that
     builds one (built when its turn comes and dropped after its solve); ``base``: the base mesh's
     ``(freqs_Hz, shapes)`` at ``theta`` when already solved; ``sensitivities``: with the factors'
-    first-order dependence on ``theta`` (exact modal sensitivities on each mesh)."""
+    first-order dependence on ``theta`` (exact modal sensitivities on each mesh); ``sizes``: the DOFs
+    of each mesh when known beforehand, for the time-left estimate of the progress lines (each solve
+    weighted by DOFs^1.3; without them every level counts alike)."""
     names = list(theta)
     jt = joint_terms(cfg["joints"], cfg.get("model"))
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     solves = []
+    todo = [k for k in range(len(models)) if not (k == 0 and base is not None)]
+    work = Work([float(sizes[k]) ** SOLVE_COST_EXPONENT if sizes else 1.0 for k in todo])
     for k, model in enumerate(models):
         model = model() if callable(model) else model
         if k == 0 and base is not None:
@@ -201,6 +210,11 @@ def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, ba
              if sensitivities else None)
         solves.append((f, s, model.n_dofs, J))
         if log:
-            log(f"edge level +{k}: {model.n_dofs} DOFs solved")
+            log(f"edge level +{k}: {model.n_dofs} DOFs solved {work.done()}")
         del model
     return edge_limit(solves)
+
+
+def model_sizes(paths: list) -> list[int]:
+    """DOFs of the model files ``paths`` (each only mapped, not read: a few milliseconds)."""
+    return [load_model(p).n_dofs for p in paths]

@@ -89,7 +89,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     import pandas as pd
 
     from jointid.fe.model import load_model
-    from jointid.identification.polish import edge_limit_at, solve_point
+    from jointid.identification.polish import edge_limit_at, model_sizes, solve_point
 
     par = io.read_json(params_json)
     doc = io.read_json(surface_json)
@@ -101,7 +101,8 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     f_all, lim = freqs, None
     if edge_matrices:
         lim = edge_limit_at(cfg, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
-                            log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes))
+                            log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes),
+                            sizes=[model.n_dofs, *model_sizes(edge_matrices)])
         f_all = lim.limit_Hz
     from jointid.geometry.points import dof_labels
     from jointid.identification.visibility import misfit_table
