@@ -270,7 +270,8 @@ def release_model_pages(model) -> int:
     about 0.5 GB of resident memory that the factorisation and the Lanczos run never touch."""
     from jointid.io import release_mapped
 
-    return release_mapped([A.data for terms in (model.stiffness, model.mass) for A in terms.values()])
+    terms = [*(getattr(model, "stiffness", None) or {}).values(), *(getattr(model, "mass", None) or {}).values()]
+    return release_mapped([A.data for A in terms if hasattr(A, "data")])  # a model without terms: nothing
 
 
 def free_dofs(n: int, fixed) -> np.ndarray:
