@@ -22,7 +22,10 @@ import numpy as np
 import pandas as pd
 
 from jointid.correlate.pairing import pair_by_shapes
+from jointid.diagnosis.judging import supported
+from jointid.diagnosis.results import row_sigma
 from jointid.diagnosis.terms import StateInfo
+from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 
 if TYPE_CHECKING:
     from jointid.diagnosis.fitting import Diagnoser
@@ -34,13 +37,11 @@ __all__ = ["CHI2_1_95", "absorption", "absorption_notes", "explain_tie", "tie_gr
 CHI2_1_95 = 3.841  # chi-square quantile, 1 degree of freedom, 95 %: a difference the data could show
 
 
-def row_sigma(ev, data) -> np.ndarray:
-    """Relative frequency uncertainty of every residual row of an evaluation."""
-    return np.array([data[si].sigma_rel for si, _ in ev.rows])
-
-
-def absorption(current, Jt: np.ndarray, data, shift_pct: float) -> dict:
+def absorption(current, Jt: np.ndarray, data, shift_pct: float, me: ModelError = NO_MODEL_ERROR) -> dict:
     """How far the fitted parameters of ``current`` can imitate a candidate with Jacobian ``Jt`` (n, 1).
+
+    Chi-squares are at the total uncertainty of ``me`` (the stated noise plus the model error): a
+    change the model error could hide is no change the data could show.
 
     Returns ``absorbed`` (bool: the candidate at the tested size leaves less than a chi-square of
     3.84 once the parameters are refitted, while it moves the data by far more), ``size_t`` (the test
@@ -55,9 +56,11 @@ def absorption(current, Jt: np.ndarray, data, shift_pct: float) -> dict:
     if peak <= 0 or ev.J.shape[1] == 0:
         return {"absorbed": False, "size_t": 0.0, "chi2_raw": 0.0, "chi2_left": 0.0, "bias_pct": {}}
     t = shift_pct / 100.0 / peak
-    d = jt * t
-    dx, *_ = np.linalg.lstsq(ev.J, d, rcond=None)
-    left = d - ev.J @ dx
+    w = np.sqrt(me.row_weights(s))  # rows in units of the total uncertainty (1 without a model error)
+    d = jt * t * w
+    Jw = ev.J * w[:, None]
+    dx, *_ = np.linalg.lstsq(Jw, d, rcond=None)
+    left = d - Jw @ dx
     var = current.variant
     bias = {}
     for j, lab in enumerate(var.labels):
@@ -79,13 +82,23 @@ def absorption_text(effect: str, value: float, unit: str, pname: str, info: dict
             f"if it is present, they are biased: {parts}")
 
 
+def leading(ranking: pd.DataFrame) -> np.ndarray:
+    """Which ranking rows lead: those that explain the data at the noise, or, when none does, those
+    the data support against the current model (:func:`jointid.diagnosis.judging.supported`)."""
+    ok = ranking["explains"].astype(bool).to_numpy()
+    if ok.any() or "support" not in ranking:
+        return ok
+    return supported(ranking)
+
+
 def tie_groups(ranking: pd.DataFrame, tie_delta_aicc: float) -> list[str]:
     """Per ranking row, the other candidates indistinguishable from it (";"-joined, "" for none):
-    both explain the data and their AICc differ by less than ``tie_delta_aicc`` (or cannot be
-    compared: AICc is infinite when there are no more residuals than parameters + 1)."""
+    both lead (:func:`leading`) and their QAICc differ by less than ``tie_delta_aicc`` (or cannot be
+    compared: QAICc is infinite when there are no more residuals than parameters + 1).  QAICc is
+    AICc where the best model fits within its noise."""
     out = []
-    ok = ranking["explains"].astype(bool).to_numpy()
-    a = ranking["delta_aicc"].to_numpy(float)
+    ok = leading(ranking)
+    a = ranking["delta_qaicc" if "delta_qaicc" in ranking else "delta_aicc"].to_numpy(float)
     names = ranking["effect"].astype(str).to_numpy()
     for i in range(len(ranking)):
         if not ok[i]:
@@ -166,17 +179,21 @@ def prediction_spread(f: dict, sigma_rel: float) -> float:
     return min((np.log(a / b) / sigma_rel) ** 2 for a, b in itertools.combinations(vals, 2))
 
 
-def next_measurements(diag, fits: dict, names: list[str], top: int = 3) -> pd.DataFrame:
+def next_measurements(diag, fits: dict, names: list[str], top: int = 3,
+                      me: ModelError = NO_MODEL_ERROR) -> pd.DataFrame:
     """The measurements that would best separate the candidates ``names`` (their refits in ``fits``).
 
     Each row: ``measurement`` (what to measure), ``kind`` (further mode, force level), ``state``,
     ``em_force_N``, ``expected_delta_chi2`` (the smallest, over candidate pairs, squared difference of
     their predictions in noise units), ``predictions`` (candidate: Hz).  A force level is one new
-    state: its row sums the expected difference over the modes measured today.  Sorted best first,
-    ``top`` rows.
+    state: its row sums the expected difference over the modes measured today.  The difference is in
+    units of the total uncertainty of ``me`` (the model error blurs a new measurement as it does the
+    old ones).  Sorted best first, ``top`` rows.
     """
     rows = _further_modes(diag, fits, names)
     forces = _force_levels(diag, fits, names)
+    for r in rows + forces:
+        r["sigma_rel"] = float(np.hypot(r["sigma_rel"], me.sigma_model_rel))
     by_force = {}
     for r in forces:
         g = by_force.setdefault(r["group"], {**r, "expected_delta_chi2": 0.0, "parts": []})
@@ -200,7 +217,7 @@ def next_measurements(diag, fits: dict, names: list[str], top: int = 3) -> pd.Da
 
 
 def absorption_notes(diag: Diagnoser, current: Fit, rows: list, ranking: pd.DataFrame,
-                     shift_pct: float) -> list[str]:
+                     shift_pct: float, me: ModelError = NO_MODEL_ERROR) -> list[str]:
     """Step 6: the candidates the fitted parameters could be hiding (:func:`absorption`);
     fills the ranking's ``absorbed`` and ``absorbed_bias_pct`` columns and returns one sentence each."""
     out = []
@@ -209,7 +226,7 @@ def absorption_notes(diag: Diagnoser, current: Fit, rows: list, ranking: pd.Data
     for row, spec, st in rows:
         if spec is None or st is None:
             continue
-        info = absorption(current, st["Jt"], diag.data, shift_pct)
+        info = absorption(current, st["Jt"], diag.data, shift_pct, me)
         if not info["absorbed"]:
             continue
         p0 = spec.effect.params[0]
@@ -222,10 +239,12 @@ def absorption_notes(diag: Diagnoser, current: Fit, rows: list, ranking: pd.Data
     return out
 
 
-def explain_tie(diag: Diagnoser, ranking: pd.DataFrame, fits: dict) -> tuple[str, pd.DataFrame]:
-    """Step 7 of the loop: for explaining candidates the data cannot tell apart, how far their refits differ and
-    the measurements that would decide (:func:`ambiguity.next_measurements`); ("", empty) otherwise."""
-    explaining = ranking[ranking["explains"].astype(bool)]
+def explain_tie(diag: Diagnoser, ranking: pd.DataFrame, fits: dict,
+                me: ModelError = NO_MODEL_ERROR) -> tuple[str, pd.DataFrame]:
+    """Step 7 of the loop: for leading candidates (:func:`leading`) the data cannot tell apart, how far their
+    refits differ and the measurements that would decide (:func:`ambiguity.next_measurements`); ("", empty)
+    otherwise."""
+    explaining = ranking[leading(ranking)]
     if not len(explaining) or not explaining.iloc[0]["indistinguishable_from"]:
         return "", pd.DataFrame()
     names = [str(explaining.iloc[0]["effect"])] + str(explaining.iloc[0]["indistinguishable_from"]).split(";")
@@ -242,4 +261,4 @@ def explain_tie(diag: Diagnoser, ranking: pd.DataFrame, fits: dict) -> tuple[str
             dmax = max(dmax, float(np.nanmax(np.abs(np.log(fm.max(0) / fm.min(0)))) * 100) if fm.size else 0.0)
     detail = (f"Their refitted joint parameters differ ({'; '.join(spread)}) and their predictions of the "
               f"measured modes by at most {dmax:.2f} %.")
-    return detail, next_measurements(diag, {n: tied[n] for n in names}, names)
+    return detail, next_measurements(diag, {n: tied[n] for n in names}, names, me=me)

@@ -7,7 +7,8 @@ reduced solver's subspace grows with every solve, so the order is part of the re
 2. the baseline on all states, then :func:`calibrate_ladder` — the configured effects one by one;
 3. :func:`score_candidates` — a score test of every library effect not in the model;
 4. :func:`refit_candidates` — the leading candidates refitted, AICc and noise-level check;
-5. :func:`combinations` — pairs of the leading candidates, when no single one explains;
+5. :func:`combinations` — pairs of the leading candidates, when no single one explains; then every
+   fit judged with the model error (:mod:`jointid.diagnosis.judging`: QAICc, weights, support);
 6. :func:`jointid.diagnosis.ambiguity.absorption_notes` — candidates the fitted joints could imitate;
 7. :func:`jointid.diagnosis.ambiguity.explain_tie` — how tied candidates differ, the measurement that
    would decide;
@@ -29,6 +30,7 @@ from jointid.diagnosis.ambiguity import absorption_notes, explain_tie, tie_group
 from jointid.diagnosis.combine import combine_candidates, refit_at, refit_on_ladder
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, print_log, refit
+from jointid.diagnosis.judging import judge_fits, model_error_of
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
 from jointid.diagnosis.statistics import identifiability, score_candidate, state_contrasts
@@ -39,6 +41,7 @@ from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.diagnosis.verdict import Findings, verdict_text
 from jointid.errors import DataError
 from jointid.fe.reduced import ReducedSolver
+from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 from jointid.progress import Steps
 
 
@@ -67,6 +70,7 @@ class Diagnosis:
     preload_curve: pd.DataFrame = field(default_factory=pd.DataFrame)
     identifiable: dict = field(default_factory=dict)
     absorbed: list = field(default_factory=list)
+    model_error: ModelError = NO_MODEL_ERROR
 
 
 def default_options() -> dict:
@@ -136,16 +140,20 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     for row, _, _ in rows:  # nothing needs explaining when the current model fits within the noise
         if "explains" in row:
             row["explains"] = bool(row["explains"] and needed)
+    any_explains = any(bool(r[0].get("explains")) for r in rows)
+    combos = combinations(diag, current, rows, fits, opt, log) if needed and not any_explains else []
+    me = model_error_of({**fits, "current": current}, diag.data)
+    current_weight = judge_fits(current, fits, [r[0] for r in rows], combos, diag.data, me)
+    combos = combination_frame(combos)
     ranking = ranking_frame([r[0] for r in rows])
     ranking.attrs["tie_delta_aicc"] = float(opt["tie_delta_aicc"])
+    ranking.attrs["model_error"] = me
     ranking["indistinguishable_from"] = tie_groups(ranking, float(opt["tie_delta_aicc"]))
-    absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]))
-    combos = combinations(diag, current, rows, fits, opt, log) if needed and not ranking["explains"].any() \
-        else pd.DataFrame()
-    tie_detail, nxt = explain_tie(diag, ranking, fits)
+    absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]), me)
+    tie_detail, nxt = explain_tie(diag, ranking, fits, me)
     ident, curve = identifiable_fits(diag, current, fits, ranking, combos, log)
     findings = Findings(current, ranking, alpha, between_share, combos, absorbed, tie_detail, nxt, ident,
-                        int(opt["max_effects"]))
+                        int(opt["max_effects"]), me, current_weight)
     verdict, explained_by = verdict_text(findings, diag.data)
     ladder_rows += suggested_ladder(diag, fits, explained_by, ranking)
     drift_tab = drift_table(diag, current, log, skip=not drift)
@@ -156,7 +164,8 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
                      point_residuals=correlate.point_residuals(shape_res), mac=mac_mats, verdict=verdict,
                      explained_by=explained_by, fits=fits, notes=notes, parameters=parameter_table(fits),
                      timing_s=time.time() - t_start, solver=diag.solver, combinations=combos,
-                     next_measurements=nxt, preload_curve=curve, identifiable=ident, absorbed=absorbed)
+                     next_measurements=nxt, preload_curve=curve, identifiable=ident, absorbed=absorbed,
+                     model_error=me)
 
 
 def check_enough_data(data: list[StateData], base: Variant) -> None:
@@ -283,16 +292,24 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
         fits["+" + row["effect"]] = f
 
 
-def combinations(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt: dict, log) -> pd.DataFrame:
+def combinations(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt: dict, log) -> list[dict]:
     """Step 5: pairs of the leading single refits (:func:`combine_candidates`) when ``max_effects``
     allows: it counts the library effects of one model, the enabled ones included (a pair on top of
     one enabled effect is a model of three); their fits join ``fits`` under ``+a+b``."""
     singles = {r[0]["effect"]: fits["+" + r[0]["effect"]] for r in rows if "+" + r[0]["effect"] in fits}
     if int(opt["max_effects"]) < len(current.variant.effects) + 2 or len(singles) < 2:
-        return pd.DataFrame()
+        return []
     combo_rows, combo_fits = combine_candidates(diag, current, singles, int(opt["n_combine"]), float(opt["alpha"]), log)
     fits.update(combo_fits)
-    return pd.DataFrame(combo_rows)
+    return combo_rows
+
+
+def combination_frame(rows: list[dict]) -> pd.DataFrame:
+    """The judged pairs (:func:`jointid.diagnosis.judging.judge_fits`) as a table: those explaining the
+    data at the noise first, then by delta QAICc."""
+    if not rows:
+        return pd.DataFrame()
+    return pd.DataFrame(sorted(rows, key=lambda r: (not r["explains"], r["delta_qaicc"]))).reset_index(drop=True)
 
 
 def suggested_ladder(diag: Diagnoser, fits: dict, explained_by: str, ranking: pd.DataFrame) -> list[dict]:

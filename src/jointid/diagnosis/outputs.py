@@ -37,6 +37,16 @@ def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
     io.write_text(out / "index.html", page)
 
 
+def supported_names(res: Diagnosis) -> list[str]:
+    """The refitted candidates and pairs the data support against the current model, best first."""
+    out = []
+    for df, col in ((res.ranking, "effect"), (res.combinations, "effects")):
+        if len(df) and "support" in df:
+            ok = df[df["support"].fillna("not").astype(str) != "not"]
+            out += list(zip(ok["delta_qaicc"], ok[col].astype(str)))
+    return [n for _, n in sorted(out)]
+
+
 def verdict_record(res: Diagnosis, dataset: str, run: dict) -> dict:
     """The content of ``verdict.json``: the verdict, its short form, the effects it names (several
     when the data cannot tell them apart or a combination is needed), what the data identify, the
@@ -51,6 +61,8 @@ def verdict_record(res: Diagnosis, dataset: str, run: dict) -> dict:
     else:
         named, kind = [short], "single"
     return {"dataset": dataset, "verdict": res.verdict, "explained_by": short, "kind": kind, "effects": named,
+            "model_error": res.model_error.record(), "model_error_text": res.model_error.sentence(),
+            "supported": supported_names(res),
             "identifiable": res.identifiable, "absorbed": res.absorbed,
             "next_measurements": res.next_measurements.to_dict(orient="records"),
             "notes": res.notes, "run": run, "timing_s": res.timing_s}

@@ -16,7 +16,7 @@ from markupsafe import Markup
 from jointid.diagnosis.effects import effect_table
 from jointid.diagnosis.loop import Diagnosis
 
-RANK_COLUMNS = ["rank", "effect", "explained_fraction", "score", "p_value", "delta_aicc", "explains",
+RANK_COLUMNS = ["rank", "effect", "removed_fraction", "delta_qaicc", "weight", "support", "explains",
                 "indistinguishable_from", "parameter", "estimate", "ci95_low", "ci95_high", "unit",
                 "max_abs_error_pct_after", "absorbed", "absorbed_bias_pct", "note"]
 TEMPLATE = "diagnosis.html"
@@ -165,6 +165,7 @@ def html_page(res: Diagnosis, dataset: str, run: dict) -> str:
                       autoescape=select_autoescape(["html"]), keep_trailing_newline=True)
     return env.get_template(TEMPLATE).render(
         figs=figures(res), dataset=dataset, verdict=res.verdict, notes=res.notes, mac_states=list(res.mac),
+        model_error=res.model_error.sentence(),
         absorbed=res.absorbed, identifiable=res.identifiable,
         time_utc=run.get("time_utc", ""), config_hash=run.get("config_hash", ""),
         n_dofs=str(run.get("n_dofs", "")), timing=f"{res.timing_s:.0f}",

@@ -17,7 +17,7 @@ import numpy as np
 from jointid.diagnosis.statistics import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
 
-__all__ = ["Evaluation", "Fit", "refit_row"]
+__all__ = ["Evaluation", "Fit", "refit_row", "row_sigma"]
 
 
 @dataclass
@@ -32,6 +32,11 @@ class Evaluation:
     rows: list  # per residual: (state number, measured mode number)
     f_model: list  # per state: model frequency per measured mode (NaN unpaired)
     misfits: list = None  # per state: (model modes, nearest measured Hz, model Hz) of the unpaired visible modes
+
+
+def row_sigma(ev: Evaluation, data: list[StateData]) -> np.ndarray:
+    """Stated relative frequency uncertainty of every residual row of an evaluation."""
+    return np.array([data[si].sigma_rel for si, _ in ev.rows], float)
 
 
 @dataclass
@@ -98,6 +103,10 @@ class Fit:
         95 % interval of the diagnosis comes from (as the identification's and the hypotheses')."""
         return self.covariance() * self.interval_scale(extra_params) ** 2
 
+    def row_sigma(self, data: list[StateData]) -> np.ndarray:
+        """Stated relative frequency uncertainty of every residual row (:func:`row_sigma`)."""
+        return row_sigma(self.ev, data)
+
     def errors_pct(self, data: list[StateData]) -> list[np.ndarray]:
         """Frequency error (%) per measured mode and state (NaN unpaired)."""
         return [100 * (fm - d.f_meas) / d.f_meas for fm, d in zip(self.ev.f_model, data)]
@@ -149,6 +158,7 @@ def refit_row(f: Fit, current: Fit, data: list[StateData], alpha: float, extra_p
     k = f.k + extra_params
     p_value = chi2_p_value(f.chi2, max(f.n - k, 1))
     return {"delta_aicc": aicc(f.chi2, f.n, k) - current.aicc, "fit_chi2": f.chi2, "fit_p_value": p_value,
+            "fit_n_data": f.n, "fit_n_params": k,
             "explains": bool(p_value >= alpha), "estimate": p0.from_t(t), "ci95_low": vals[0],
             "ci95_high": vals[1], "interval_scale": f.interval_scale(extra_params),
             "max_abs_error_pct_after": max(s["max_abs_error_pct"] for s in summ) if summ else np.nan,

@@ -34,9 +34,11 @@ def state_errors_table(diag: Diagnoser, fit: Fit, label: str) -> list[dict]:
 
 
 def ranking_frame(rows: list[dict]) -> pd.DataFrame:
-    """The candidate ranking: refitted candidates first (explaining ones, then by delta AICc), then
-    the rest by score; ``rank`` numbers the rows from 1."""
-    cols = ["rank", "effect", "explained_fraction", "score", "p_value", "delta_aicc", "explains", "parameter",
+    """The candidate ranking: refitted candidates first (explaining ones, then by delta QAICc: delta
+    AICc at the total uncertainty, :mod:`jointid.diagnosis.judging`), then the rest by score; ``rank``
+    numbers the rows from 1."""
+    cols = ["rank", "effect", "explained_fraction", "score", "p_value", "delta_aicc", "delta_qaicc", "weight",
+            "support", "removed_fraction", "explains", "parameter",
             "unit", "estimate", "ci95_low", "ci95_high", "interval_scale", "linear_estimate", "fit_chi2", "fit_p_value",
             "max_abs_error_pct_after", "rms_error_pct_after", "between_states_fraction",
             "between_states_p_value", "collinearity", "title", "note", "identifiable", "enable_with"]
@@ -45,12 +47,12 @@ def ranking_frame(rows: list[dict]) -> pd.DataFrame:
         if c not in df:
             df[c] = np.nan
     refitted = df["delta_aicc"].notna()
-    a = df[refitted].sort_values(["explains", "delta_aicc"], ascending=[False, True], kind="stable")
+    a = df[refitted].sort_values(["explains", "delta_qaicc"], ascending=[False, True], kind="stable")
     b = df[~refitted].sort_values("score", ascending=False, kind="stable")
     out = pd.concat([a, b], ignore_index=True)
     out["rank"] = np.arange(1, len(out) + 1)
     out["explains"] = out["explains"].astype(object).where(out["explains"].notna(), False).astype(bool)
-    for c in ("note", "identifiable", "enable_with"):  # text columns: empty, never NaN
+    for c in ("note", "identifiable", "enable_with", "support"):  # text columns: empty, never NaN
         out[c] = out[c].astype(object).where(out[c].notna(), "")
     return out[cols]
 

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from jointid.diagnosis.results import Fit
+from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 
 __all__ = ["Findings", "verdict_text", "state_errors_text", "daicc"]
 
@@ -39,6 +40,8 @@ class Findings:
     next_measurements: pd.DataFrame = field(default_factory=pd.DataFrame)
     identifiable: dict = field(default_factory=dict)  # fit label (current, +A, +A+B) -> sentence
     max_effects: int = 2
+    model_error: ModelError = NO_MODEL_ERROR
+    current_weight: float = 1.0
 
 
 def daicc(value: float) -> str:
@@ -90,6 +93,7 @@ def verdict_text(f: Findings, data) -> tuple[str, str]:
         verdict = combination_text(best, combos, _max_error(summ), f.ranking)
         return verdict + _identifiable(f, ["+" + str(best["effects"])]), str(best["effects"])
     verdict = unexplained_text(f.current, f.ranking, cur_txt, combos, f.max_effects)
+    verdict += partial_text(f)
     return (verdict + between_states_text(f.ranking, f.between_share)
             + _identifiable(f, ["current"]), "unexplained")
 
@@ -115,7 +119,7 @@ def missing_effect_text(best: pd.Series, max_error_pct: float) -> str:
             f"It explains {100 * best['explained_fraction']:.0f} % of the residual to first order; refitted, "
             f"the error falls from max {max_error_pct:.2f} % to "
             f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
-            f"(p = {best['fit_p_value']:.2g}, delta AICc = {daicc(best['delta_aicc'])}). Enable it with "
+            f"(p = {best['fit_p_value']:.2g}, ΔQAICc = {daicc(best['delta_qaicc'])}). Enable it with "
             f"effects: {{{_enable(best)}}} in config.yaml.")
 
 
@@ -127,11 +131,11 @@ def _enable(row: pd.Series) -> str:
 
 def _tie_text(f: Findings, explaining: pd.DataFrame, tied: list[str], max_error_pct: float) -> str:
     rows = explaining.set_index("effect").loc[tied]
-    each = "; ".join(f"{n}: {r['parameter']} = {r['estimate']:.4g} {r['unit']} (delta AICc {daicc(r['delta_aicc'])}, "
+    each = "; ".join(f"{n}: {r['parameter']} = {r['estimate']:.4g} {r['unit']} (ΔQAICc {daicc(r['delta_qaicc'])}, "
                      f"p = {r['fit_p_value']:.2g}, max error {r['max_abs_error_pct_after']:.2f} %)"
                      for n, r in rows.iterrows())
     txt = (f"Missing effect: {' or '.join(tied)} (the data cannot tell them apart). Each refitted brings the "
-           f"error from max {max_error_pct:.2f} % to the noise level, within delta AICc < "
+           f"error from max {max_error_pct:.2f} % to the noise level, within ΔQAICc < "
            f"{f.ranking.attrs.get('tie_delta_aicc', 4.0):g} of each other: {each}.")
     if f.tie_detail:
         txt += f" {f.tie_detail}"
@@ -149,19 +153,19 @@ def combination_text(best: pd.Series, combos: pd.DataFrame, max_error_pct: float
     """The verdict naming a combination of effects that explains the data (no single one does)."""
     names = str(best["effects"]).split("+")
     others = combos[combos["explains"] & (combos["effects"] != best["effects"])
-                    & ((combos["delta_aicc"] - best["delta_aicc"]).abs()
+                    & ((combos["delta_qaicc"] - best["delta_qaicc"]).abs()
                        < ranking.attrs.get("tie_delta_aicc", 4.0))]
-    lead = ranking[ranking["delta_aicc"].notna()]
+    lead = ranking[ranking["delta_qaicc"].notna()]
     first = lead.iloc[0] if len(lead) else None
     single = (f"the best single one, {first['effect']}, leaves max {first['max_abs_error_pct_after']:.2f} % "
               f"(p = {first['fit_p_value']:.2g})" if first is not None else "")
     txt = (f"Missing effects: {' and '.join(names)} together ({best['estimates']}). No single library effect "
            f"explains the residual ({single}); together the error falls from max {max_error_pct:.2f} % to "
            f"{best['max_abs_error_pct_after']:.2f} % and chi2 is consistent with the noise "
-           f"(p = {best['fit_p_value']:.2g}, delta AICc = {daicc(best['delta_aicc'])}). Enable them with effects: "
+           f"(p = {best['fit_p_value']:.2g}, ΔQAICc = {daicc(best['delta_qaicc'])}). Enable them with effects: "
            f"{{{', '.join(n + ': {}' for n in names)}}} in config.yaml.")
     if len(others):
-        txt += (" Within the same AICc, " + " or ".join(str(e) for e in others["effects"])
+        txt += (" Within the same QAICc, " + " or ".join(str(e) for e in others["effects"])
                 + " explain the data as well: the data cannot tell these combinations apart.")
     return txt
 
@@ -188,10 +192,50 @@ def unexplained_text(current: Fit, ranking: pd.DataFrame, cur_txt: str, combos: 
         tried += f" on top of {', '.join(enabled)}"
         if not len(combos) and 1 < max_effects < len(enabled) + 2:
             why = f"; pairs on top would exceed diagnosis.max_effects = {max_effects} effects in one model"
-    return (f"No listed effect explains the residual: the current model misses something outside the library "
+    return (f"No listed effect explains the residual to the noise "
             f"({tried} tried{why}; "
             f"{cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
             f"p = {current.p_value:.2g})." + part)
+
+
+def _judged(f: Findings) -> pd.DataFrame:
+    """The refitted singles and the pairs, with their judged columns, best QAICc first."""
+    cols = ["name", "delta_qaicc", "weight", "support", "removed_fraction", "max_abs_error_pct_after"]
+    r = f.ranking[f.ranking["delta_qaicc"].notna()].rename(columns={"effect": "name"}) \
+        if "delta_qaicc" in f.ranking else pd.DataFrame(columns=cols)
+    c = f.combinations.rename(columns={"effects": "name"}) if len(f.combinations) else pd.DataFrame(columns=cols)
+    c = c.assign(name=c["name"].astype(str).str.replace("+", " + ", regex=False))
+    both = pd.concat([r.reindex(columns=cols), c.reindex(columns=cols)], ignore_index=True)
+    return both.sort_values("delta_qaicc", kind="stable").reset_index(drop=True)
+
+
+def partial_text(f: Findings) -> str:
+    """When nothing reaches the noise: what the best supported candidate (single or pair) removes and
+    how strongly the data support it, the candidates tied with it, and the model error that remains;
+    or, with none supported, the misfit against the stated noise (docs/effects.md, "Reading the verdict")."""
+    me = f.model_error
+    judged = _judged(f)
+    sup = judged[judged["support"].fillna("not").astype(str) != "not"]
+    if not len(sup):
+        ratio = np.sqrt(max(me.c_hat, 0.0))
+        best = f" (the best, {judged.iloc[0]['name']}, ΔQAICc {daicc(judged.iloc[0]['delta_qaicc'])})" \
+            if len(judged) else ""
+        return (f" No listed effect or pair removes a part of the misfit that the data support against the "
+                f"model error{best}. The misfit is about {ratio:.1f} times the stated noise: either the noise is "
+                f"understated by that factor, or the model has an error of about "
+                f"{100 * me.sigma_model_rel:.2g} % per mode that no listed effect explains. " + me.sentence())
+    b = sup.iloc[0]
+    tie = f.ranking.attrs.get("tie_delta_aicc", 4.0)
+    others = [str(n) for n in sup["name"].iloc[1:][(sup["delta_qaicc"].iloc[1:] - b["delta_qaicc"]) < tie]]
+    txt = (f" {b['name']} removes {100 * b['removed_fraction']:.0f} % of the misfit and is {b['support']} "
+           f"supported (ΔQAICc {daicc(b['delta_qaicc'])} against the current model, weight {b['weight']:.2f}); "
+           f"refitted, the max error is {b['max_abs_error_pct_after']:.2f} %.")
+    if others:
+        txt += (f" Within ΔQAICc < {tie:g} of it, {' or '.join(others)} do as well: the data cannot tell them "
+                "apart.")
+    return txt + (f" A model error of about {100 * me.sigma_model_rel:.2g} % per mode remains "
+                  f"({me.sigma_model_rel / me.sigma_noise_rel:.1f} times the stated noise of "
+                  f"{100 * me.sigma_noise_rel:.2g} %) that no listed effect or pair explains.")
 
 
 def between_states_text(ranking: pd.DataFrame, between_share: float) -> str:

@@ -1,0 +1,69 @@
+"""The diagnosis's fits judged with the model error (:mod:`jointid.identification.model_error`).
+
+Two questions are kept apart (docs/effects.md, "Reading the verdict"):
+
+* how much of the misfit a candidate removes (``removed_fraction``, the share of the current model's
+  chi-square it takes away) and how strongly the data support it (``delta_qaicc`` against the current
+  model, ``weight`` among all the models compared, ``support``);
+* whether what remains is at the noise (``explains``: the chi-square p-value at the stated noise).
+
+The model error ``sigma_m`` comes from the fit of least chi-square per degree of freedom among all the
+fits of the diagnosis (the current model, the single refits and the pairs: the most general models
+tried) and is held fixed while they are compared.  Where that fit is within its noise, QAICc is AICc.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointid.diagnosis.results import Fit
+from jointid.identification.model_error import ModelError, akaike_weights, estimate, qaicc, support_text
+
+__all__ = ["fit_label", "judge_fits", "model_error_of", "qaicc_of"]
+
+
+def fit_label(label: str) -> str:
+    """A fit's label in words: ``baseline`` -> ``the baseline``, ``+a+b`` -> ``the refit with a + b``."""
+    if not label.startswith("+"):
+        return f"the {label}"
+    return "the refit with " + " + ".join(label[1:].split("+"))
+
+
+def model_error_of(fits: dict, data) -> ModelError:
+    """The model error of the diagnosis, from its fit of least chi-square per degree of freedom."""
+    label = min(fits, key=lambda k: (fits[k].chi2 / fits[k].dof, k))
+    f = fits[label]
+    return estimate(f.ev.r, f.row_sigma(data), f.k, reference=fit_label(label))
+
+
+def qaicc_of(f: Fit, data, me: ModelError, n_params: int | None = None) -> float:
+    """QAICc of fit ``f`` at the total uncertainty of ``me`` (``n_params`` counts parameters profiled
+    outside ``f.x`` too; default ``f.k``)."""
+    return qaicc(me.chi2_total(f.ev.r, f.row_sigma(data)), f.n, f.k if n_params is None else n_params)
+
+
+def judge_fits(current: Fit, fits: dict, rows: list[dict], combos: list[dict], data, me: ModelError) -> float:
+    """Fill the judged columns of the refitted candidates' ``rows`` (ranking rows naming ``effect``) and
+    of the ``combos`` rows (naming ``effects`` ``a+b``): ``delta_qaicc`` against the current model,
+    ``removed_fraction``, ``weight`` (Akaike weight at the total uncertainty among the current model,
+    the single refits and the pairs) and ``support``.  Returns the current model's weight."""
+    q_cur = qaicc_of(current, data, me)
+    judged = []
+    for row in rows:
+        f = fits.get("+" + str(row.get("effect")))
+        if f is not None and "fit_n_params" in row:
+            judged.append((row, f, int(row["fit_n_params"])))
+    for row in combos:
+        judged.append((row, fits["+" + str(row["effects"])], None))
+    q = [qaicc_of(f, data, me, k) for _, f, k in judged]
+    w = akaike_weights([q_cur] + q)
+    for (row, f, _), qi, wi in zip(judged, q, w[1:]):
+        d = qi - q_cur
+        row.update({"delta_qaicc": d, "weight": float(wi), "support": support_text(d),
+                    "removed_fraction": float(1 - f.chi2 / current.chi2) if current.chi2 > 0 else 0.0})
+    return float(w[0])
+
+
+def supported(rows) -> np.ndarray:
+    """Which rows (a DataFrame) are supported against the current model (``support`` not ``not``)."""
+    return rows["support"].fillna("not").astype(str).ne("not").to_numpy()

@@ -1,0 +1,192 @@
+"""The likelihood with model error: what a fit above its noise means for every comparison of fits.
+
+A frequency residual ``e_i = ln(f_model / f_meas)`` has the stated measurement uncertainty ``s_i``
+(relative, from the dataset), a known part ``k_i`` (the mesh's discretisation error, when estimated)
+and a model error ``sigma_m`` common to all modes, which is whatever the model cannot represent:
+
+    e_i ~ N(0, s_i^2 + k_i^2 + sigma_m^2)
+
+``sigma_m`` is estimated once per comparison, from its *reference fit*: the fit of least chi-square
+per degree of freedom among the models compared (for nested candidates, the most general; for
+non-nested reconstructions, the best), by the moment equation of Paule and Mandel (1982),
+
+    sum_i e_i^2 / (s_i^2 + k_i^2 + sigma_m^2) = n - k,        sigma_m >= 0,
+
+and then held fixed while every model of the comparison is judged.  With one stated uncertainty for
+all modes and no known part, this is the variance-inflation factor of quasi-likelihood,
+``c_hat = chi2 / dof`` with ``sigma^2 + sigma_m^2 = c_hat sigma^2``, and the criterion below is
+Burnham and Anderson's QAICc (*Model Selection and Multimodel Inference*, 2nd ed., 2002, sec. 2.5 and
+6.2).  Where the reference fits within its noise (``c_hat <= 1``), ``sigma_m = 0`` and everything is
+the plain chi-square and AICc of the stated noise.
+
+QAICc here is ``chi2_m + 2k + 2k(k+1)/(n-k-1)`` with ``chi2_m`` the chi-square at the total
+uncertainty.  Burnham and Anderson also count ``c_hat`` as one more parameter of every model; being
+common to all models of a comparison it cancels in every difference, except for a small change of
+the small-sample term, and is left out.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+__all__ = ["ModelError", "NO_MODEL_ERROR", "estimate", "qaicc", "akaike_weights", "support_text",
+           "SUPPORT_STRONG", "SUPPORT_SOME"]
+
+SUPPORT_STRONG = 10.0
+"""A model ahead by at least this much QAICc has strong support over the other (Burnham and Anderson,
+sec. 2.6: the other has essentially none)."""
+SUPPORT_SOME = 4.0
+"""Ahead by at least this much: the other has considerably less support (same place)."""
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """The model error of one comparison of fits, estimated from its reference fit.
+
+    Attributes
+    ----------
+    sigma_model_rel : float
+        ``sigma_m``, the model error per mode, relative (0.04 = 4 % of the frequency).
+    sigma_noise_rel : float
+        The stated measurement uncertainty (root mean square over the reference's residual rows).
+    c_hat : float
+        Lack of fit of the reference at the stated noise, ``chi2 / dof`` (>= 0; not floored).
+    reference : str
+        Which fit the estimate comes from.
+    chi2, dof : float, int
+        The reference's chi-square at the stated noise and its degrees of freedom.
+    sigma_known_rel : float
+        Root mean square of the known part (the mesh error) over the reference's rows.
+    """
+
+    sigma_model_rel: float = 0.0
+    sigma_noise_rel: float = 0.0
+    c_hat: float = 1.0
+    reference: str = ""
+    chi2: float = 0.0
+    dof: int = 1
+    sigma_known_rel: float = 0.0
+
+    @property
+    def inflation(self) -> float:
+        """``(s^2 + k^2 + sigma_m^2) / s^2`` at the root-mean-square noise: the factor a chi-square at the
+        stated noise is divided by (``max(1, c_hat)`` without a known part)."""
+        s2 = self.sigma_noise_rel ** 2
+        return (s2 + self.sigma_known_rel ** 2 + self.sigma_model_rel ** 2) / s2 if s2 > 0 else 1.0
+
+    @property
+    def above_noise(self) -> bool:
+        """Whether the reference fits worse than its noise (a model error is estimated)."""
+        return self.sigma_model_rel > 0.0
+
+    def variances(self, sigma_rel, known_rel=None) -> np.ndarray:
+        """Total variance per residual row: ``s_i^2 + k_i^2 + sigma_m^2``."""
+        s = np.asarray(sigma_rel, float)
+        k = np.zeros_like(s) if known_rel is None else np.asarray(known_rel, float)
+        return s ** 2 + k ** 2 + self.sigma_model_rel ** 2
+
+    def chi2_total(self, r, sigma_rel, known_rel=None) -> float:
+        """Chi-square at the total uncertainty of sigma-normalised residuals ``r`` (``r_i = e_i / s_i``)."""
+        r = np.asarray(r, float)
+        s = np.broadcast_to(np.asarray(sigma_rel, float), r.shape)
+        e = r * s
+        return float(np.sum(e ** 2 / self.variances(s, None if known_rel is None
+                                                     else np.broadcast_to(known_rel, r.shape))))
+
+    def row_weights(self, sigma_rel, known_rel=None) -> np.ndarray:
+        """Per row ``s_i^2 / (s_i^2 + k_i^2 + sigma_m^2)``: what a chi-square contribution at the stated
+        noise is multiplied by to count at the total uncertainty."""
+        s = np.asarray(sigma_rel, float)
+        return s ** 2 / self.variances(s, known_rel)
+
+    def record(self) -> dict:
+        """JSON-ready summary (percentages, as reported)."""
+        return {"sigma_model_pct": 100 * self.sigma_model_rel, "sigma_noise_pct": 100 * self.sigma_noise_rel,
+                "sigma_known_pct": 100 * self.sigma_known_rel, "c_hat": self.c_hat,
+                "inflation": self.inflation, "reference": self.reference, "reference_chi2": self.chi2,
+                "reference_dof": int(self.dof)}
+
+    def sentence(self) -> str:
+        """The headline: the model's remaining error per mode against the noise."""
+        noise = 100 * self.sigma_noise_rel
+        if not self.above_noise:
+            return (f"The best model fits within the stated noise of {noise:.2g} % per mode "
+                    f"(chi2/dof = {self.c_hat:.2f}); no model error is estimated.")
+        return (f"The model's remaining error is about {100 * self.sigma_model_rel:.2g} % per mode, "
+                f"{self.sigma_model_rel / self.sigma_noise_rel:.1f} times the stated measurement noise of "
+                f"{noise:.2g} % (chi2/dof = {self.c_hat:.1f} for {self.reference}; either the model misses "
+                f"something or the noise is understated by a factor of about {math.sqrt(self.c_hat):.1f}).")
+
+
+NO_MODEL_ERROR = ModelError()
+"""The exact-model likelihood (no model error): plain chi-square and AICc."""
+
+
+def estimate(r, sigma_rel, n_params: int, *, known_rel=None, reference: str = "") -> ModelError:
+    """The model error of a reference fit with sigma-normalised residuals ``r`` and ``n_params`` fitted
+    parameters (the Paule-Mandel moment equation of the module doc).
+
+    Parameters
+    ----------
+    r : (n,) array
+        Residuals in units of their stated uncertainty, ``ln(f_model / f_meas) / s_i``.
+    sigma_rel : float or (n,) array
+        Stated relative uncertainty ``s_i`` per row.
+    n_params : int
+        Parameters fitted (the degrees of freedom are ``max(n - n_params, 1)``).
+    known_rel : (n,) array, optional
+        A known part of the model error per row (relative), e.g. the mesh's discretisation error.
+    """
+    r = np.asarray(r, float)
+    s = np.broadcast_to(np.asarray(sigma_rel, float), r.shape).astype(float)
+    k = np.zeros_like(s) if known_rel is None else np.broadcast_to(np.asarray(known_rel, float), r.shape)
+    e2 = (r * s) ** 2
+    dof = max(len(r) - int(n_params), 1)
+    chi2 = float(np.sum(r ** 2))
+    noise = float(np.sqrt(np.mean(s ** 2))) if len(s) else 0.0
+    known = float(np.sqrt(np.mean(k ** 2))) if len(k) else 0.0
+    base = s ** 2 + k ** 2
+
+    def excess(var_m: float) -> float:
+        return float(np.sum(e2 / (base + var_m))) - dof
+
+    var_m = 0.0
+    if len(r) and excess(0.0) > 0:
+        hi = max(float(np.max(e2)), 1e-30)
+        while excess(hi) > 0:
+            hi *= 4
+        var_m = brentq(excess, 0.0, hi, xtol=1e-16, rtol=1e-12)
+    return ModelError(sigma_model_rel=math.sqrt(var_m), sigma_noise_rel=noise, c_hat=chi2 / dof,
+                      reference=reference, chi2=chi2, dof=dof, sigma_known_rel=known)
+
+
+def qaicc(chi2_total: float, n: int, k: int) -> float:
+    """QAICc ``chi2_total + 2k + 2k(k+1)/(n-k-1)`` of a chi-square at the total uncertainty (inf for
+    ``n <= k + 1``); equal to AICc when there is no model error."""
+    corr = 2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else math.inf
+    return chi2_total + 2 * k + corr
+
+
+def akaike_weights(values) -> np.ndarray:
+    """Akaike weights ``exp(-delta/2) / sum`` of criterion values (QAICc or AICc); non-finite ones get 0."""
+    v = np.asarray(values, float)
+    ok = np.isfinite(v)
+    w = np.zeros(len(v))
+    if ok.any():
+        w[ok] = np.exp(-0.5 * (v[ok] - v[ok].min()))
+        w /= w.sum()
+    return w
+
+
+def support_text(delta: float) -> str:
+    """How strongly a model ahead of another by ``-delta`` QAICc is supported: ``strongly``,
+    ``moderately`` or ``not`` (thresholds :data:`SUPPORT_STRONG`, :data:`SUPPORT_SOME`)."""
+    if not np.isfinite(delta):
+        return "not"
+    if -delta >= SUPPORT_STRONG:
+        return "strongly"
+    return "moderately" if -delta >= SUPPORT_SOME else "not"
