@@ -188,3 +188,57 @@ def test_one_state_takes_the_nearest_partner_among_tied_pairings(truth):
     nearest = min(fits, key=lambda q: np.sum(np.log(fits[q].f_model / f) ** 2))
     _, p, _ = identify_state(doc, f, LOWER, UPPER, rule=_rule(), **KW)
     assert tuple(int(c) for c in p) == nearest
+
+
+@pytest.mark.parametrize("truth", [[5e11, 8e9], [2e12, 5e9]])
+def test_resolvability_pairs_the_mode_that_could_not_hide_in_a_measured_peak(truth):
+    """Of two exactly tied pairings the visible mode left unpaired lies at the same two distances from
+    measured mode 2, swapped: a damping ratio between them lets only one of them hide in that peak's
+    half-power band, so that pairing wins though its partners are not the nearest."""
+    from jointid.identification.ties import NEAREST, RESOLVABILITY
+
+    doc = _seen_doc()
+    f = four_modes(np.array(truth))[[0, 1, 3]]
+    fits = {q: identify_state(doc, f, LOWER, UPPER, rule=_rule(), pairing=list(q), **KW)[0]
+            for q in [(0, 1, 3), (0, 2, 3)]}
+    nearest = min(fits, key=lambda q: np.sum(np.log(fits[q].f_model / f) ** 2))
+    other = ({(0, 1, 3), (0, 2, 3)} - {nearest}).pop()
+    # the mode ``nearest`` leaves unpaired is the one ``other`` pairs with measured mode 2, and vice versa
+    off = {q: abs(fits[q].f_model[1] / f[1] - 1) for q in fits}
+    assert off[other] > off[nearest]  # the nearest partners leave the farther mode unpaired
+    zeta = np.array([0.03, (off[nearest] + off[other]) / 2, 0.03])  # only the nearer mode hides at mode 2
+    decision = {}
+    _, p, _ = identify_state(doc, f, LOWER, UPPER, rule=_rule(), damping=zeta, decision=decision, **KW)
+    assert tuple(int(c) for c in p) == other and decision["rule"] == RESOLVABILITY
+    by = {tuple(t["pairing"]): t for t in decision["tied"]}
+    assert by[other]["resolvable"] and not by[nearest]["resolvable"]
+    assert by[nearest]["damping_ratio_needed"] == pytest.approx(off[other], rel=1e-6)
+    # too little damping for either to hide: the nearest partners, and the record says why
+    decision = {}
+    _, p, _ = identify_state(doc, f, LOWER, UPPER, rule=_rule(), damping=np.full(3, 1e-4), decision=decision, **KW)
+    assert tuple(int(c) for c in p) == nearest
+    assert decision["rule"].startswith(NEAREST + " (fallback: none of the 2 tied pairings")
+
+
+def test_the_shared_pairing_follows_resolvability_in_every_state():
+    from jointid.identification.ties import RESOLVABILITY
+
+    doc = _seen_doc()
+    truth = {"off": np.array([5e11, 8e9]), "on": np.array([9e11, 8e9])}
+    f = {s: four_modes(t)[[0, 1, 3]] for s, t in truth.items()}
+    rules = {s: _rule() for s in f}
+    near, info = identify_states_jointly(doc, f, LOWER, UPPER, rule=rules, **KW)
+    assert info["tie_rule"]["rule"].startswith("nearest partners (fallback: no damping ratio")
+    tied = info["tie_rule"]["tied"]
+    assert len(tied) == 2 and all(t["resolvable"] is None for t in tied)
+    # a damping ratio between the two pairings' needs: only the pairing that needs less is admissible
+    need = {tuple(t["pairing"]): t["damping_ratio_needed"] for t in tied}
+    assert need[tuple(near)] > min(need.values())  # the nearest partners leave the farther modes unpaired
+    zeta = sum(need.values()) / 2
+    pairing, info = identify_states_jointly(doc, f, LOWER, UPPER, rule=rules, damping={s: np.full(3, zeta) for s in f},
+                                            **KW)
+    assert tuple(pairing) == min(need, key=need.get) != tuple(near)
+    assert info["tie_rule"]["rule"] == RESOLVABILITY
+    for t in info["tie_rule"]["tied"]:
+        assert {m["state"] for m in t["unpaired_visible"]} == set(f)  # the modes of every state are judged
+        assert t["resolvable"] == all(abs(m["offset_pct"]) / 100 <= zeta for m in t["unpaired_visible"])

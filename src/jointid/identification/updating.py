@@ -23,7 +23,7 @@ from jointid.errors import DataError, NumericalWarning
 from jointid.identification.identify import identify
 from jointid.identification.surface import Surface, fit_surface
 from jointid.identification.surface_checks import diagnostics
-from jointid.identification.ties import least_cost_nearest, least_cost_tied, paired_ss
+from jointid.identification.ties import choose_tied, hiding_peak, least_cost_tied, paired_ss
 from jointid.correlate.mac import mac
 from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
 from jointid.identification.tracking import track_doe
@@ -109,7 +109,7 @@ def state_misfits(full, rule, ref_shapes, f_meas, pairing, x) -> tuple[np.ndarra
 def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
                    meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
                    seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None,
-                   rule=None):
+                   rule=None, damping=None, decision: dict | None = None):
     # long: four closures share the surface, the data and the rule (misfits, fit, run, pair); the body is the multistart
     """Identify the joint parameters of one state from measured frequencies.
 
@@ -122,7 +122,12 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
     that no measured mode takes are misfits, extra residuals of the fit (``result.residuals`` beyond
     the measured modes), and the frequency pairing pays for leaving them unpaired; the swaps of such a
     mode with the partner of the measured mode it is scored against fit exactly alike, so the
-    multistart's winner is compared with them and the nearest partners win (:func:`misfit_swaps`).
+    multistart's winner is compared with them (:func:`misfit_swaps`) and the tie rules choose
+    (:func:`jointid.identification.ties.choose_tied`): with ``damping`` (the damping ratio of each
+    measured mode, :func:`jointid.identification.ties.tie_damping`) the pairing whose unpaired visible
+    modes could all hide in a measured peak's half-power band, else the nearest partners.
+    ``decision`` (a dict) receives the rule that decided and the tied pairings' unpaired visible modes
+    (:func:`tie_record`).
     """
     surf = Surface.from_dict(doc["surface"])
     names = doc["names"]
@@ -192,13 +197,59 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
             candidates.append((tuple(int(c) for c in pairing), float(res.cost)))
         if best is None or res.cost < best[0].cost - 1e-12:
             best = (res, pairing, msgs)
-    if rule is not None:  # the winner's tied swaps (see identify_states_jointly): the nearest partners win
+    if rule is not None:  # the winner's tied swaps (see identify_states_jointly): the tie rules choose
         options = [best]
         for q in misfit_swaps(doc, best[1], best[0].x_coded, f_meas, rule):
             res_q, msgs_q = run(np.asarray(q), best[0].x_coded)
             options.append((res_q, np.asarray(q), msgs_q))
-        best = least_cost_nearest(options, lambda o: o[0].cost, lambda o: paired_ss(o[0], f_meas), lambda o: o[1])
+        hidden = {id(o): unpaired_visible(doc, o[1], o[0].x_coded, f_meas, rule, damping) for o in options}
+        best, how = choose_tied(options, lambda o: o[0].cost, lambda o: paired_ss(o[0], f_meas), lambda o: o[1],
+                                None if damping is None else lambda o: all(m["hides"] for m in hidden[id(o)]))
+        if decision is not None:
+            tied = least_cost_tied(options, lambda o: o[0].cost)
+            decision.update(tie_record(how, [(o[1], hidden[id(o)]) for o in tied]))
     return best
+
+
+def unpaired_visible(doc: dict, pairing, x, f_meas: np.ndarray, rule, damping=None, state=None) -> list[dict]:
+    """The clearly visible tracked modes ``pairing`` leaves unpaired at the coded point ``x`` (the
+    surfaces of ``doc``), each with the measured peak it comes nearest to hiding in
+    (:func:`jointid.identification.ties.hiding_peak`, at the damping ratios ``damping`` of the measured
+    modes; without them ``hides`` is None): records ``tracked_mode`` (1-based, as ``doc`` numbers
+    them), ``freq_Hz``, ``measured_order``, ``measured_Hz``, ``offset_pct`` (signed, model minus
+    measured), ``damping_ratio``, ``hides``, ``offset_nearest_pct`` (unsigned, to the nearest measured
+    mode) (and ``state`` if given)."""
+    full = LogFrequencyModel(Surface.from_dict(doc["surface"]))
+    ref = np.asarray(doc["ref_shapes"]) if rule is not None else None
+    cols, _ = state_misfits(full, rule, ref, f_meas, np.asarray(pairing, int), x)
+    f = full(x)
+    out = []
+    for j in cols:
+        rec = {"tracked_mode": int(doc["tracked_modes"][j]), "freq_Hz": float(f[j])}
+        peak = hiding_peak(f[j], f_meas, 1.0 if damping is None else damping)
+        rec.update(measured_order=peak["measured_order"], measured_Hz=peak["measured_Hz"],
+                   offset_pct=100 * float(f[j] / peak["measured_Hz"] - 1),
+                   damping_ratio=None if damping is None else peak["damping_ratio"],
+                   hides=None if damping is None else peak["hides"],
+                   offset_nearest_pct=100 * float(np.min(np.abs(f[j] / np.asarray(f_meas, float) - 1))))
+        out.append(rec if state is None else {"state": state, **rec})
+    return out
+
+
+def tie_record(rule_text: str, tied: list) -> dict:
+    """``params.json``'s record of a choice among tied pairings: ``rule`` (in words, see
+    :func:`jointid.identification.ties.choose_tied`) and per tied pairing (``tied``: ``(pairing,
+    unpaired visible records)``) its ``pairing``, whether it is ``resolvable`` (every unpaired visible
+    mode hides in a measured peak; None without damping ratios), its ``unpaired_visible`` modes and
+    ``damping_ratio_needed``: the least damping ratio, alike for every measured mode, under which all
+    of them could hide (0 when there is none)."""
+    rows = []
+    for pairing, seen in tied:
+        known = all(m["hides"] is not None for m in seen)
+        rows.append({"pairing": [int(c) for c in pairing], "unpaired_visible": seen,
+                     "resolvable": bool(all(m["hides"] for m in seen)) if known else None,
+                     "damping_ratio_needed": max((m["offset_nearest_pct"] / 100 for m in seen), default=0.0)})
+    return {"rule": rule_text, "tied": rows}
 
 
 def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tuple[np.ndarray, dict]:
@@ -216,17 +267,23 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
     ``f_meas`` maps state -> measured frequencies (equal counts); ``kw`` as :func:`identify_state`
     (``sigma_rel`` and ``rule`` may be mappings state -> value).  Returns ``(pairing, info)``: the summed-cost
     winner; ``info[state]`` its cost there and the state's own best pairing; ``info["candidates"]``
-    every pairing tried with its summed cost and chi-square (``sum cost / sigma^2``), best first.
+    every pairing tried with its summed cost and chi-square (``sum cost / sigma^2``), best first;
+    ``info["tie_rule"]`` the rule that chose among the pairings tied with the winner
+    (:func:`tie_record`).  ``damping`` (a mapping state -> damping ratio of each measured mode, or
+    None) lets the resolvability rule choose among tied pairings: the one whose unpaired visible modes
+    could all hide, in every state, inside a measured peak's half-power band.
     """
     sig = kw.pop("sigma_rel", 0.01)
     sigma = sig if isinstance(sig, dict) else {s: sig for s in f_meas}
     vr = kw.pop("rule", None)
     rules = vr if isinstance(vr, dict) else {s: vr for s in f_meas}
+    dmp = kw.pop("damping", None)
+    damping = {s: None if dmp is None else dmp.get(s) for s in f_meas}
     cands, own = {}, {}
     for state, f in f_meas.items():
         found: list = []
         _, p, _ = identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[state],
-                                 candidates=found, rule=rules[state], **kw)
+                                 candidates=found, rule=rules[state], damping=damping[state], **kw)
         own[state] = tuple(int(c) for c in p)
         for pairing, _ in found:
             cands.setdefault(pairing, None)
@@ -245,9 +302,15 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
         queue = sorted(swaps - set(fits))
         if not queue:
             break
-    win = least_cost_nearest(tried, lambda t: t["cost"], lambda t: t["paired_ss"], lambda t: t["pairing"])
+    tied = least_cost_tied(tried, lambda t: t["cost"])
+    seen = {tuple(t["pairing"]): [m for s, r in fits[tuple(t["pairing"])].items() for m in unpaired_visible(
+        doc, t["pairing"], r.x_coded, np.asarray(f_meas[s], float), rules[s], damping[s], state=s)] for t in tied}
+    known = all(d is not None for d in damping.values())
+    win, how = choose_tied(tried, lambda t: t["cost"], lambda t: t["paired_ss"], lambda t: t["pairing"],
+                           (lambda t: all(m["hides"] for m in seen[tuple(t["pairing"])])) if known else None)
     info = {s: {"cost": win["costs"][s], "own": list(own[s])} for s in f_meas}
     info["candidates"] = sorted(tried, key=lambda t: (t["cost"], t["paired_ss"], t["pairing"]))
+    info["tie_rule"] = tie_record(how, [(t["pairing"], seen[tuple(t["pairing"])]) for t in tied])
     return np.asarray(win["pairing"], int), info
 
 

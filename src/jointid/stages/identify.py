@@ -25,7 +25,8 @@ def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
     """Config keys of rule ``identify``: the shared sections, this state's settings and the other
     states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
     return ("rig", "model", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
-            "harmonic.band_Hz", "harmonic.drive_point", f"states.{state}", *(f"states.{s}.dataset" for s in states))
+            "harmonic.band_Hz", "harmonic.drive_point", "harmonic.damping", f"states.{state}",
+            *(f"states.{s}.dataset" for s in states))
 
 
 def scout_config_keys(states: list[str]) -> tuple[str, ...]:
@@ -33,7 +34,7 @@ def scout_config_keys(states: list[str]) -> tuple[str, ...]:
     not the motor force)."""
     return ("joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
             "identify.weights", "identify.pairing", "identify.visible_threshold", "solver.min_freq_Hz",
-            "harmonic.band_Hz", "harmonic.drive_point", "measurements",
+            "harmonic.band_Hz", "harmonic.drive_point", "harmonic.damping", "measurements",
             *(f"states.{s}.dataset" for s in states))
 
 
@@ -76,6 +77,19 @@ def visibility_rule(cfg: dict, state: str, pts):
     if ds.shapes is not None and state in set(ds.shapes["state"]):
         shapes = ds.shape_matrix(state, labels)
     return dataset_rule(ds, state, labels, list(pts["point"]), shapes, cfg, f"{folder}/conditions.yaml")
+
+
+def tie_damping(cfg: dict, state: str, f_meas) -> tuple:
+    """``(damping ratio of each measured mode or None, its source)`` for the resolvability rule among
+    tied pairings (:func:`jointid.identification.ties.tie_damping`): the dataset's measured ratios,
+    else the configured ``harmonic.damping``."""
+    from jointid.config.datasets import dataset_folder
+    from jointid.data.dataset import read_dataset
+    from jointid.identification.ties import tie_damping as _tie_damping
+
+    ds = read_dataset(dataset_folder(cfg, state))
+    measured = ds.damping(state) if state in ds.states else None
+    return _tie_damping(len(f_meas), measured, (cfg.get("harmonic") or {}).get("damping"), f_meas)
 
 
 def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:
@@ -127,10 +141,13 @@ def _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule):
     others = {s: measured_modes(cfg, s, pts) for s in states}
     if not (all(o[1] is None for o in others.values()) and len({len(o[0]) for o in others.values()}) == 1):
         return None, None, []
+    damping = {s: tie_damping(cfg, s, o[0]) for s, o in others.items()}
     shared, joint_info = identify_states_jointly(
         doc, {s: o[0] for s, o in others.items()}, lower, upper, weights=weights,
         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()},
-        rule={s: visibility_rule(cfg, s, pts) for s in states})
+        rule={s: visibility_rule(cfg, s, pts) for s in states},
+        damping=None if any(d[0] is None for d in damping.values()) else {s: d[0] for s, d in damping.items()})
+    joint_info["tie_rule"]["damping_ratio_source"] = {s: d[1] for s, d in damping.items()}
     return shared, joint_info, pairing_notes(doc, state, states, shared, joint_info, rule)
 
 
@@ -287,9 +304,13 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
         shared, joint_info, pair_msgs = _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule)
     fixed = shared if rule == "shared" else None
     vis_rule = visibility_rule(cfg, state, pts)
+    zeta, zeta_source = tie_damping(cfg, state, f_meas)
+    decision = {}
     res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
-                                        pairing=fixed, rule=vis_rule)
+                                        pairing=fixed, rule=vis_rule, damping=zeta, decision=decision)
+    tie_rule = joint_info["tie_rule"] if fixed is not None else (
+        {**decision, "damping_ratio_source": {state: zeta_source}} if decision else None)
     msgs += pair_msgs
     if len(f_meas) <= len(names):
         msgs.insert(0, _count_note(len(f_meas), len(names)))
@@ -312,11 +333,17 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
                                  io.read_json(summary)["contact_area_per_carriage_m2"])
     out = _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
                   f_final, polish, edge, rom, per_carriage, msgs)
+    out["tie_rule"] = tie_rule  # which rule chose among exactly tied pairings (None: no frequency-only choice)
     out["observability"] = None if vis_rule is None else {
         "excitation": list(vis_rule.setup.excitation), "response": list(vis_rule.setup.response),
         "note": vis_rule.setup.note, "band_Hz": list(vis_rule.band_Hz), "threshold": vis_rule.threshold}
     io.write_json(out_json, out)
     log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))
         + f"; max |error| {np.abs(out['residual_pct']).max():.2f} %")
+    if tie_rule and len(tie_rule["tied"]) > 1:
+        log(f"identify[{state}]: {len(tie_rule['tied'])} exactly tied pairings, chosen by {tie_rule['rule']}: "
+            + "; ".join(f"tracked modes {[doc['tracked_modes'][j] for j in t['pairing']]} "
+                        f"{'resolvable' if t['resolvable'] else 'not resolvable'} (damping ratio needed "
+                        f"{t['damping_ratio_needed']:.4f})" for t in tie_rule["tied"]))
     for m in msgs:
         log("warning: " + m)
