@@ -157,6 +157,47 @@ def parameter_intervals(params: dict[str, dict], bounds: dict[str, tuple[float, 
     return fig
 
 
+def catalogue_rigidity(comparisons: dict[str, dict]):
+    """A carriage's identified rigidity per state beside its guide catalogue's preload classes.
+
+    Parameters
+    ----------
+    comparisons : {state: dict}
+        The ``catalogue`` part of each state's ``carriage_rigidity.json``
+        (:func:`jointid.response.carriage.catalogue_comparison`): per direction the identified value
+        with its 95 % interval (markers, error bars) and each class's value (grey lines, labelled).
+    """
+    plt = _plt()
+    first = next(iter(comparisons.values()))
+    dirs = [d for d in ("normal", "lateral") if d in first["directions"]]
+    fig, ax = plt.subplots(figsize=(7.2, 4.4))
+    n = len(comparisons)
+    for j, d in enumerate(dirs):
+        for name, c in first["directions"][d]["classes"].items():
+            v = c["catalogue_N_per_um"]
+            ax.hlines(v, j - 0.42, j + 0.42, color="0.45", lw=1.6, zorder=1)
+            ax.annotate(f"{name} {v:,.0f}", (j + 0.42, v), textcoords="offset points", xytext=(3, -3),
+                        fontsize=8, color="0.3")
+        for i, (state, comp) in enumerate(comparisons.items()):
+            doc = comp["directions"][d]
+            v = doc["identified_N_per_um"]
+            lo, hi = doc.get("identified_ci95_low_N_per_um", v), doc.get("identified_ci95_high_N_per_um", v)
+            x = j + (i - (n - 1) / 2) * 0.18
+            ax.errorbar([x], [v], yerr=[[max(v - lo, 0)], [max(hi - v, 0)]], fmt="o", ms=7, capsize=4, zorder=3,
+                        color=STATE_COLOURS[i % len(STATE_COLOURS)], label=_label(state) if j == 0 else None)
+    ax.set_xticks(range(len(dirs)))
+    ax.set_xticklabels([f"{d} ({'Y' if d == 'normal' else 'X'})" for d in dirs])
+    ax.set_xlim(-0.6, len(dirs) - 0.1)
+    ax.set_ylim(0, None)
+    ax.set_ylabel("rigidity of one carriage (N/µm)")
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(title="identified (carriage on its rail,\n95 % interval)", fontsize=8, title_fontsize=8,
+              loc="upper left")
+    ax.set_title(f"Identified vs catalogue (grey: {first['block'].split(' (')[0]} preload classes)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def surface_diagnostics(diag: pd.DataFrame, limit_pct: float | None = None):
     """Response-surface quality per tracked mode: R², adjusted R², predicted R² and verification error."""
     plt = _plt()

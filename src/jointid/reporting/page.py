@@ -86,7 +86,8 @@ def _mode_pictures(data: dict) -> dict[str, list[dict]]:
 
 
 def report_figures(cfg: dict, data: dict) -> dict[str, bytes]:
-    """The report's figures as PNG bytes: ``frf, errors, parameters, surface, doe, mode_shapes``."""
+    """The report's figures as PNG bytes: ``frf, errors, parameters, surface, doe, mode_shapes`` and, when
+    the carriage rigidity has a catalogue comparison, ``catalogue`` (embedded only)."""
     from jointid.reporting import figures as fg
 
     paper1 = data["paper_table1"].set_index("state")["paper_dynamic_stiffness_N_per_mm"].to_dict()
@@ -101,6 +102,7 @@ def report_figures(cfg: dict, data: dict) -> dict[str, bytes]:
         "surface": fg.png_bytes(fg.surface_diagnostics(data["diagnostics"], limit)),
         "doe": fg.png_bytes(fg.doe_points(data["sheet"], {s: p["x_coded"] for s, p in data["params"].items()})),
         "mode_shapes": fg.png_bytes(fg.mode_shapes(data["points"], _mode_pictures(data)), dpi=90),
+        **({"catalogue": fg.png_bytes(fg.catalogue_rigidity(comps))} if (comps := _catalogue_comparisons(data)) else {}),
     }
 
 
@@ -233,8 +235,9 @@ def _params_html(data: dict) -> str:
             + f"<ul class='note'>{''.join(extra)}</ul>")
 
 
-def _rigidity_html(data: dict) -> str:
-    """The identified joints as a catalogue's carriage rigidity (rule carriage_rigidity)."""
+def _rigidity_html(data: dict, figs: dict | None = None) -> str:
+    """The identified joints as a catalogue's carriage rigidity (rule carriage_rigidity), and against the
+    guide's catalogue when the run has one (figure ``catalogue`` of ``figs``)."""
     if not data.get("rigidity"):
         return ""
     rows = []
@@ -254,7 +257,56 @@ def _rigidity_html(data: dict) -> str:
             "rigid plate (results/identify/&lt;state&gt;/carriage_rigidity.json). Compare the assembly's "
             "rigidity with the catalogue of the guide: the joint springs act in series with the carriage's "
             "and rail's own deformation.</p>"
-            + html_table(pd.DataFrame(rows), fm, heads, text_cols=("state", "direction")))
+            + html_table(pd.DataFrame(rows), fm, heads, text_cols=("state", "direction"))
+            + _catalogue_html(data, figs))
+
+
+def _catalogue_comparisons(data: dict) -> dict[str, dict]:
+    """``{state: catalogue comparison}`` of the states whose carriage_rigidity.json has one."""
+    return {s: d["catalogue"] for s, d in (data.get("rigidity") or {}).items() if d.get("catalogue")}
+
+
+def _catalogue_html(data: dict, figs: dict | None = None) -> str:
+    """The carriage on its rail beside each preload class of the guide's catalogue (config ``catalogue``)."""
+    from jointid.response.carriage import catalogue_verdict
+
+    comps = _catalogue_comparisons(data)
+    if not comps:
+        return ""
+    first = next(iter(comps.values()))
+    names = list(next(iter(first["directions"].values()))["classes"])
+    rows, fm, heads, lines, fallback = [], {"identified": ",.0f", "low": ",.0f", "high": ",.0f"}, {}, [], False
+    for state, comp in comps.items():
+        for d, doc in comp["directions"].items():
+            row = {"state": state, "direction": d, "identified": doc["identified_N_per_um"],
+                   "low": doc.get("identified_ci95_low_N_per_um"), "high": doc.get("identified_ci95_high_N_per_um")}
+            for n in names:
+                c = doc["classes"][n]
+                row[f"{n}_value"], row[f"{n}_ratio"] = c["catalogue_N_per_um"], c["ratio"]
+                fallback |= d == "lateral" and c["catalogue_key"] != "lateral_N_per_um"
+            row["nearest"] = doc["nearest_class"]
+            row["beyond"] = ("above the stiffest" if doc["exceeds_stiffest"] else
+                             "below the softest" if doc["below_softest"] else "")
+            rows.append(row)
+            lines.append(f"{state}: {catalogue_verdict(d, doc)}")
+        if "lateral_to_normal" in comp:
+            cat = ", ".join(f"{n} {v:.2f}" for n, v in comp["lateral_to_normal"]["catalogue"].items())
+            lines.append(f"{state}: lateral / normal {comp['lateral_to_normal']['identified']:.2f} (catalogue {cat})")
+    for n in names:
+        fm[f"{n}_value"], fm[f"{n}_ratio"] = ",.0f", ".2f"
+        heads[f"{n}_value"], heads[f"{n}_ratio"] = f"{n} (N/µm)", f"ratio to {n}"
+    heads |= {"identified": "identified (N/µm)", "low": "95 % low", "high": "95 % high", "nearest": "nearest class",
+              "beyond": "beyond the classes"}
+    img = _img(figs["catalogue"], "identified rigidity vs catalogue classes") if figs and figs.get("catalogue") else ""
+    return (f"<h3>Against the catalogue: {_esc(first['block'])}</h3>"
+            + html_table(pd.DataFrame(rows), fm, heads, text_cols=("state", "direction", "nearest", "beyond"))
+            + img
+            + f"<ul class='note'>{''.join(f'<li>{_esc(x)}</li>' for x in lines)}</ul>"
+            + "<p class='note'>Identified: the carriage on its rail (springs and parts in series), one block; "
+              "ratio = identified / catalogue; nearest = the class the identified value is the smallest factor from"
+            + (". The catalogue states one rigidity per class, used for the lateral direction as well" if fallback
+               else "")
+            + f". Source: {_esc(first['source'])} (config section <code>catalogue</code>).</p>")
 
 
 def _mesh_check_html(data: dict) -> str:
@@ -363,7 +415,7 @@ def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str
          + "<p class='note'>FE modes paired with the measured modes (verify stage), drawn at the 36 measuring "
            "points: table 3×6 grid on top, base lines below; the scale is arbitrary.</p>"),
         ("params", "Identified joint parameters", _img(figs["parameters"], "identified parameters")
-         + _params_html(data) + _rigidity_html(data) + _mesh_check_html(data)),
+         + _params_html(data) + _rigidity_html(data, figs) + _mesh_check_html(data)),
         *([("hypotheses", "Reconstruction hypotheses — the linked two-state fit", _hypotheses_html(data))]
           if data.get("hypotheses") else []),
         ("surface", "DOE and response-surface diagnostics", _img(figs["doe"], "DOE")

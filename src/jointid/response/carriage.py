@@ -11,10 +11,13 @@ reaction force over the displacement is the rigidity.  The same test with stiff 
 spring 1e4 times stiffer) gives the parts' own rigidity, which the springs act in series with.
 
 The model is its own small mesh (``cell_m`` cells, quadratic hexahedra), independent of the rig's mesh.
+:func:`catalogue_comparison` holds the result against the preload classes of the guide's catalogue
+(config section ``catalogue``).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,3 +117,88 @@ def block_rigidity(cfg: dict, theta: dict[str, float], cell_m: float = 0.006, el
     """Catalogue-style rigidity of one carriage on its rail at joint parameters ``theta`` (N/m^3):
     :class:`BlockTest` for one parameter point."""
     return BlockTest(cfg, cell_m, element, backend).rigidity(theta, parts)
+
+
+# ------------------------------------------------------------------------------ against the catalogue
+CATALOGUE_KEYS = {"normal": "normal_N_per_um", "lateral": "lateral_N_per_um"}
+"""Directions a guide catalogue states a block's rigidity in, and the key of each in ``catalogue.classes``."""
+
+
+def catalogue_comparison(identified: dict[str, dict], catalogue: dict | None) -> dict | None:
+    """A carriage's rigidity held against each preload class of its guide's catalogue.
+
+    Parameters
+    ----------
+    identified : {direction: dict}
+        Per direction (``normal``, ``lateral``; others are ignored) the carriage on its rail in N/um:
+        ``assembly_N_per_um`` and, optionally, ``assembly_ci95_low_N_per_um`` / ``..._high_...``
+        (as in ``carriage_rigidity.json``).
+    catalogue : dict or None
+        The config section ``catalogue`` (``block``, ``source``, ``classes: {name: {normal_N_per_um,
+        lateral_N_per_um (optional), description}}``).
+
+    Returns
+    -------
+    dict or None
+        None without classes.  Otherwise, per direction: the identified value, per class the
+        catalogue's value and ``ratio`` = identified / catalogue, the ``nearest_class`` (smallest
+        |log ratio|: nearest as a factor, so 2x above and 2x below are equally far), the softest and
+        stiffest class, ``exceeds_stiffest`` / ``below_softest`` (the value) and
+        ``interval_exceeds_stiffest`` / ``interval_below_softest`` (the whole 95 % interval, when
+        given); and ``lateral_to_normal`` of the identification and of every class.  A class without
+        ``lateral_N_per_um`` is compared laterally with its ``normal_N_per_um``
+        (``catalogue_key`` says which value was used).
+    """
+    classes = (catalogue or {}).get("classes") or {}
+    if not classes:
+        return None
+    out = {"block": catalogue.get("block", ""), "source": catalogue.get("source", ""),
+           "compared": "carriage on its rail (assembly_N_per_um) against one block as catalogued",
+           "directions": {}}
+    for d, key in CATALOGUE_KEYS.items():
+        r = identified.get(d)
+        if r is None:
+            continue
+        value = float(r["assembly_N_per_um"])
+        rows = {}
+        for name, c in classes.items():
+            used = key if c.get(key) is not None else "normal_N_per_um"
+            cat = float(c[used])
+            rows[name] = {"catalogue_N_per_um": cat, "catalogue_key": used, "ratio": value / cat}
+        by_value = sorted(rows, key=lambda n: rows[n]["catalogue_N_per_um"])
+        softest, stiffest = by_value[0], by_value[-1]
+        lo, hi = r.get("assembly_ci95_low_N_per_um"), r.get("assembly_ci95_high_N_per_um")
+        doc = {"identified_N_per_um": value, "classes": rows,
+               "nearest_class": min(rows, key=lambda n: abs(math.log(rows[n]["ratio"]))),
+               "softest_class": softest, "stiffest_class": stiffest,
+               "exceeds_stiffest": value > rows[stiffest]["catalogue_N_per_um"],
+               "below_softest": value < rows[softest]["catalogue_N_per_um"]}
+        if lo is not None and hi is not None:
+            doc.update({"identified_ci95_low_N_per_um": float(lo), "identified_ci95_high_N_per_um": float(hi),
+                        "interval_exceeds_stiffest": float(lo) > rows[stiffest]["catalogue_N_per_um"],
+                        "interval_below_softest": float(hi) < rows[softest]["catalogue_N_per_um"]})
+        out["directions"][d] = doc
+    dirs = out["directions"]
+    if "normal" in dirs and "lateral" in dirs:
+        out["lateral_to_normal"] = {
+            "identified": dirs["lateral"]["identified_N_per_um"] / dirs["normal"]["identified_N_per_um"],
+            "catalogue": {n: dirs["lateral"]["classes"][n]["catalogue_N_per_um"]
+                          / dirs["normal"]["classes"][n]["catalogue_N_per_um"] for n in classes}}
+    return out
+
+
+def catalogue_verdict(direction: str, doc: dict) -> str:
+    """One line on one direction of :func:`catalogue_comparison`, e.g. 'normal 1,370 N/um: 1.88 x ZB
+    (730), above the stiffest class'."""
+    near, stiff, soft = doc["nearest_class"], doc["stiffest_class"], doc["softest_class"]
+    c = doc["classes"]
+    text = f"{direction} {doc['identified_N_per_um']:,.0f} N/um: "
+    if doc["exceeds_stiffest"]:
+        text += (f"{c[stiff]['ratio']:.2f} x {stiff} ({c[stiff]['catalogue_N_per_um']:,.0f}), above the stiffest class"
+                 + (" with its whole 95 % interval" if doc.get("interval_exceeds_stiffest") else ""))
+    elif doc["below_softest"]:
+        text += (f"{c[soft]['ratio']:.2f} x {soft} ({c[soft]['catalogue_N_per_um']:,.0f}), below the softest class"
+                 + (" with its whole 95 % interval" if doc.get("interval_below_softest") else ""))
+    else:
+        text += f"within the classes, nearest {near} ({c[near]['catalogue_N_per_um']:,.0f}, ratio {c[near]['ratio']:.2f})"
+    return text

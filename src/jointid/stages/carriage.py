@@ -4,9 +4,9 @@ carriage on its rail (:mod:`jointid.response.carriage`), the number to hold agai
 from __future__ import annotations
 
 from jointid import io
-from jointid.response.carriage import DIRECTIONS, BlockTest
+from jointid.response.carriage import DIRECTIONS, BlockTest, catalogue_comparison, catalogue_verdict
 
-CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity")
+CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "catalogue")
 """Config keys of rule ``carriage_rigidity``."""
 
 
@@ -18,6 +18,8 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     at the low and at the high end of its 95 % interval (``assembly_ci95_low/high``: the rigidity grows
     with every spring, so this is an outer bound of its interval), and the joints' share of the
     assembly's compliance (1 - assembly / parts: the compliance they add over stiff joints).
+    With a config section ``catalogue`` that has classes, ``catalogue`` holds the assembly against
+    each of them (:func:`jointid.response.carriage.catalogue_comparison`); else it is null.
     """
     par = io.read_json(params_json)
     cell = cfg["carriage_rigidity"]["cell_size_m"]
@@ -47,5 +49,8 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
            "test": "one carriage on a rail segment (2 rail heights beyond either end), rail bottom clamped, "
                    "carriage top moved as a rigid plate; rigidity = reaction / displacement",
            "directions": rows}
+    doc["catalogue"] = catalogue_comparison(rows, cfg.get("catalogue"))
+    for d, c in (doc["catalogue"] or {}).get("directions", {}).items():
+        log(f"carriage_rigidity[{state}]: catalogue ({doc['catalogue']['block']}): {catalogue_verdict(d, c)}")
     io.write_json(out_json, doc)
     return doc
