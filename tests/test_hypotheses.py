@@ -88,17 +88,47 @@ def _record(aicc, value, lo, hi, errs=(1.0, 2.0)):
 
 
 def test_ranking_orders_by_aicc_and_spreads_over_the_admissible_hypotheses():
+    """The best fits within its noise (chi2/dof 0.6): QAICc is AICc."""
     recs = {"a": _record(20.0, 1.0, 0.9, 1.1), "b": _record(10.0, 2.0, 1.8, 2.2), "c": _record(12.0, 3.0, 2.5, 3.5),
             "d": _record(30.0, 9.0, 8.0, 10.0)}
-    rows, spread = rank_hypotheses(recs, delta=4.0)
+    rows, spread, me = rank_hypotheses(recs, delta=4.0)
+    assert me.sigma_model_rel == 0.0
     assert [r["hypothesis"] for r in rows] == ["b", "c", "a", "d"]
-    assert rows[0]["delta_aicc"] == 0.0 and rows[1]["delta_aicc"] == pytest.approx(2.0)
-    w = np.array([r["akaike_weight"] for r in rows])
+    assert rows[0]["delta_qaicc"] == 0.0 and rows[1]["delta_qaicc"] == pytest.approx(2.0)
+    w = np.array([r["weight"] for r in rows])
     assert w.sum() == pytest.approx(1.0) and w[0] / w[1] == pytest.approx(math.exp(1.0))
     (s,) = spread
     assert s["hypotheses"] == "b c"  # a (delta 10) and d are outside delta AICc < 4
     assert (s["value_min"], s["value_max"]) == (2.0, 3.0)
     assert (s["combined_ci95_low"], s["combined_ci95_high"]) == (1.8, 3.5)
+
+
+def test_ranking_above_the_noise_is_judged_with_the_model_error():
+    """Fits far above the noise: AICc at the stated noise would give the best all the weight (delta 20
+    at chi2 60 vs 80); with c_hat = 60/10 = 6 the difference is 20/6 and the weights are shared."""
+    recs = {"a": _record(64.0, 1.0, 0.9, 1.1), "b": _record(84.0, 3.0, 2.5, 3.5)}
+    for r in recs.values():
+        r["residuals"] = [math.sqrt(r["chi2"] / 12)] * 12
+        r["residual_sigma_rel"] = [0.01] * 12
+    rows, spread, me = rank_hypotheses(recs, delta=4.0)
+    assert me.c_hat == pytest.approx(6.0) and me.sigma_model_rel == pytest.approx(0.01 * math.sqrt(5.0))
+    assert rows[1]["delta_qaicc"] == pytest.approx(20.0 / 6.0)
+    assert rows[0]["weight"] == pytest.approx(1 / (1 + math.exp(-10.0 / 6.0)))
+    assert rows[0]["weight"] < 0.95
+    (s,) = spread  # both within delta QAICc < 4: the reconstruction range spans them
+    assert s["hypotheses"] == "a b" and (s["value_min"], s["value_max"]) == (1.0, 3.0)
+
+
+def test_broken_hypotheses_are_listed_apart_with_their_reason():
+    good = _record(20.0, 1.0, 0.9, 1.1)
+    rigid = {**_record(10.0, 2.0, 1.8, 2.2), "lowest_freq_Hz": 0.0}
+    far = _record(12.0, 3.0, 2.5, 3.5)
+    far["states"][0]["error_pct"] = [80.0, -2.0]
+    rows, _, _ = rank_hypotheses({"good": good, "rigid": rigid, "far": far})
+    assert [(r["hypothesis"], r["rank"]) for r in rows] == [("good", 1), ("far", None), ("rigid", None)]
+    assert rows[0]["weight"] == 1.0
+    assert rows[1]["listed_apart"] == "rejected: off mode 1 without a partner within 50 %"
+    assert rows[2]["listed_apart"] == "ill-posed fit (a rigid-body mode at 0.0 Hz)"
 
 
 # ---------------------------------------------------------------- known truths (coarse FE)
@@ -157,10 +187,10 @@ def _fit_all(setup, folder, names):
 def test_a_known_non_default_hypothesis_is_ranked_first(truth, setup, tmp_path):
     _synthesise(setup, truth, tmp_path / "ds")
     recs = _fit_all(setup, tmp_path / "ds", list(HYPOTHESES))
-    rows, _ = rank_hypotheses(recs)
-    table = pd.DataFrame(rows)[["hypothesis", "delta_aicc", "chi2"]]
+    rows, _, _ = rank_hypotheses(recs)
+    table = pd.DataFrame(rows)[["hypothesis", "delta_qaicc", "chi2"]]
     assert rows[0]["hypothesis"] == truth, table
-    assert rows[1]["delta_aicc"] > 4.0, table  # and clearly so
+    assert rows[1]["delta_qaicc"] > 4.0, table  # and clearly so
     best = recs[truth]
     assert best["chi2"] < 3 * best["n_data"], table  # the truth fits to the noise level
 

@@ -23,7 +23,9 @@ Truth file (all keys optional except ``states``)::
       - {kind: term_scale, term: K_railfix, factor: 0.5}          # any stiffness/mass term
     measurement: {band_Hz: [100, 3500], max_modes: 12, shapes: true, directions: [x, y, z],
                   frf: false, drive_point: T05, drive_direction: y, n_freq: 400}
-    noise: {seed: 1, frequency_pct: 0.2, shape_pct: 2.0, damping_ratio: 0.02}
+    noise: {seed: 1, frequency_pct: 0.2, shape_pct: 2.0, damping_ratio: 0.02,
+            stated_frequency_pct: 0.1}      # what the dataset states (default: frequency_pct);
+                                            # set it below frequency_pct to understate the noise
 """
 
 from __future__ import annotations
@@ -176,7 +178,8 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
             cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
         conds[sname] = cond
     conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
-                  "frequency_uncertainty_pct": float(noise["frequency_pct"]), "states": conds}
+                  "frequency_uncertainty_pct": float(noise.get("stated_frequency_pct") or noise["frequency_pct"]),
+                  "states": conds}
     if not truncated:  # every mode in the band was measured: the test declares its band
         conditions["test_setup"] = {"band_Hz": [lo, hi]}
     return {"modes": pd.DataFrame(modes_rows),

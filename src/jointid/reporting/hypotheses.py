@@ -1,6 +1,6 @@
 """The report section of the reconstruction hypotheses and the linked two-state fit.
 
-Reads the records of :mod:`jointid.stages.hypotheses` (``results/hypotheses/``): the AICc ranking,
+Reads the records of :mod:`jointid.stages.hypotheses` (``results/hypotheses/``): the QAICc ranking,
 the best hypothesis's linked fit (contact law parameters with intervals, frequencies of both states
 beside the measurement and the paper's per-state method) and the spread of the joint parameters over
 the admissible hypotheses.
@@ -41,19 +41,29 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
     esc = html.escape
     best = ranking.iloc[0]["hypothesis"]
     rec = records[best]
+    sig = ranking.iloc[0].get("sigma_model_pct", 0.0)
+    c_hat = ranking.iloc[0].get("c_hat", 1.0)
     out = [f"<p class='note'>Calibration: every hypothesis fitted to both states at once under one contact law ({esc(LAW_TEXT)}); "
            "pairing: one for both states, unpaired clearly visible model modes counted as misfits (in χ² and in the "
-           "errors). Ranked by AICc = χ² + 2k + 2k(k+1)/(n−k−1), n the measured frequencies.</p>"]
-    cols = ["rank", "hypothesis", "description", "delta_aicc", "akaike_weight", "chi2"]
+           "errors). Ranked by QAICc = χ²_m + 2k + 2k(k+1)/(n−k−1), n the measured frequencies and χ²_m the "
+           f"chi-square at the stated noise plus the model error of the best hypothesis, σ_m = {sig:.2g} % per mode "
+           f"(χ²/dof = {c_hat:.1f}); hypotheses whose fit is broken are listed apart with the reason.</p>"]
+    apart = ranking[ranking["listed_apart"].fillna("").astype(str) != ""] if "listed_apart" in ranking else ranking[:0]
+    ranking = ranking.drop(apart.index)
+    cols = ["rank", "hypothesis", "description", "delta_qaicc", "weight", "chi2"]
     cols += [c for c in ranking.columns if c.startswith("max_abs_error_") or c.startswith("unpaired_visible_")]
     cols += [c for c in ("em_preload.beta", "preload_N") if c in ranking.columns]
     fm = {c: ".2f" for c in cols if c not in ("hypothesis", "description")}
-    fm.update({"rank": "d", "akaike_weight": ".3f", "chi2": ".1f", "delta_aicc": ".1f", "em_preload.beta": ".3f",
+    fm.update({"rank": "d", "weight": ".3f", "chi2": ".1f", "delta_qaicc": ".1f", "em_preload.beta": ".3f",
                "preload_N": ".0f"})
     fm.update({c: "d" for c in cols if c.startswith("unpaired_visible_")})
-    out.append(html_table(ranking[cols], fm, {"delta_aicc": "ΔAICc", "akaike_weight": "weight", "chi2": "χ²",
+    out.append(html_table(ranking[cols], fm, {"delta_qaicc": "ΔQAICc", "weight": "weight", "chi2": "χ²",
                                               "em_preload.beta": "β", "preload_N": "P (N)"},
                           text_cols=("hypothesis", "description")))
+    if len(apart):
+        out.append("<p class='note'>Listed apart (a broken reading, not a competitor): "
+                   + "; ".join(f"<b>{esc(str(r.hypothesis))}</b>: {esc(str(r.listed_apart))}"
+                               for r in apart.itertuples()) + ".</p>")
     par = pd.DataFrame(rec["parameters"])[["parameter", "value", "ci95_low", "ci95_high", "at_bound"]]
     out.append(f"<p class='note'>Best hypothesis <b>{esc(best)}</b> ({esc(rec.get('description', ''))}): "
                f"χ² = {rec['chi2']:.1f} for {rec['n_data']} frequencies and {rec['n_params']} parameters; "
@@ -72,8 +82,8 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
                               {"freq_Hz": ".1f", "target_Hz": ".1f", "misfit_pct": ".2f"},
                               text_cols=("state",)))
     if spread is not None and len(spread):
-        out.append("<p class='note'>Joint parameters over the hypotheses within ΔAICc &lt; 4 (the reconstruction "
-                   "uncertainty) with the union of their 95 % intervals.</p>")
+        out.append("<p class='note'>Joint parameters over the hypotheses within ΔQAICc &lt; 4 (the reconstruction "
+                   "range), their weighted value and the union of their 95 % intervals.</p>")
         out.append(html_table(spread, {"value_min": ".4g", "value_max": ".4g", "combined_ci95_low": ".4g",
                                        "combined_ci95_high": ".4g"}, text_cols=("parameter", "hypotheses")))
     return "".join(out)
