@@ -9,7 +9,11 @@ The system of terms (:class:`System`)
 * a clamped base bottom turned into a bonded spring layer to the ground, ``K_foundation`` at
   1e15 N/m^3 (the value standing in for a bonded rail fixing, ``model.RAIL_BONDED_N_PER_M3``), so the
   base support can be softened continuously; the bonded layer reproduces the clamped frequencies to
-  better than 1e-4 (checked in ``tests/test_effects.py``).
+  better than 1e-4 (checked in ``tests/test_effects.py``);
+* the solids at the configuration's materials: where they differ from the model's own (a hypothesis
+  with a steel table on the run's model), ``K0`` and ``M0`` of the system are the model's with the
+  solid terms' coefficients folded in (:func:`jointid.fe.model.solid_coefficients`), so the solvers
+  see the same terms as ever; at the model's own materials they are the model's arrays themselves.
 
 See docs/effects.md; the effects themselves are in :mod:`jointid.diagnosis.effects`.
 """
@@ -24,7 +28,8 @@ import scipy.sparse as sp
 
 from jointid.errors import ModelError
 from jointid.fe.fem import Model
-from jointid.fe.model import JOINT_FACES, RAIL_BONDED_N_PER_M3, base_coefficients, joint_layer_terms
+from jointid.fe.model import (JOINT_FACES, RAIL_BONDED_N_PER_M3, base_coefficients, is_mesh_model,
+                              joint_layer_terms, motor_mass_kg, solid_coefficients)
 from jointid.geometry.points import dof_labels
 from jointid.geometry.rig import PART_IDS
 
@@ -112,24 +117,27 @@ class System:
         return out.tocsr()
 
 
-def carried_mass_kg(model: Model) -> float:
+def carried_mass_kg(model: Model, M0=None, motor_kg: float | None = None) -> float:
     """Mass resting on the carriage joints: table + carriages (from ``M0``) + motor primaries, kg.
 
     The body formed by the table and the carriages shares no node with the rails or the base (the
     joints are spring layers between duplicated nodes), so the row sums of ``M0`` over its nodes add
     up to its mass (partition of unity).  Nodes on the carriage/table interface are owned by both
-    parts (``dof_part == -1``) and counted with the body.  A model read from a mesh file carries the
-    number itself (``meta['carried_mass_kg']``, :mod:`jointid.fe.meshmodel`).
+    parts (``dof_part == -1``) and counted with the body.  ``M0`` and ``motor_kg`` replace the
+    model's own (a configuration with other densities or motors on this model, :func:`build_system`).
+    A model read from a mesh file carries the number itself (``meta['carried_mass_kg']``,
+    :mod:`jointid.fe.meshmodel`).
     """
     if "carried_mass_kg" in model.meta:
         return float(model.meta["carried_mass_kg"])
     part = model.dof_part
     body = np.isin(part, [PART_IDS["carriage"], PART_IDS["table"]]) | (part < 0)
-    M0 = model.mass["M0"]
+    M0 = model.mass["M0"] if M0 is None else M0
     ey = np.zeros(M0.shape[0])
     ey[1::3] = 1.0
     rows = 3 * np.flatnonzero(body) + 1
-    return float((M0 @ ey)[rows].sum() + model.meta.get("motor_mass_kg", 0.0))
+    motors = model.meta.get("motor_mass_kg", 0.0) if motor_kg is None else motor_kg
+    return float((M0 @ ey)[rows].sum() + motors)
 
 
 def _split_by_carriage(A: sp.csr_matrix, owner: np.ndarray, n: int) -> list[sp.csr_matrix]:
@@ -166,7 +174,10 @@ def build_system(model: Model, cfg: dict) -> System:
     loc = model.doflocs[[0, 2]].T  # (n_scalar, 2)
     d2 = ((loc[:, None, :] - xz[None, :, :]) ** 2).sum(axis=2)
     owner = np.repeat(np.argmin(d2, axis=1), 3)
-    stiffness = {"K0": model.stiffness["K0"]}
+    ks, ms = solid_coefficients(cfg, model)  # the configuration's materials against the model's
+    K0 = model.K(ks) if ks else model.stiffness["K0"]
+    M0 = model.M(ms) if ms else model.mass["M0"]
+    stiffness = {"K0": K0}
     layers = joint_layer_terms(model)
     for name, A in model.stiffness.items():
         if name in layers:
@@ -179,9 +190,12 @@ def build_system(model: Model, cfg: dict) -> System:
     if support == "clamped":
         fixed = np.array([], dtype=np.int64)  # bonded foundation layer instead (see module doc)
     pts = pd.DataFrame(model.meta["points"])
-    return System(stiffness=stiffness, mass=dict(model.mass), fixed=fixed, probe=model.probe,
-                  labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model),
-                  support=support, model=model, meta={"points": pts}, layers=layers)
+    mass = {**model.mass, "M0": M0}
+    motors = None if is_mesh_model(cfg) else motor_mass_kg(cfg)
+    return System(stiffness=stiffness, mass=mass, fixed=fixed, probe=model.probe,
+                  labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model, M0, motors),
+                  support=support, model=model, meta={"points": pts, "solid_coefficients": {**ks, **ms}},
+                  layers=layers)
 
 
 def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) -> tuple[dict, dict]:
@@ -191,8 +205,12 @@ def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) 
     bonded foundation layer.  Returns ``(kc, mc)`` for :meth:`System.K` / :meth:`System.M`.
     """
     kc0, mc = base_coefficients(cfg, system.model, theta)
+    folded = system.meta.get("solid_coefficients") or {}  # in the system's K0 and M0 already
+    mc = {name: v for name, v in mc.items() if name not in folded}
     kc = {}
     for name, v in kc0.items():
+        if name in folded:
+            continue
         if name in system.layers:
             for c in range(system.n_carriages):
                 kc[f"{name}@{c}"] = float(v)

@@ -7,6 +7,9 @@
   ``u_carriage - u_rail`` in one global direction.  Multiplying by ``k''`` [N/m^3] gives the joint.
 * ``K_mount``: base mounts, unit stiffness per area in all three directions against the ground.
 * ``M_motor``: the motor primaries as a unit-mass (1 kg) layer spread over the table-underside patch.
+* ``Model.solids``: the solids per part, ``K_solid_<part>`` and ``M_solid_<part>`` (``K0 = sum_b
+  K_solid_b``), so that a part's Young's modulus and density are coefficients too
+  (:mod:`jointid.fe.model`); :func:`assemble_elasticity` assembles one part with ``elements``.
 """
 
 from __future__ import annotations
@@ -44,28 +47,52 @@ class Model:
     # fill-reducing ordering of K - sigma M on the free DOFs (PARDISO, 1-based), cached with the
     # model by the mesh stage so that no later factorisation has to reorder (None: not computed)
     ordering: np.ndarray | None = None
+    # the solids per part (``K_solid_<part>``, ``M_solid_<part>``: elasticity and mass of one part at
+    # its reference material, ``meta['solids']``), kept apart from ``stiffness``/``mass`` so that the
+    # solvers iterating over the affine terms do not carry them; one part, ``meta['solids']
+    # ['complement']`` (the largest), is not stored but formed when asked as K0 (M0) minus the others
+    solids: dict = field(default_factory=dict)
 
     @property
     def n_dofs(self) -> int:
         return self.stiffness["K0"].shape[0]
 
     def K(self, coeffs: dict[str, float]) -> sp.csr_matrix:
-        """``K0 + sum coeffs[name] * stiffness[name]``."""
-        return _affine_sum(self.stiffness, "K0", coeffs)
+        """``K0 + sum coeffs[name] * stiffness[name]``; a name ``K_solid_<part>`` takes the part's
+        elasticity (:meth:`solid_term`), its coefficient ``E_part / E_part,ref - 1``."""
+        return _affine_sum(self.stiffness, "K0", coeffs, self.solid_term)
 
     def M(self, coeffs: dict[str, float]) -> sp.csr_matrix:
-        """``M0 + sum coeffs[name] * mass[name]``."""
-        return _affine_sum(self.mass, "M0", coeffs)
+        """``M0 + sum coeffs[name] * mass[name]``; a name ``M_solid_<part>`` takes the part's mass
+        (:meth:`solid_term`), its coefficient ``rho_part / rho_part,ref - 1``."""
+        return _affine_sum(self.mass, "M0", coeffs, self.solid_term)
+
+    def solid_term(self, name: str) -> sp.csr_matrix:
+        """The solid term ``K_solid_<part>`` or ``M_solid_<part>`` (see ``solids``): stored, or for the
+        complement part ``K0 - sum of the stored parts`` (``M0 - ...``), formed on each call."""
+        if name in self.solids:
+            return self.solids[name]
+        info = self.meta.get("solids") or {}
+        group, _, part = name.partition("_solid_")
+        if group not in ("K", "M") or part != info.get("complement"):
+            known = sorted(self.solids) + ([f"K_solid_{info['complement']}", f"M_solid_{info['complement']}"]
+                                           if info.get("complement") else [])
+            raise KeyError(f"no term named {name!r}; the model's solid terms are {known or 'none'}")
+        total = (self.stiffness["K0"] if group == "K" else self.mass["M0"]).tocsr()
+        rest = [A for n, A in self.solids.items() if n.startswith(f"{group}_solid_")]
+        return (total - sum(rest[1:], rest[0])).tocsr() if rest else total.copy()
 
 
-def _affine_sum(terms: dict[str, sp.csr_matrix], base: str, coeffs: dict[str, float]) -> sp.csr_matrix:
+def _affine_sum(terms: dict[str, sp.csr_matrix], base: str, coeffs: dict[str, float],
+                other=None) -> sp.csr_matrix:
     """``terms[base] + sum coeffs[name] * terms[name]``.  The affine terms (joint layers, masses on
     patches) touch few DOFs: summed among themselves first, the large base matrix is added once
-    (one pass over its entries instead of one per term)."""
+    (one pass over its entries instead of one per term).  ``other(name)`` gives a term not in
+    ``terms`` (the solids of :class:`Model`)."""
     extra = None
     for name, c in coeffs.items():
         if c != 0.0:
-            t = c * terms[name]
+            t = c * (terms[name] if name in terms or other is None else other(name))
             extra = t if extra is None else extra + t
     return (terms[base] + extra).tocsr() if extra is not None else terms[base].copy().tocsr()
 
@@ -89,12 +116,15 @@ def _vector_from_scalar_blocks(blocks, n):
 
 
 def assemble_elasticity(basis: Basis, lam_e: np.ndarray, mu_e: np.ndarray, rho_e: np.ndarray,
-                        chunk: int = 4000) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+                        chunk: int = 4000, elements: np.ndarray | None = None
+                        ) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """Stiffness and consistent mass of isotropic solids with per-element constants.
 
     ``basis`` is a *scalar* basis; returns vector-valued (3N x 3N) K and M.  Element matrices are
     built in chunks with einsum: G_ab = int d_a(phi_i) d_b(phi_j) dx, then
-    K_cd = lam G_cd + mu G_dc + mu delta_cd sum_e G_ee.
+    K_cd = lam G_cd + mu G_dc + mu delta_cd sum_e G_ee.  ``elements`` (indices) assembles only those
+    elements (one part of the solids, e.g. the terms ``K_solid_<part>`` of
+    :func:`jointid.fe.model.build_model`); the matrices keep the full size.
     """
     n = basis.N
     dofs = basis.element_dofs  # (nloc, nel)
@@ -102,10 +132,13 @@ def assemble_elasticity(basis: Basis, lam_e: np.ndarray, mu_e: np.ndarray, rho_e
     grads = np.stack([basis.basis[i][0].grad for i in range(nloc)])  # (nloc, 3, nel, nqp)
     vals = np.stack([basis.basis[i][0].value for i in range(nloc)])  # (nloc, nel, nqp)
     dx = basis.dx  # (nel, nqp)
+    sel = np.arange(nel) if elements is None else np.asarray(elements, dtype=np.int64)
+    if len(sel) == 0:
+        return sp.csr_matrix((3 * n, 3 * n)), sp.csr_matrix((3 * n, 3 * n))
     parts = [[[] for _ in range(3)] for _ in range(3)]
     mparts, rparts, cparts = [], [], []
-    for s in range(0, nel, chunk):
-        e = slice(s, min(nel, s + chunk))
+    for s in range(0, len(sel), chunk):
+        e = sel[s: s + chunk] if elements is not None else slice(s, min(nel, s + chunk))
         g = grads[:, :, e, :]
         w = dx[e]
         G = np.einsum("iaeq,jbeq,eq->abije", g, g, w, optimize=True)  # (3, 3, i, j, e)

@@ -16,6 +16,22 @@ whose named terms are:
 ``M_table_edge`` 1 kg spread over the table's +X side face (e.g. cable chain, encoder head)
 ===============  ==============================================================================
 
+and, apart from those (``Model.solids``, so that the solvers iterating over the affine terms do not
+carry them), the solids per part of :data:`jointid.geometry.rig.PART_IDS`: ``K_solid_<part>``,
+``M_solid_<part>``, the part's elasticity and mass at its reference material (``meta['solids']``).
+``K0 = sum_b K_solid_b`` and ``M0 = sum_b M_solid_b``, so with coefficients
+``c_b = E_b / E_b,ref - 1`` and ``m_b = rho_b / rho_b,ref - 1`` (0 at the reference)
+
+    K = K0 + sum_b c_b K_solid_b + ...  = sum_b (E_b / E_b,ref) K_solid_b + sum_i theta_i K_i
+    M = M0 + sum_b m_b M_solid_b + ...  = sum_b (rho_b / rho_b,ref) M_solid_b + sum_a m_a M_a
+
+Poisson's ratio of each part is fixed at its reference (then K_solid_b scales linearly with E_b); a
+change of it needs a model of its own.  The largest part (``meta['solids']['complement']``, the base)
+is not stored: it is ``K0`` minus the other parts, formed when asked (:meth:`Model.solid_term`), so
+the model file grows by the smaller parts only (about a quarter of ``K0`` and ``M0``), and ``K0`` and
+``M0`` stay the mapped, shared arrays they were.  :func:`solid_coefficients` gives ``c_b`` and ``m_b``
+of a configuration.
+
 ``joint_terms(cfg)`` maps a joint parameter (``k_normal_N_per_m3`` ...) to the terms it multiplies.
 """
 
@@ -37,6 +53,8 @@ from jointid.geometry.points import measuring_points
 from jointid.geometry.rig import PART_IDS, build_rig
 
 RAIL_BONDED_N_PER_M3 = 1.0e15  # rail-to-base layer standing in for a bonded (consolidated) fixing
+PART_SECTIONS = {"base": "base", "rail": "rails", "carriage": "carriages", "table": "table"}
+"""The ``rig`` section naming each part's material."""
 
 
 def joint_terms(joints_cfg: dict, model_cfg: dict | None = None) -> dict[str, list[str]]:
@@ -112,6 +130,7 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     rig = rig or build_rig(rig_cfg)
     rmesh = mesh_from_config(rig, mesh_cfg, refine, halve)
     basis, stiffness, M0, dof_body = assemble_solids_and_joints(cfg, rig, rmesh, mesh_cfg["element"])
+    solids, solids_meta = assemble_solid_parts(cfg, rig, rmesh, basis)
     elem, intorder = basis.elem, fem.ELEMENTS[mesh_cfg["element"]][1]
     doflocs = basis.doflocs
     say(f"mesh: {rmesh.mesh.t.shape[1]} {mesh_cfg['element']} elements, {3 * basis.N} DOFs")
@@ -145,9 +164,9 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
             "motor_mass_kg": rig_cfg["motors"]["count"] * rig_cfg["motors"]["mass_each_kg"],
             "mount_area_each_m2": areas["mount"] / 4 if support == "mounts" else 0.0,
             "carriage_centres_m": rig.carriage_centres.tolist(), "dims_m": rig.dims,
-            "points": pts.to_dict(orient="list")}
+            "points": pts.to_dict(orient="list"), "solids": solids_meta}
     model = fem.Model(stiffness=stiffness, mass=mass, fixed=fixed, probe=probe, doflocs=doflocs,
-                      dof_part=dof_part, meta=meta)
+                      dof_part=dof_part, meta=meta, solids=solids)
     model.meta["mesh"] = {"p": rmesh.mesh.p, "t": rmesh.mesh.t, "part": rmesh.part}
     if rmesh.boxes is not None:
         lo, hi = rmesh.boxes
@@ -168,13 +187,7 @@ def assemble_solids_and_joints(cfg: dict, rig, rmesh, element: str):
     elem_cls, intorder = fem.ELEMENTS[element]
     elem = elem_cls()
     basis = Basis(rmesh.mesh, elem, intorder=intorder)
-    inv_parts = {v: k for k, v in PART_IDS.items()}
-    lam, mu, rho = (np.empty(len(rmesh.part)) for _ in range(3))
-    for pid in np.unique(rmesh.part):
-        m = cfg["materials"][rig.materials[inv_parts[pid]]]
-        sel = rmesh.part == pid
-        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
-        rho[sel] = m["density_kg_per_m3"]
+    lam, mu, rho, _ = element_constants(cfg, rig, rmesh)
     K0, M0 = fem.assemble_elasticity(basis, lam, mu, rho)
     stiffness = {"K0": K0}
     dof_body = None
@@ -186,6 +199,70 @@ def assemble_solids_and_joints(cfg: dict, rig, rmesh, element: str):
         for d, i in fem.DIRS.items():
             stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, basis.doflocs, i, dof_body)
     return basis, stiffness, M0, dof_body
+
+
+def element_constants(cfg: dict, rig, rmesh):
+    """Lamé constants and density of every element (Pa, kg/m^3) from the materials of ``cfg``, and
+    the reference material of every part present: ``{part: {material, youngs_modulus_Pa,
+    poisson_ratio, density_kg_per_m3}}``."""
+    inv_parts = {v: k for k, v in PART_IDS.items()}
+    lam, mu, rho = (np.empty(len(rmesh.part)) for _ in range(3))
+    ref = {}
+    for pid in np.unique(rmesh.part):
+        name = rig.materials[inv_parts[pid]]
+        m = cfg["materials"][name]
+        sel = rmesh.part == pid
+        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
+        rho[sel] = m["density_kg_per_m3"]
+        ref[inv_parts[pid]] = {"material": name, **{k: float(m[k]) for k in
+                                                    ("youngs_modulus_Pa", "poisson_ratio", "density_kg_per_m3")}}
+    return lam, mu, rho, ref
+
+
+def assemble_solid_parts(cfg: dict, rig, rmesh, basis) -> tuple[dict, dict]:
+    """The solids per part, ``K_solid_<part>`` and ``M_solid_<part>`` at the materials of ``cfg``,
+    for every part but the one with the most elements (the complement, formed from ``K0`` and ``M0``
+    when asked, :meth:`jointid.fe.fem.Model.solid_term`).  Returns ``(terms, meta)``, meta
+    ``{"parts": reference materials (:func:`element_constants`), "complement": part}``."""
+    lam, mu, rho, ref = element_constants(cfg, rig, rmesh)
+    count = {p: int(np.count_nonzero(rmesh.part == PART_IDS[p])) for p in ref}
+    complement = max(count, key=lambda p: (count[p], p))
+    terms = {}
+    for part in ref:
+        if part != complement:
+            K, M = fem.assemble_elasticity(basis, lam, mu, rho, elements=np.flatnonzero(rmesh.part == PART_IDS[part]))
+            terms[f"K_solid_{part}"], terms[f"M_solid_{part}"] = K, M
+    return terms, {"parts": ref, "complement": complement}
+
+
+def solid_coefficients(cfg: dict, model: fem.Model) -> tuple[dict[str, float], dict[str, float]]:
+    """Coefficients of the solid terms at the materials of ``cfg``: ``K_solid_<part>``:
+    ``E / E_ref - 1`` and ``M_solid_<part>``: ``rho / rho_ref - 1``, the reference being the material
+    the model was built with (``model.meta['solids']``); only the non-zero ones (none at the
+    reference).  :class:`ModelError` on a changed Poisson's ratio (the model is affine in E and rho
+    only).  A model without solid terms (a mesh file's, or one written before them) gives none."""
+    kc: dict[str, float] = {}
+    mc: dict[str, float] = {}
+    if is_mesh_model(cfg):
+        return kc, mc
+    parts = (model.meta.get("solids") or {}).get("parts") or {}
+    for part, section in PART_SECTIONS.items():
+        if part not in parts:
+            continue
+        name = cfg["rig"][section]["material"]
+        m = cfg["materials"][name]
+        r = parts[part]
+        if float(m["poisson_ratio"]) != r["poisson_ratio"]:
+            raise ModelError(f"rig.{section}.material: {name} has Poisson's ratio {m['poisson_ratio']:g}, the "
+                             f"model was built with {r['poisson_ratio']:g} ({r['material']}) — the model is affine "
+                             "in Young's modulus and density only; build a model of this configuration")
+        c = float(m["youngs_modulus_Pa"]) / r["youngs_modulus_Pa"] - 1.0
+        d = float(m["density_kg_per_m3"]) / r["density_kg_per_m3"] - 1.0
+        if c != 0.0:
+            kc[f"K_solid_{part}"] = c
+        if d != 0.0:
+            mc[f"M_solid_{part}"] = d
+    return kc, mc
 
 
 def dof_parts(basis, rmesh) -> np.ndarray:
@@ -203,7 +280,7 @@ def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Mo
     Tv = sp.kron(T, sp.eye(3), format="csr")
     Tt = Tv.T.tocsr()
     project = {g: {name: (Tt @ A @ Tv).tocsr() for name, A in getattr(model, g).items()}
-               for g in ("stiffness", "mass")}
+               for g in ("stiffness", "mass", "solids")}
     # the free nodes a clamped node is made of: itself, or (hanging) the nodes of the clamped face
     # it hangs on, which are clamped too
     fixed_free = np.unique(T[np.unique(model.fixed // 3)].indices)
@@ -215,7 +292,7 @@ def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Mo
                         vertex_indptr=vertex.indptr)
     return fem.Model(stiffness=project["stiffness"], mass=project["mass"], fixed=fixed,
                      probe=(model.probe @ Tv).tocsr(), doflocs=model.doflocs[:, free],
-                     dof_part=model.dof_part[free], meta=meta)
+                     dof_part=model.dof_part[free], meta=meta, solids=project["solids"])
 
 
 def joint_coefficients(joints_cfg: dict, theta: dict[str, float] | None = None,
@@ -240,7 +317,9 @@ def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | Non
 
     ``theta`` maps joint parameter names to N/m^3 (defaults: the geometric mean of the bounds for
     identified parameters, the configured value for fixed ones).  Returns ``(k_coeffs, m_coeffs)``
-    for :meth:`Model.K` and :meth:`Model.M`.
+    for :meth:`Model.K` and :meth:`Model.M`: the joints, the rail fixing and mounts, the motor mass
+    of ``cfg`` (``M_motor``) and the solids' material ratios (:func:`solid_coefficients`, none when
+    the materials are the model's own).
     """
     if is_mesh_model(cfg):
         from jointid.fe.meshmodel import mesh_constant_coefficients
@@ -257,8 +336,17 @@ def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | Non
         kc["K_mount"] = cfg["rig"]["support"]["k_mount_N_per_m"] / model.meta["mount_area_each_m2"]
     for name, v in (extra_k or {}).items():
         kc[name] = kc.get(name, 0.0) + v
-    mc = {"M_motor": model.meta["motor_mass_kg"]}
+    mc = {"M_motor": motor_mass_kg(cfg)}
+    ks, ms = solid_coefficients(cfg, model)
+    kc.update(ks)
+    mc.update(ms)
     return kc, mc
+
+
+def motor_mass_kg(cfg: dict) -> float:
+    """The motor primaries' mass on the table of ``cfg``'s rig, kg (count x mass each): the
+    coefficient of ``M_motor`` (a 1 kg layer), so a changed motor mass needs no model of its own."""
+    return float(cfg["rig"]["motors"]["count"] * cfg["rig"]["motors"]["mass_each_kg"])
 
 
 # ---------------------------------------------------------------- cache
@@ -266,7 +354,7 @@ def save_model(model: fem.Model, path: str | Path) -> None:
     """Write the model to one ``.npz`` file atomically (temporary file + rename)."""
     path = Path(path)
     arrays = {}
-    for group in ("stiffness", "mass"):
+    for group in ("stiffness", "mass", "solids"):
         for name, A in getattr(model, group).items():
             A = A.tocsr()
             for part in ("data", "indices", "indptr"):
@@ -311,8 +399,8 @@ def load_model(path: str | Path) -> fem.Model:
                if k not in z]
     if missing:
         raise ModelError(f"{path}: not a jointid model file (no {', '.join(missing)}) — {hint}")
-    groups: dict[str, dict[str, sp.csr_matrix]] = {"stiffness": {}, "mass": {}}
-    names = {(k.split("/")[0], k.split("/")[1]) for k in z if k.startswith(("stiffness/", "mass/"))}
+    groups: dict[str, dict[str, sp.csr_matrix]] = {"stiffness": {}, "mass": {}, "solids": {}}
+    names = {(k.split("/")[0], k.split("/")[1]) for k in z if k.startswith(("stiffness/", "mass/", "solids/"))}
     for group, name in sorted(names):
         pre = f"{group}/{name}/"
         groups[group][name] = sp.csr_matrix((z[pre + "data"], z[pre + "indices"], z[pre + "indptr"]),
@@ -322,4 +410,4 @@ def load_model(path: str | Path) -> fem.Model:
     meta["mesh"] = {k.split("/")[1]: z[k] for k in z if k.startswith("mesh/")}
     return fem.Model(stiffness=groups["stiffness"], mass=groups["mass"], fixed=z["fixed"], probe=probe,
                      doflocs=z["doflocs"], dof_part=z["dof_part"], meta=meta,
-                     ordering=z["ordering"] if "ordering" in z else None)
+                     ordering=z["ordering"] if "ordering" in z else None, solids=groups["solids"])

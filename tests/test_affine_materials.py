@@ -1,0 +1,108 @@
+"""The model affine in the solids' materials and the added masses, not only in the joints.
+
+``build_model`` keeps the solids per part (``K_solid_<part>``, ``M_solid_<part>``, fe/model.py): at the
+reference materials the model is the one it was before the split (frequencies to 1e-9), a changed
+Young's modulus, density or motor mass given as coefficients of one model equals the model built
+with it, and the part terms are the parts' own elasticity and mass.
+"""
+
+import numpy as np
+import pytest
+
+from jointid.config import load_config
+from jointid.errors import ModelError
+from jointid.fe import fem
+from jointid.fe.modal import solve_modes
+from jointid.fe.model import base_coefficients, build_model, load_model, save_model, solid_coefficients
+from jointid.yamlio import deep_merge
+from conftest import coarse_config_dict
+
+N_MODES = 14
+# The coarse config's model at its default coefficients (joints at the geometric mean of their bounds),
+# first 14 frequencies in Hz as the model built them before the split into parts (commit ef6f0de).
+BEFORE_SPLIT_HZ = [433.6972304, 1363.74154574, 1442.25602292, 1467.78362314, 2054.68868853,
+                   2159.02457169, 2502.79543831, 3359.98982863, 3777.04114255, 4021.30385345,
+                   4039.12294592, 4120.80336554, 4502.58851582, 4777.56484082]
+
+
+def _freqs(model, kc, mc):
+    return solve_modes(model.K(kc), model.M(mc), N_MODES, fixed=model.fixed, shift_Hz=-10.0).freqs_Hz
+
+
+@pytest.fixture(scope="module")
+def run():
+    cfg = load_config(coarse_config_dict())
+    return cfg, build_model(cfg)
+
+
+def test_default_frequencies_are_those_before_the_split(run):
+    cfg, model = run
+    kc, mc = base_coefficients(cfg, model)
+    assert not any("_solid_" in k for k in (*kc, *mc))  # reference materials: no solid coefficient
+    f = _freqs(model, kc, mc)
+    # 1.5e-10 s: the frequencies printed to 12 significant digits
+    np.testing.assert_allclose(f, BEFORE_SPLIT_HZ, rtol=1e-9)
+
+
+def test_part_terms_are_the_parts_elasticity_and_mass(run):
+    cfg, model = run
+    info = model.meta["solids"]
+    assert info["complement"] == "base"
+    assert set(model.solids) == {f"{g}_solid_{p}" for g in "KM" for p in ("rail", "carriage", "table")}
+    r = cfg["rig"]
+    ey = np.zeros(model.n_dofs)
+    ey[1::3] = 1.0
+    # partition of unity: e_y^T M_part e_y is the part's mass
+    table = 2700.0 * r["table"]["length_m"] * r["table"]["width_m"] * r["table"]["thickness_m"]
+    base = 7850.0 * r["base"]["length_m"] * r["base"]["width_m"] * r["base"]["height_m"]
+    rails = 2 * 7850.0 * r["rails"]["width_m"] * r["rails"]["height_m"] * r["rails"]["length_m"]
+    assert ey @ (model.solid_term("M_solid_table") @ ey) == pytest.approx(table, rel=1e-9)
+    assert ey @ (model.solid_term("M_solid_base") @ ey) == pytest.approx(base, rel=1e-9)
+    assert ey @ (model.solid_term("M_solid_rail") @ ey) == pytest.approx(rails, rel=1e-9)
+    # every part is stress-free under a rigid translation, and the parts add up to the solids
+    ones = np.ones(model.n_dofs)
+    K0 = model.stiffness["K0"]
+    total = sum(model.solid_term(f"K_solid_{p}") for p in ("base", "rail", "carriage", "table"))
+    assert abs(total - K0).max() <= 1e-12 * abs(K0).max()
+    for p in ("base", "table"):
+        Kp = model.solid_term(f"K_solid_{p}")
+        assert np.abs(Kp @ ones).max() <= 1e-8 * abs(Kp).max()
+        assert Kp.nnz < K0.nnz
+    with pytest.raises(KeyError, match="no term named 'K_solid_motor'"):
+        model.solid_term("K_solid_motor")
+
+
+@pytest.mark.parametrize("change", [
+    {"materials": {"aluminium": {"youngs_modulus_Pa": 7.2e10, "density_kg_per_m3": 1350.0}}},  # table only
+    {"materials": {"steel": {"youngs_modulus_Pa": 1.9e11}}, "rig": {"motors": {"mass_each_kg": 1.0}}},
+])
+def test_coefficients_equal_the_model_built_with_the_change(run, change):
+    cfg, model = run
+    cfg2 = load_config(deep_merge(coarse_config_dict(), change))
+    kc, mc = base_coefficients(cfg2, model)
+    assert any("_solid_" in k for k in (*kc, *mc))
+    own = build_model(cfg2)
+    f_affine = _freqs(model, kc, mc)
+    f_own = _freqs(own, *base_coefficients(cfg2, own))
+    np.testing.assert_allclose(f_affine, f_own, rtol=1e-9)
+    assert np.abs(f_affine / np.array(BEFORE_SPLIT_HZ) - 1).max() > 1e-3  # the change is seen
+
+
+def test_a_changed_poisson_ratio_is_no_coefficient(run):
+    cfg, model = run
+    steel_table = load_config(deep_merge(coarse_config_dict(), {"rig": {"table": {"material": "steel"}}}))
+    with pytest.raises(ModelError, match="Poisson's ratio 0.3, the model was built with 0.33"):
+        solid_coefficients(steel_table, model)
+
+
+def test_the_file_keeps_the_parts_but_the_largest(run, tmp_path):
+    cfg, model = run
+    path = tmp_path / "m.npz"
+    save_model(model, path)
+    back = load_model(path)
+    assert set(back.solids) == set(model.solids)
+    cfg2 = load_config(deep_merge(coarse_config_dict(), {"materials": {"steel": {"density_kg_per_m3": 7000.0}}}))
+    kc, mc = base_coefficients(cfg2, back)
+    assert set(mc) >= {"M_solid_base", "M_solid_rail", "M_solid_carriage"}
+    assert abs(back.M(mc) - model.M(mc)).max() == 0.0
+    assert abs(back.K(kc) - model.K(kc)).max() == 0.0
