@@ -143,3 +143,43 @@ def test_range_table_takes_the_increase_case_by_case():
     at = tab.loc[("paired modes", "damping laws at T05")]
     assert (at.increase_low_pct, at.increase_high_pct) == pytest.approx((-10.0, 30.0)) and not at.paper_inside
     assert tab.loc[("all modes", "points × damping laws")].increase_high_pct == pytest.approx(-20.0)
+
+
+def test_damping_ratio_range_of_a_single_mode_is_two_zeta_k():
+    """One mass-normalised mode (k_r = w_r^2 at pphi = 1): min |F/X| = 2 zeta sqrt(1 - zeta^2) k_r,
+    linear in zeta to O(zeta^3), so the range's ends are the range's ends of zeta."""
+    f0 = 1000.0
+    k = (2 * np.pi * f0) ** 2
+    out = rg.damping_ratio_range((300.0, 3500.0), [f0], [0.03], [1.0], 0.0, (0.02, 0.05), n_freq=4001)
+    exact = lambda z: 2 * z * np.sqrt(1 - z**2) * k  # noqa: E731
+    assert out["damping_ratio_grid"][0] == 0.02 and out["damping_ratio_grid"][-1] == 0.05
+    # on a grid the minimum is found from above, to the resonance grid's resolution
+    for key, z in (("k_min_low_N_per_m", 0.02), ("k_min_high_N_per_m", 0.05)):
+        assert exact(z) * (1 - 1e-12) <= out[key] <= exact(z) * (1 + 1e-3)
+    assert out["governing_fe_mode"] == [1] * 7
+
+
+def test_damping_ratio_range_keeps_measured_ratios_and_follows_each_pairing():
+    """Two modes: the 1 kHz one (weaker at the drive point) keeps a measured ratio; the 2 kHz one's
+    ratio runs over the range. Paired-peak ranges follow each pairing's paired modes."""
+    fr, pphi = [1000.0, 2000.0], [0.5, 1.0]
+    k = (2 * np.pi * np.array(fr)) ** 2 / np.array(pphi) ** 2
+    out = rg.damping_ratio_range((300.0, 3500.0), fr, [0.01, 0.03], pphi, 0.0, (0.02, 0.05),
+                                 fixed=[True, False], n_freq=4001,
+                                 paired={"chosen": np.array([True, False]), "tied 1": np.array([False, True])})
+    # mode 1: 2 * 0.01 * k1 = 0.08 k(1 kHz) ... mode 2: 2 zeta k2 with k2 = w2^2: mode 2 governs only at low zeta
+    assert out["paired"]["chosen"]["k_paired_low_N_per_m"] == pytest.approx(out["paired"]["chosen"]["k_paired_high_N_per_m"],
+                                                                              rel=2e-2)  # its ratio is kept
+    assert out["paired"]["chosen"]["k_paired_low_N_per_m"] == pytest.approx(2 * 0.01 * k[0], rel=3e-2)
+    assert out["paired"]["tied 1"]["k_paired_high_N_per_m"] / out["paired"]["tied 1"]["k_paired_low_N_per_m"] \
+        == pytest.approx(0.05 / 0.02, rel=3e-2)
+    assert set(out["paired"]["tied 1"]["paired_fe_mode"]) == {2}
+    assert out["k_min_low_N_per_m"] == pytest.approx(min(2 * 0.01 * k[0], 2 * 0.02 * k[1]), rel=3e-2)
+
+
+@pytest.mark.parametrize("bad", [(0.05, 0.02), (0.0, 0.05), (0.02, 1.0)])
+def test_damping_ratio_range_must_be_an_increasing_pair_of_ratios(bad):
+    from jointid.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="damping_ratio_range"):
+        rg.damping_ratio_range((300.0, 3500.0), [1000.0], [0.03], [1.0], 0.0, bad)

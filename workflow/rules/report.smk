@@ -1,6 +1,6 @@
 # Report stage: harmonic response per state -> Table 1 -> one self-contained HTML page.
 #   results/harmonic/{state}/{frf.csv, dynamic_stiffness.json, modes.npz, drive_points.npz}
-#   results/tables/table1_dynamic_stiffness.{csv,md}, table1_ranges.csv, table1_cases.csv
+#   results/tables/table1_dynamic_stiffness.{csv,md}, table1_ranges.csv, table1_cases.csv, table1_pairings.csv
 #   results/report/index.html (+ figures/*.png, wrapped for `snakemake --report report.html`)
 # Captions of the figures: workflow/report/*.rst (paths relative to this file).
 
@@ -61,6 +61,7 @@ rule table1:
         md=f"{R}/tables/table1_dynamic_stiffness.md",
         ranges=f"{R}/tables/table1_ranges.csv",
         cases=f"{R}/tables/table1_cases.csv",
+        pairings=f"{R}/tables/table1_pairings.csv",  # Table 1 under the chosen and every exactly tied pairing
     params:
         cfg=CFG_TABLE1_CHAIN,  # harmonic.band_Hz / n_freq for the ranges; the rest for the provenance
     log:

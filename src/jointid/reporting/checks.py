@@ -16,7 +16,10 @@ Exit status 1 with one line per problem (where, what, how to fix) if a selected 
   ``not_identified_dynamic_stiffness_N_per_mm``; the lowest paired peak
   (``paired_dynamic_stiffness_N_per_mm``) is finite and positive or empty (no paired mode has a peak
   of its own at the drive point); and the ranges (``table1_ranges.csv`` beside it) are present with
-  finite bounds.  Whether the stiffness increases power-off -> power-on (the paper: +42.1 %) is
+  finite bounds; where present, the range over ``harmonic.damping.damping_ratio_range``
+  (``k_dyn_min_low/high_N_per_mm``, finite, positive, ordered) and ``table1_pairings.csv`` (Table 1
+  under every exactly tied pairing: each row a status and a positive band minimum, the chosen
+  pairing's status that of Table 1).  Whether the stiffness increases power-off -> power-on (the paper: +42.1 %) is
   printed, not required: it is a finding of the model, and a state that is not identified has no
   increase to require.  ``--require-increase`` adds that requirement (both states identified, the
   increase positive).  The report page shows the same problems (:func:`check_table1`).
@@ -50,6 +53,7 @@ TABLE1 = "table1_dynamic_stiffness.csv"
 UNPAIRED = "unpaired_visible.csv"
 STATE_OF = {"table2_power_off.csv": "power_off", "table3_power_on.csv": "power_on"}
 TABLE1_RANGES = "table1_ranges.csv"
+TABLE1_PAIRINGS = "table1_pairings.csv"
 STATES = ("power_off", "power_on")
 
 
@@ -239,6 +243,55 @@ def check_table1_ranges(where: str | Path) -> list[str]:
     return problems
 
 
+def check_damping_range(where: str | Path) -> list[str]:
+    """Problems of Table 1's range over ``harmonic.damping.damping_ratio_range`` (when its columns are
+    there): finite positive ``k_dyn_min_low/high_N_per_mm`` with low <= high, and ratios 0 < low <= high < 1."""
+    import pandas as pd
+
+    path = table1_path(where)
+    df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    if "k_dyn_min_low_N_per_mm" not in df:
+        return []
+    problems = []
+    for _, row in df.iterrows():
+        state = row["state"]
+        for c in ("k_dyn_min_low_N_per_mm", "k_dyn_min_high_N_per_mm"):
+            problems += _positive(path, state, row, c)
+        lo, hi = _number(row["k_dyn_min_low_N_per_mm"]), _number(row["k_dyn_min_high_N_per_mm"])
+        zl, zh = _number(row.get("damping_ratio_low", "")), _number(row.get("damping_ratio_high", ""))
+        if math.isfinite(lo) and math.isfinite(hi) and lo > hi:
+            problems.append(f"{path}: {state} k_dyn_min_low_N_per_mm {lo:g} > k_dyn_min_high_N_per_mm {hi:g} — rerun rule table1")
+        if not (0 < zl <= zh < 1):
+            problems.append(f"{path}: {state} damping ratio range {_shown(row.get('damping_ratio_low', ''))}–"
+                            f"{_shown(row.get('damping_ratio_high', ''))} is not 0 < low <= high < 1 — see "
+                            "harmonic.damping.damping_ratio_range")
+    return problems
+
+
+def check_table1_pairings(where: str | Path) -> list[str]:
+    """Problems of ``table1_pairings.csv`` beside Table 1 (Table 1 under every admissible pairing), when
+    present: each state's ``chosen`` row has Table 1's status, and every row a valid status and a finite
+    positive ``k_dyn_min_N_per_mm``."""
+    import pandas as pd
+
+    path = table1_path(where).parent / TABLE1_PAIRINGS
+    if not path.exists():
+        return []
+    df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    t1 = pd.read_csv(table1_path(where), dtype=str, keep_default_na=False).set_index("state")
+    problems = []
+    for state in STATES:
+        chosen = df[(df["state"] == state) & (df["pairing"] == "chosen")]
+        if len(chosen) != 1 or (state in t1.index and chosen["status"].iloc[0] != t1.loc[state, "status"]):
+            problems.append(f"{path}: {state}: no single 'chosen' row with Table 1's status — rerun rule table1")
+    for _, row in df.iterrows():
+        status = str(row["status"])
+        if status != IDENTIFIED and not status.startswith("not identified: "):
+            problems.append(f"{path}: {row['state']} {row['pairing']}: status {_shown(status)} — rerun rule table1")
+        problems += _positive(path, f"{row['state']} ({row['pairing']} pairing)", row, "k_dyn_min_N_per_mm")
+    return problems
+
+
 def check_table1(where: str | Path, require_increase: bool = False, ranges: bool = True) -> list[str]:
     """Problems of Table 1 (empty list = fine); prints each state's status and the increase.
 
@@ -251,12 +304,23 @@ def check_table1(where: str | Path, require_increase: bool = False, ranges: bool
     if ranges:
         problems += check_table1_ranges(where)
     if not problems:
+        problems += check_damping_range(where) + check_table1_pairings(where)
+    if not problems:
         import pandas as pd
 
         df = pd.read_csv(path, dtype=str, keep_default_na=False).set_index("state")
         for state in STATES:
             tie = df.loc[state, "tie_note"] if str(df.get("status_rests_on_tie", {}).get(state, "")) == "True" else ""
             print(f"{path}: {state}: {df.loc[state, 'status']}" + (f" (rests on a tie: {tie})" if tie else ""))
+            if "k_dyn_min_low_N_per_mm" in df:
+                print(f"{path}: {state}: band minimum {_number(df.loc[state, 'k_dyn_min_low_N_per_mm']):,.0f}–"
+                      f"{_number(df.loc[state, 'k_dyn_min_high_N_per_mm']):,.0f} N/mm over damping ratio "
+                      f"{df.loc[state, 'damping_ratio_low']}–{df.loc[state, 'damping_ratio_high']}")
+        pairings = path.parent / TABLE1_PAIRINGS
+        if pairings.exists():
+            for _, r in pd.read_csv(pairings, dtype=str, keep_default_na=False).iterrows():
+                if r["pairing"] != "chosen":
+                    print(f"{pairings}: {r['state']} under the {r['pairing']} pairing: {r['status']}")
         paper = pd.to_numeric(df.get("paper_increase_pct", pd.Series(dtype=str)), errors="coerce").dropna()
         of_paper = f"{paper.iloc[0]:+.1f} %" if len(paper) else None  # on the paper's data only
         if inc is None:

@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["REFERENCE_STATE", "TABLE1_COLUMNS", "TABLE_TITLES", "frequency_table", "markdown_table",
-           "reference_state", "table1_frame", "table1_markdown"]
+__all__ = ["REFERENCE_STATE", "TABLE1_COLUMNS", "TABLE_TITLES", "damping_range_cells", "frequency_table",
+           "markdown_table", "reference_state", "table1_frame", "table1_markdown", "table1_pairings_frame"]
 
 TABLE_TITLES = {"power_off": "Table 2 — natural frequencies, power-off state",
                 "power_on": "Table 3 — natural frequencies, power-on state"}
@@ -109,7 +109,15 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
         ``paired_governing_measured_order``, ``f_at_min_Hz``, ``governing_freq_Hz``,
         ``governing_description``, ``governing_measured_order``, ``damping_model``,
         ``damping_ratio_governing``, ``drive_point``, ``patch_diameter_m``, ``status_rests_on_tie``
-        (a pairing fitting exactly as well as the chosen one would give the other status), ``tie_note``.
+        (a pairing fitting exactly as well as the chosen one would give the other status), ``tie_note``,
+        ``tie_rule`` (which rule chose among exactly tied pairings: ``resolvability`` or ``nearest
+        partners (fallback: ...)``), and the range over ``harmonic.damping.damping_ratio_range``
+        (:func:`damping_range_cells`): ``damping_ratio_low, damping_ratio_high,
+        k_dyn_min_low_N_per_mm, k_dyn_min_high_N_per_mm`` (the band minimum, whatever the status),
+        ``paired_k_dyn_low_N_per_mm, paired_k_dyn_high_N_per_mm``, ``governing_modes_over_damping_range``,
+        then ``increase_low_pct, increase_high_pct`` and ``paired_increase_low_pct,
+        paired_increase_high_pct`` (taken at the same damping ratio in both states; the former only
+        where both states are identified).
     """
     p = paper.set_index("state") if len(paper) else pd.DataFrame()
     rows = []
@@ -142,6 +150,8 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
             "patch_diameter_m": d.get("patch_diameter_m", 0.0),
             "status_rests_on_tie": bool((d.get("tie") or {}).get("rests_on_tie", False)),
             "tie_note": (d.get("tie") or {}).get("note", ""),
+            "tie_rule": (d.get("tie") or {}).get("rule", ""),
+            **(damping_range_cells(d["damping_range"], "chosen") if d.get("damping_range") else {}),
         })
     df = pd.DataFrame(rows)
     ref = df.state == reference_state(list(df["state"]))
@@ -155,6 +165,92 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
     df.insert(10, "paired_increase_pct", increase("paired_dynamic_stiffness_N_per_mm"))
     for c in ("governing_measured_order", "paired_governing_mode", "paired_governing_measured_order"):
         df[c] = df[c].astype("Int64")
+    both = (df["status"] == IDENTIFIED).all()
+    grids = {d["state"]: d.get("damping_range") for d in stiffness}
+    for col, key, name in (("increase", "k_min_N_per_m", None), ("paired_increase", "k_paired_N_per_m", "chosen")):
+        if "damping_ratio_low" not in df:  # no state has a damping range (a harmonic result from before it)
+            break
+        lo, hi = _increase_range(grids, reference_state(list(df["state"])), key, name)
+        df[f"{col}_low_pct"] = [v if (both or name) else math.nan for v in map(lo.get, df["state"])]
+        df[f"{col}_high_pct"] = [v if (both or name) else math.nan for v in map(hi.get, df["state"])]
+    return df
+
+
+def damping_range_cells(rng: dict | None, pairing: str) -> dict:
+    """Table 1's cells of the damping-ratio range (``dynamic_stiffness.json``'s ``damping_range``,
+    :func:`jointid.response.ranges.damping_ratio_range`) under one ``pairing`` (``"chosen"``, ``"tied 1"``,
+    ...): ``damping_ratio_low/high`` (dimensionless), ``k_dyn_min_low/high_N_per_mm`` (the band
+    minimum), ``paired_k_dyn_low/high_N_per_mm`` (the lowest paired peak) and
+    ``governing_modes_over_damping_range`` (the FE modes that set the band minimum over the range)."""
+    nan = math.nan
+    if not rng:
+        return {"damping_ratio_low": nan, "damping_ratio_high": nan, "k_dyn_min_low_N_per_mm": nan,
+                "k_dyn_min_high_N_per_mm": nan, "paired_k_dyn_low_N_per_mm": nan, "paired_k_dyn_high_N_per_mm": nan,
+                "governing_modes_over_damping_range": ""}
+    p = (rng.get("paired") or {}).get(pairing) or {}
+    mm = lambda v: nan if v is None else float(v) * 1e-3  # noqa: E731
+    return {"damping_ratio_low": rng["damping_ratio_low"], "damping_ratio_high": rng["damping_ratio_high"],
+            "k_dyn_min_low_N_per_mm": mm(rng["k_min_low_N_per_m"]), "k_dyn_min_high_N_per_mm": mm(rng["k_min_high_N_per_m"]),
+            "paired_k_dyn_low_N_per_mm": mm(p.get("k_paired_low_N_per_m")),
+            "paired_k_dyn_high_N_per_mm": mm(p.get("k_paired_high_N_per_m")),
+            "governing_modes_over_damping_range": " ".join(str(m) for m in dict.fromkeys(rng["governing_fe_mode"]))}
+
+
+def _increase_range(grids: dict, ref: str, key: str, pairing: str | None) -> tuple[dict, dict]:
+    """Lowest and highest increase (%) of each state over the reference, taken at each damping ratio of
+    the grid in both states (``key`` of the range, or of its ``pairing``'s paired record); NaN where a
+    value is missing; the reference's own row NaN."""
+    def values(g):
+        if not g:
+            return None
+        v = g[key] if pairing is None else ((g.get("paired") or {}).get(pairing) or {}).get(key)
+        return None if v is None else np.array([math.nan if x is None else x for x in v], float)
+
+    lo, hi = {}, {}
+    a = values(grids.get(ref))
+    for s, g in grids.items():
+        b = values(g)
+        inc = (100 * (b / a - 1) if s != ref and a is not None and b is not None and a.size == b.size
+               else np.array([math.nan]))
+        inc = inc[np.isfinite(inc)]
+        lo[s], hi[s] = (float(inc.min()), float(inc.max())) if inc.size else (math.nan, math.nan)
+    return lo, hi
+
+
+def table1_pairings_frame(stiffness: list[dict]) -> pd.DataFrame:
+    """Table 1 under every admissible pairing: one row per state and pairing (``chosen``, then each
+    exactly tied alternative, ``tied 1``, ...; ``dynamic_stiffness.json``'s ``pairings``).
+
+    Columns ``state, pairing, status, k_dyn_min_N_per_mm`` (the band minimum: the same model, so the
+    same number under every pairing; the status says whether the mode that sets it is paired),
+    ``governing_mode, governing_measured_order, paired_dynamic_stiffness_N_per_mm, paired_governing_mode,
+    paired_governing_measured_order``, the damping range (:func:`damping_range_cells`),
+    ``increase_pct`` (vs the reference state under the same pairing, where both are identified) and
+    ``tie_rule`` (which rule chose the ``chosen`` one).
+    """
+    rows = []
+    for d in stiffness:
+        for p in d.get("pairings") or [{"pairing": "chosen", "status": d.get("status", ""),
+                                        "paired_minimum": d.get("paired_minimum"),
+                                        "governing_measured_order": d["governing_mode"].get("measured_order")}]:
+            pm = p.get("paired_minimum") or {}
+            rows.append({"state": d["state"], "pairing": p["pairing"], "status": p["status"],
+                         "k_dyn_min_N_per_mm": d["dynamic_stiffness_N_per_m"] * 1e-3,
+                         "governing_mode": int(d["governing_mode"]["fe_mode"]),
+                         "governing_measured_order": p.get("governing_measured_order"),
+                         "paired_dynamic_stiffness_N_per_mm": pm.get("dynamic_stiffness_N_per_m", math.nan) * 1e-3,
+                         "paired_governing_mode": pm.get("fe_mode"),
+                         "paired_governing_measured_order": pm.get("measured_order"),
+                         **damping_range_cells(d.get("damping_range"), p["pairing"]),
+                         "tie_rule": (d.get("tie") or {}).get("rule", "")})
+    df = pd.DataFrame(rows)
+    for c in ("governing_measured_order", "paired_governing_mode", "paired_governing_measured_order"):
+        df[c] = df[c].astype("Int64")
+    ref = reference_state(list(dict.fromkeys(df["state"])))
+    base = df[df.state == ref].set_index("pairing")
+    ok = lambda r: r.status == IDENTIFIED and r.pairing in base.index and base.loc[r.pairing, "status"] == IDENTIFIED  # noqa: E731
+    df["increase_pct"] = [100 * (r.k_dyn_min_N_per_mm / base.loc[r.pairing, "k_dyn_min_N_per_mm"] - 1)
+                          if r.state != ref and ok(r) else math.nan for r in df.itertuples()]
     return df
 
 
@@ -177,7 +273,37 @@ def _table1_cells(r) -> dict:
             "governing mode": f"FE mode {r.governing_mode} ({r.governing_freq_Hz:.0f} Hz, "
                               f"{r.governing_description}{order(r.governing_measured_order)})",
             "lowest peak of a paired mode (N/mm)": paired,
+            **({_zeta_header(r): _span(r.k_dyn_min_low_N_per_mm, r.k_dyn_min_high_N_per_mm)
+                + f" (paired peak {_span(r.paired_k_dyn_low_N_per_mm, r.paired_k_dyn_high_N_per_mm)})"}
+               if "k_dyn_min_low_N_per_mm" in r else {}),
             "static stiffness (N/mm)": static}
+
+
+def _zeta_header(r) -> str:
+    return f"band minimum at ζ {_num(r.damping_ratio_low, 'g')}–{_num(r.damping_ratio_high, 'g')} (N/mm)"
+
+
+def _span(lo, hi) -> str:
+    return f"{_num(lo, ',.0f')}–{_num(hi, ',.0f')}"
+
+
+def pairings_markdown(pairings: pd.DataFrame | None) -> list[str]:
+    """Markdown lines of :func:`table1_pairings_frame`: Table 1 under every admissible pairing."""
+    if pairings is None or pairings.empty or (pairings["pairing"] == "chosen").all():
+        return []
+    cells = pd.DataFrame([{
+        "state": r.state, "pairing": r.pairing, "status": r.status,
+        "band minimum (N/mm)": f"{r.k_dyn_min_N_per_mm:,.0f}", _zeta_header(r): _span(r.k_dyn_min_low_N_per_mm,
+                                                                                       r.k_dyn_min_high_N_per_mm),
+        "lowest paired peak (N/mm)": _num(r.paired_dynamic_stiffness_N_per_mm, ",.0f", "none")
+        + ("" if pd.isna(r.paired_governing_mode) else f" (FE mode {r.paired_governing_mode})"),
+        "increase (%)": _num(r.increase_pct, "+.1f")} for r in pairings.itertuples()])
+    rule = pairings.loc[pairings["pairing"] == "chosen", "tie_rule"].iloc[0]
+    return ["## Table 1 under every admissible pairing", "", _markdown(cells), "",
+            "The pairings fit the measured frequencies exactly alike (same χ², same parameters), so the model and "
+            "its band minimum are the same under each; what changes is whether the mode that sets it is paired "
+            f"(the status) and the lowest peak of a paired mode. The chosen pairing was chosen by: {rule or 'no rule'}.",
+            ""]
 
 
 def ranges_markdown(ranges: pd.DataFrame) -> list[str]:
@@ -199,9 +325,9 @@ def ranges_markdown(ranges: pd.DataFrame) -> list[str]:
             "damping ratio; they differ only in how the damping changes between the states.", ""]
 
 
-def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None) -> str:
-    """Markdown rendering of :func:`table1_frame` (and of the ranges) with the increases and a note on
-    the damping."""
+def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None, pairings: pd.DataFrame | None = None) -> str:
+    """Markdown rendering of :func:`table1_frame` (and of the ranges, and of Table 1 under every
+    admissible pairing, :func:`table1_pairings_frame`) with the increases and a note on the damping."""
     drive = df["drive_point"].iloc[0]
     lines = [f"# Table 1 — dynamic stiffness in {drive.split(':')[1].upper()} (drive point {drive.split(':')[0]}, "
              f"patch {1e3 * float(df['patch_diameter_m'].iloc[0]):g} mm)", "",
@@ -218,9 +344,19 @@ def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None) -> str
     if "status_rests_on_tie" in df:
         for _, r in df[df["status_rests_on_tie"].astype(bool)].iterrows():
             lines.append(f"**{r.state}: the status rests on a tie.** {r.tie_note[:1].upper() + r.tie_note[1:]}.")
+    for _, r in df[df.state != ref].iterrows():
+        if "increase_low_pct" in df and not pd.isna(r.paired_increase_low_pct):
+            lines.append(f"Over ζ {_num(r.damping_ratio_low, 'g')}–{_num(r.damping_ratio_high, 'g')} (the same ratio in "
+                         f"both states): increase {_num(r.increase_low_pct, '+.1f')} … {_num(r.increase_high_pct, '+.1f')} %, "
+                         f"lowest paired peaks {_num(r.paired_increase_low_pct, '+.1f')} … "
+                         f"{_num(r.paired_increase_high_pct, '+.1f')} %.")
     z = ", ".join(f"{r.state} {r.damping_ratio_governing:.3g}" for _, r in df.iterrows())
     lines += ["", f"Damping model: `{df.damping_model.iloc[0]}`; damping ratio of the governing mode: {z}. "
               "The minimum dynamic stiffness sits at a resonance, K_min ≈ 2 ζ_r k_r, so its absolute value scales "
               "with the assumed damping (the paper publishes none) and depends on the drive point and on which mode "
               "is excited there; a state is *identified* only when that mode is paired with a measured one.", ""]
-    return "\n".join(lines + ranges_markdown(ranges))
+    if "damping_ratio_low" in df and df["damping_ratio_low"].notna().any():
+        lines += [f"The range beside each value: every mode without a measured damping ratio at one constant modal "
+                  f"ratio over harmonic.damping.damping_ratio_range (assumed, typical of bolted rolling-guide machine "
+                  f"structures; the paper publishes no damping); K_min ≈ 2 ζ_r k_r scales about linearly with it.", ""]
+    return "\n".join(lines + pairings_markdown(pairings) + ranges_markdown(ranges))

@@ -22,6 +22,8 @@ does not publish: which mode governs (is it one the test saw?), the drive point,
   ``(f_on/f_off)^3``.
 * :func:`case_table` - every (drive point, damping law) case of one state; :func:`range_table` -
   the min-max of ``K_min`` and of the increase between states over the cases.
+* :func:`damping_ratio_range` - ``K_min`` at the drive point over a stated range of the modal damping
+  ratio (a nuisance parameter: the paper publishes no damping), under one or several pairings.
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ import pandas as pd
 from jointid.errors import ConfigError
 from jointid.response import harmonic as hm
 
-__all__ = ["LAWS", "band_minimum", "calibrate", "case_table", "law_damping", "modal_frf", "range_table"]
+__all__ = ["LAWS", "band_minimum", "calibrate", "case_table", "damping_ratio_range", "law_damping", "modal_frf",
+           "range_table"]
 
 LAWS = ("modal", "joint_dashpot", "joint_hysteretic")
 """The damping laws of the ranges (module docstring)."""
@@ -231,3 +234,60 @@ def range_table(cases: dict[str, pd.DataFrame], reference: str, drive_point: str
                              "paper_increase_pct": paper,
                              "paper_inside": bool(ok.any() and i0 <= paper <= i1)})
     return pd.DataFrame(rows)
+
+
+def damping_ratio_range(band_Hz, freqs_Hz, zeta, pphi, residual: float, ratio_range, *, fixed=None,
+                        paired: dict | None = None, n_grid: int = 7, n_freq: int = 1601) -> dict:
+    """``K_min`` of the drive point over a range of the modal damping ratio.
+
+    Every elastic mode not in ``fixed`` (e.g. the modes with a measured ratio, which keep ``zeta``)
+    gets the same ratio, on ``n_grid`` ratios evenly spaced over ``ratio_range = [low, high]`` (both
+    ends included: ``K_min ~ 2 zeta_r k_r`` is close to linear in the ratio, but a neighbour's flank
+    can bend it, so the extremes are taken over the grid, not assumed at the ends).
+
+    Parameters
+    ----------
+    band_Hz, freqs_Hz, zeta, pphi, residual
+        As :func:`band_minimum` (``zeta``: the ratios of the configured damping model).
+    ratio_range : (float, float)
+        Lowest and highest damping ratio, 0 < low <= high < 1.
+    fixed : array_like of bool, optional
+        Modes whose ratio is kept.
+    paired : dict, optional
+        Pairing name -> bool per mode (paired with a measured mode): the lowest paired peak under each.
+
+    Returns
+    -------
+    dict
+        ``damping_ratio_low, damping_ratio_high, damping_ratio_grid``; ``k_min_N_per_m`` and
+        ``governing_fe_mode`` (1-based) per grid ratio, ``k_min_low_N_per_m, k_min_high_N_per_m``;
+        ``paired``: per pairing name ``k_paired_N_per_m`` and ``paired_fe_mode`` per grid ratio (None
+        where no paired mode shows a peak of its own) and their ``k_paired_low/high_N_per_m``.
+    """
+    lo, hi = (float(v) for v in ratio_range)
+    if not 0 < lo <= hi < 1:
+        raise ConfigError(f"harmonic.damping.damping_ratio_range = {list(ratio_range)}: give [low, high] with "
+                          "0 < low <= high < 1")
+    fr = np.asarray(freqs_Hz, dtype=float)
+    keep = np.zeros(fr.size, bool) if fixed is None else np.asarray(fixed, bool)
+    vary = (fr >= hm.RIGID_HZ) & ~keep
+    grid = np.linspace(lo, hi, int(n_grid)) if hi > lo else np.array([lo])
+    paired = paired or {}
+    out = {"damping_ratio_low": lo, "damping_ratio_high": hi, "damping_ratio_grid": grid.tolist(),
+           "k_min_N_per_m": [], "governing_fe_mode": [],
+           "paired": {name: {"k_paired_N_per_m": [], "paired_fe_mode": []} for name in paired}}
+    for z in grid:
+        zz = np.where(vary, z, np.asarray(zeta, dtype=float))
+        m = band_minimum(band_Hz, fr, zz, np.zeros(fr.size), pphi, residual, n_freq=n_freq)
+        out["k_min_N_per_m"].append(m["k_min_N_per_m"])
+        out["governing_fe_mode"].append(m["mode"] + 1)
+        for name, sel in paired.items():
+            mp = band_minimum(band_Hz, fr, zz, np.zeros(fr.size), pphi, residual, paired=sel, n_freq=n_freq)
+            out["paired"][name]["k_paired_N_per_m"].append(mp["k_paired_N_per_m"])
+            out["paired"][name]["paired_fe_mode"].append(None if mp["mode_paired"] is None else mp["mode_paired"] + 1)
+    out["k_min_low_N_per_m"], out["k_min_high_N_per_m"] = min(out["k_min_N_per_m"]), max(out["k_min_N_per_m"])
+    for rec in out["paired"].values():
+        ks = [k for k in rec["k_paired_N_per_m"] if k is not None]
+        rec["k_paired_low_N_per_m"] = min(ks) if ks else None
+        rec["k_paired_high_N_per_m"] = max(ks) if ks else None
+    return out

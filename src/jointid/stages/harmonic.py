@@ -21,7 +21,7 @@ from jointid.fe.vtk import write_mesh_vtu
 from jointid.response.drive_point import (MODE_FACTOR, drive_vector, harmonic_response, joint_stiffness,
                                           modal_damping_ratios, solve_band_modes)
 from jointid.response.harmonic import RIGID_HZ, static_residual
-from jointid.response.ranges import band_minimum
+from jointid.response.ranges import band_minimum, damping_ratio_range
 
 DAMPING_WHY = {  # why each damping model, for dynamic_stiffness.json
     "modal": ("constant modal damping ratio: the paper publishes no damping, so one ratio typical of bolted/"
@@ -34,6 +34,13 @@ DAMPING_WHY = {  # why each damping model, for dynamic_stiffness.json
               "(f_on/f_off)^3 only when e_r is about 1 in both states and the modal mass is unchanged"),
     "measured": "measured modal damping ratios of the dataset (mean measured ratio for unpaired modes)",
 }
+
+
+DAMPING_RATIO_RANGE = (0.02, 0.05)
+"""The default of ``harmonic.damping.damping_ratio_range`` (schema.yaml)."""
+DAMPING_RANGE_WHY = ("harmonic.damping.damping_ratio_range, assumed (the paper publishes no damping): the modal "
+                     "damping ratio of bolted, rolling-guide machine structures; every mode without a measured "
+                     "ratio at one constant ratio over the range")
 
 
 def config_keys(state: str) -> tuple[str, ...]:
@@ -125,9 +132,20 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     order = _measured_order(verify_csv, res.governing)
     out = _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order)
     out.update(_paired_summary(res, desc, pts["measured_order"], band))
-    out["tie"] = tie_note(tied_csv, res.governing, order, float(res.freqs_Hz[res.governing]))
+    out["tie"] = tie_note(tied_csv, res.governing, order, float(res.freqs_Hz[res.governing]), par)
     if out["tie"]["rests_on_tie"]:
         progress(f"harmonic[{state}]: {out['tie']['note']}")
+    orders = pairing_orders(pts["measured_order"], tied_csv)
+    out["pairings"] = [{"pairing": name, "governing_measured_order": int(o[res.governing]) or None,
+                        **_paired_summary(res, desc, o, band)} for name, o in orders.items()]
+    out["damping_range"] = damping_ratio_range(
+        band, res.freqs_Hz, res.zeta, res.participation, res.residual_flexibility_m_per_N or 0.0,
+        (h.get("damping") or {}).get("damping_ratio_range", DAMPING_RATIO_RANGE),
+        fixed=np.asarray(res.damping_source) == "measured", paired={n: o > 0 for n, o in orders.items()},
+        n_freq=int(h["n_freq"]))
+    out["damping_range"]["source"] = DAMPING_RANGE_WHY
+    for p in out["pairings"]:
+        progress(f"harmonic[{state}]: under the {p['pairing']} pairing: {p['status']}")
     io.write_json(out_json, out)
     if out_points:
         io.write_npz(out_points, **pts)
@@ -159,16 +177,19 @@ def status_text(fe_mode: int, freq_Hz: float, description: str, measured_order) 
             "measured partner")
 
 
-def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float) -> dict:
+def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float, par: dict | None = None) -> dict:
     """Whether Table 1's status rests on the choice among exactly tied pairings: ``rests_on_tie`` is
     true when a pairing fitting exactly as well as the chosen one pairs the governing FE mode ``g``
-    (0-based) where the chosen one does not, or the reverse; ``note`` says which, in words."""
-    out = {"rests_on_tie": False, "note": "", "tied_pairings": 0}
+    (0-based) where the chosen one does not, or the reverse; ``note`` says which, in words, and which
+    rule chose (``rule``: ``params.json``'s ``tie_rule``, given ``par``; "" without one)."""
+    rec = (par or {}).get("tie_rule") or {}
+    rule = str(rec.get("rule", ""))
+    out = {"rests_on_tie": False, "note": "", "tied_pairings": 0, "rule": rule}
     if not tied_csv:
         return out
     tied = pd.read_csv(tied_csv)
     out["tied_pairings"] = int(tied["alternative"].nunique()) if len(tied) else 0
-    for _, grp in tied.groupby("alternative"):
+    for a, grp in tied.groupby("alternative"):
         hit = grp.loc[grp["fe_mode"] == g + 1, "order"]
         alt = int(hit.iloc[0]) if len(hit) else None
         if bool(alt) != bool(order):
@@ -176,9 +197,48 @@ def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float) ->
             out["note"] = (f"an exactly tied pairing pairs the governing mode (FE mode {g + 1}, {freq_Hz:.1f} Hz) "
                            f"with measured mode {alt}" if alt else
                            f"an exactly tied pairing leaves the governing mode (FE mode {g + 1}, {freq_Hz:.1f} Hz) "
-                           f"without the measured partner {order} it has here") + \
-                ": frequencies alone cannot choose between them, measured mode shapes would"
+                           f"without the measured partner {order} it has here") + _chosen_by(rule, par, int(a))
             break
+    return out
+
+
+def _chosen_by(rule: str, par: dict | None, alternative: int) -> str:
+    """The end of a tie note: which rule chose between the tied pairings, and for resolvability why
+    the tied ``alternative`` (1-based, in the order of ``tied_pairings.csv``) lost."""
+    from jointid.identification.ties import RESOLVABILITY, tied_alternatives
+
+    if rule != RESOLVABILITY:
+        return (f": frequencies alone cannot choose between them (chosen by {rule or 'the first found'}), "
+                "measured mode shapes would")
+    rec, cols = (par or {}).get("joint_pairing") or {}, None
+    alts = tied_alternatives(rec.get("candidates") or [], (par or {}).get("pairing_columns") or [])
+    if 1 <= alternative <= len(alts):
+        cols = alts[alternative - 1]
+    lost = next((t for t in par["tie_rule"]["tied"] if t["pairing"] == cols), None)
+    out = ": the fit cannot choose between them; the resolvability rule did"
+    if lost:
+        far = [m for m in lost["unpaired_visible"] if m["hides"] is False]
+        out += (" (that pairing leaves " + "; ".join(
+            f"{m['freq_Hz']:.0f} Hz{' (' + m['state'] + ')' if 'state' in m else ''}, {m['offset_pct']:+.1f} % from "
+            f"measured mode {m['measured_order']} ({m['measured_Hz']:.0f} Hz), outside its half-power band "
+            f"±{100 * m['damping_ratio']:.1f} %" for m in far) + " unpaired: a peak the test would have shown)")
+    return out + "; measured mode shapes would confirm it"
+
+
+def pairing_orders(chosen_order, tied_csv: str | None) -> dict:
+    """Per admissible pairing (``"chosen"``, then ``"tied 1"``, ``"tied 2"``, ... as
+    ``tied_pairings.csv`` numbers them), the order of the measured mode paired with each FE mode
+    (0 = none), as ``chosen_order`` (the verify table's) gives it for the chosen pairing."""
+    chosen_order = np.asarray(chosen_order, dtype=int)
+    out = {"chosen": chosen_order}
+    if tied_csv:
+        tied = pd.read_csv(tied_csv)
+        for a, grp in tied.groupby("alternative"):
+            o = np.zeros(chosen_order.size, dtype=int)
+            for order, fe in zip(grp["order"], grp["fe_mode"]):
+                if 1 <= int(fe) <= o.size:
+                    o[int(fe) - 1] = int(order)
+            out[f"tied {int(a)}"] = o
     return out
 
 
@@ -272,6 +332,7 @@ def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
     desc = describe_modes(model, modes.phi, kc, mc)
     progress(f"harmonic[{state}]: {note}")
     dcfg = dict(h.get("damping") or {"model": "modal", "damping_ratio": 0.03})
+    dcfg.pop("damping_ratio_range", None)  # the model's own fields; the range is Table 1's (run_harmonic)
     measured, mnote = measured_damping(cfg, state, verify_csv)
     share = np.where(modes.freqs_Hz >= RIGID_HZ, desc["strain_joints"].to_numpy(float), 0.0)
     zeta, source = modal_damping_ratios(dcfg, modes.freqs_Hz, joint_share=share, measured=measured)

@@ -62,17 +62,21 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
 
 def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md: str, *,
                points_npz: list[str] | None = None, cfg: dict | None = None, out_ranges: str | None = None,
-               out_cases: str | None = None):
+               out_cases: str | None = None, out_pairings: str | None = None):
     """Rule ``table1``: read the harmonic results, write Table 1 (CSV and Markdown) and, given the
     states' ``drive_points.npz`` (same order as ``stiffness_jsons``), its ranges over the table points
-    and the damping laws (``out_ranges``, ``out_cases``: one row per state, point and law); returns
-    Table 1's frame."""
+    and the damping laws (``out_ranges``, ``out_cases``: one row per state, point and law);
+    ``out_pairings``: Table 1 under every admissible pairing (the chosen one and each exactly tied
+    alternative, :func:`jointid.reporting.tables.table1_pairings_frame`); returns Table 1's frame."""
     import pandas as pd
 
-    from jointid.reporting.tables import reference_state, table1_frame, table1_markdown
+    from jointid.reporting.tables import reference_state, table1_frame, table1_markdown, table1_pairings_frame
 
     docs = [io.read_json(p) for p in stiffness_jsons]
     df = table1_frame(docs, read_paper(paper_csv, PAPER_TABLE1_COLUMNS))
+    pairings = table1_pairings_frame(docs)
+    if out_pairings:
+        io.write_csv(pairings, out_pairings)
     ranges = None
     if points_npz:
         ranges, cases = table1_ranges(docs, points_npz, reference_state(list(df.state)), cfg or {},
@@ -81,7 +85,7 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
         if out_cases:
             io.write_csv(cases, out_cases)
     io.write_csv(df, out_csv)
-    io.write_text(out_md, table1_markdown(df, ranges))
+    io.write_text(out_md, table1_markdown(df, ranges, pairings))
     for _, r in df.iterrows():
         inc = ("" if pd.isna(r.increase_pct)
                else f", increase {r.increase_pct:+.1f} %" + _paper_note(r.paper_increase_pct, "+.1f", " %"))
@@ -89,7 +93,12 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
         log(f"table1[{r.state}]: {r.status}; band minimum {r.dynamic_stiffness_N_per_mm:,.0f} N/mm (not identified: "
             f"{r.not_identified_dynamic_stiffness_N_per_mm:,.0f}), lowest paired peak "
             f"{r.paired_dynamic_stiffness_N_per_mm:,.0f} N/mm{pinc}"
-            + _paper_note(r.paper_dynamic_stiffness_N_per_mm, ",.0f") + inc)
+            + _paper_note(r.paper_dynamic_stiffness_N_per_mm, ",.0f") + inc
+            + f"; at damping ratio {r.damping_ratio_low:g}-{r.damping_ratio_high:g}: band minimum "
+              f"{r.k_dyn_min_low_N_per_mm:,.0f}-{r.k_dyn_min_high_N_per_mm:,.0f} N/mm"
+            + (f"; tied pairings chosen by {r.tie_rule}" if r.tie_rule and r.tie_rule != "least cost (no tie)" else ""))
+    for r in pairings[pairings.pairing != "chosen"].itertuples():
+        log(f"table1[{r.state}] under the {r.pairing} pairing: {r.status}; band minimum {r.k_dyn_min_N_per_mm:,.0f} N/mm")
     for r in (ranges.itertuples() if ranges is not None else []):
         log(f"table1 range[{r.state}, {r.basis}, {r.over}]: increase {r.increase_low_pct:+.1f} … "
             f"{r.increase_high_pct:+.1f} %" + _paper_note(r.paper_increase_pct, "+.1f",
