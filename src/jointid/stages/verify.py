@@ -139,7 +139,8 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
         for a, grp in tied.groupby("alternative"):
             moved = [f"measured mode {o} with FE mode {m if m > 0 else 'none'}" for o, m, c in
                      zip(grp["order"], grp["fe_mode"], index + 1) if m != c]
-            log(f"verify[{state}]: an exactly tied pairing pairs " + ", ".join(moved))
+            log(f"verify[{state}]: an exactly tied pairing pairs " + ", ".join(moved)
+                + f" (the choice between them: {(par.get('tie_rule') or {}).get('rule', 'not recorded')})")
     log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
     if edge_matrices and par.get("fe_polish"):
