@@ -40,13 +40,20 @@ from jointid.errors import ConfigError
 from jointid.progress import Steps
 from jointid.yamlio import deep_merge
 
-__all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "LinkedLaw", "hypothesis_config", "needs_own_model",
+__all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "COEFFICIENT_KEYS", "LinkedLaw", "hypothesis_config", "needs_own_model",
            "linked_variant", "fit_hypothesis", "rank_hypotheses",
            "state_joints"]
 
 HYPOTHESIS_KEYS = ("description", "overrides", "fixed", "effects")
 MODEL_SECTIONS = ("materials", "rig", "model", "mesh")
-"""Overrides of these sections change the FE model itself: the hypothesis builds its own."""
+"""Sections the FE model is built from.  An override of them builds the hypothesis's own model
+unless it changes coefficients of the run's model only (:func:`needs_own_model`)."""
+COEFFICIENT_KEYS = (("rig", "motors", "mass_each_kg"), ("rig", "motors", "count"),
+                    ("rig", "rails", "fixing_stiffness_N_per_m3"), ("rig", "support", "k_mount_N_per_m"))
+"""Rig keys that are coefficients of the run's model (``M_motor``, ``K_railfix``, ``K_mount``);
+materials are too, through their Young's modulus and density (``K_solid_<part>``, ``M_solid_<part>``,
+:mod:`jointid.fe.model`), as long as Poisson's ratio of every part stays."""
+
 
 
 @dataclass(frozen=True)
@@ -96,9 +103,40 @@ def hypothesis_config(cfg: dict, name: str, hyp: dict) -> dict:
     return out
 
 
-def needs_own_model(hyp: dict) -> bool:
-    """Whether the hypothesis changes the FE model itself (materials, rig or mesh overrides)."""
-    return any(k in MODEL_SECTIONS for k in (hyp.get("overrides") or {}))
+def needs_own_model(hyp: dict, cfg: dict | None = None) -> bool:
+    """Whether the hypothesis changes the FE model itself, not only coefficients of the run's model.
+
+    With the run's configuration ``cfg``: whether its overrides change what a coefficient cannot —
+    geometry (thickness, spacing, positions), the support kind, the mesh, a mesh file, a part's
+    Poisson's ratio.  A changed Young's modulus or density of a part (``materials``, or another
+    material of the same Poisson's ratio), motor mass or count, rail-fixing or mount stiffness is a
+    coefficient change of the run's model (:func:`jointid.fe.model.base_coefficients`).  Without
+    ``cfg``: whether it overrides any of :data:`MODEL_SECTIONS` at all."""
+    over = hyp.get("overrides") or {}
+    if not any(k in MODEL_SECTIONS for k in over):
+        return False
+    if cfg is None:
+        return True
+    return _model_shape(cfg) != _model_shape(deep_merge(copy.deepcopy(cfg), copy.deepcopy(over)))
+
+
+def _model_shape(cfg: dict) -> dict:
+    """What of the model sections of ``cfg`` no coefficient can change: the sections with every
+    part's material replaced by its Poisson's ratio and :data:`COEFFICIENT_KEYS` left out (a mesh
+    file's model: the sections as they are)."""
+    shape = {k: copy.deepcopy(cfg.get(k)) for k in MODEL_SECTIONS}
+    if (shape["model"] or {}).get("kind", "rig") == "mesh":
+        return shape
+    materials = shape.pop("materials") or {}
+    rig = shape["rig"] or {}
+    for section in ("base", "rails", "carriages", "table"):
+        part = rig.get(section) or {}
+        if "material" in part:
+            part["material"] = {"poisson_ratio": (materials.get(part["material"]) or {}).get("poisson_ratio")}
+    for sec, sub, key in COEFFICIENT_KEYS:
+        ((shape.get(sec) or {}).get(sub) or {}).pop(key, None)
+    return shape
+
 
 
 def _effect_specs(cfg: dict) -> list[EffectSpec]:

@@ -10,6 +10,7 @@ See :mod:`jointid.diagnosis.hypotheses` and docs/reconstruction.md, "Hypotheses"
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 
@@ -51,8 +52,12 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
     """Fit hypothesis ``name`` and write its record to ``out_json``.
 
     The hypothesis's configuration is validated like config.yaml (its problems name the
-    hypothesis).  It reuses the run's model (``matrices``) unless it overrides ``materials``,
-    ``rig`` or ``mesh``; then it builds its own.
+    hypothesis).  It reuses the run's model (``matrices``) unless it changes the model beyond its
+    coefficients (geometry, support kind, mesh, a Poisson's ratio:
+    :func:`~jointid.diagnosis.hypotheses.needs_own_model`); then it builds its own.  A material's
+    Young's modulus or density, the motor mass and the like are coefficients of the run's model.
+    An override of ``states.<state>.em_force_N`` is the hypothesis's attraction in that state and
+    wins over the dataset's ``conditions.yaml`` (which otherwise gives the force).
     """
     limit_threads(1)
     t0 = time.time()
@@ -62,11 +67,22 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
                           f"{', '.join(cfg.get('hypotheses') or {}) or 'none'}")
     raw = hypothesis_config(cfg, name, hyp)
     cfg_h = load_config(raw, source=f"config.yaml (hypothesis {name})")
-    own = needs_own_model(hyp)
+    own = needs_own_model(hyp, cfg)
     log(f"hypothesis {name}: {'building its own model' if own else 'the run model'}")
     model = build_model(cfg_h) if own else load_model(matrices)
+    if not own and needs_own_model(hyp) and "solids" not in model.meta and model.meta.get("kind") != "mesh":
+        own = True  # a model file written before the solids were kept per part: no material coefficients
+        log(f"hypothesis {name}: {matrices} has no per-part solids (written by an older version); building its own")
+        model = build_model(cfg_h)
     system = build_system(model, cfg_h)
     data = measured_states(cfg_h, system)
+    forces = {s: v["em_force_N"] for s, v in (((hyp.get("overrides") or {}).get("states")) or {}).items()
+              if isinstance(v, dict) and "em_force_N" in v}
+    for d in data:
+        if d.name in forces and float(forces[d.name]) != d.info.em_force_N:
+            log(f"hypothesis {name}: {d.name} attraction {float(forces[d.name]):g} N (the dataset's: "
+                f"{d.info.em_force_N:g} N)")
+            d.info = dataclasses.replace(d.info, em_force_N=float(forces[d.name]))
     rec = fit_hypothesis(system, cfg_h, data, log=log)
     rec.update({"hypothesis": name, "description": str(hyp.get("description", "")), "own_model": own,
                 "n_dofs": system.n_dofs})  # no timing: the record is byte-identical run to run
