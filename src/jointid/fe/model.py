@@ -29,8 +29,8 @@ Poisson's ratio of each part is fixed at its reference (then K_solid_b scales li
 change of it needs a model of its own.  The largest part (``meta['solids']['complement']``, the base)
 is not stored: it is ``K0`` minus the other parts, formed when asked (:meth:`Model.solid_term`), so
 the model file grows by the smaller parts only (about a quarter of ``K0`` and ``M0``), and ``K0`` and
-``M0`` stay the mapped, shared arrays they were.  :func:`solid_coefficients` gives ``c_b`` and ``m_b``
-of a configuration.
+``M0`` stay the mapped, shared arrays they were.  :func:`jointid.fe.solids.solid_coefficients` gives
+``c_b`` and ``m_b`` of a configuration.
 
 ``joint_terms(cfg)`` maps a joint parameter (``k_normal_N_per_m3`` ...) to the terms it multiplies.
 """
@@ -45,6 +45,8 @@ import scipy.sparse as sp
 from skfem import Basis
 
 from jointid.fe import fem
+from jointid.fe.solids import (assemble_solid_parts, element_constants, motor_mass_kg,  # noqa: F401 (re-exported)
+                               solid_coefficients)
 from jointid.errors import ModelError
 from jointid.geometry import localrefine
 from jointid.io import map_npz, write_npz_mappable
@@ -53,8 +55,6 @@ from jointid.geometry.points import measuring_points
 from jointid.geometry.rig import PART_IDS, build_rig
 
 RAIL_BONDED_N_PER_M3 = 1.0e15  # rail-to-base layer standing in for a bonded (consolidated) fixing
-PART_SECTIONS = {"base": "base", "rail": "rails", "carriage": "carriages", "table": "table"}
-"""The ``rig`` section naming each part's material."""
 
 
 def joint_terms(joints_cfg: dict, model_cfg: dict | None = None) -> dict[str, list[str]]:
@@ -201,70 +201,6 @@ def assemble_solids_and_joints(cfg: dict, rig, rmesh, element: str):
     return basis, stiffness, M0, dof_body
 
 
-def element_constants(cfg: dict, rig, rmesh):
-    """Lamé constants and density of every element (Pa, kg/m^3) from the materials of ``cfg``, and
-    the reference material of every part present: ``{part: {material, youngs_modulus_Pa,
-    poisson_ratio, density_kg_per_m3}}``."""
-    inv_parts = {v: k for k, v in PART_IDS.items()}
-    lam, mu, rho = (np.empty(len(rmesh.part)) for _ in range(3))
-    ref = {}
-    for pid in np.unique(rmesh.part):
-        name = rig.materials[inv_parts[pid]]
-        m = cfg["materials"][name]
-        sel = rmesh.part == pid
-        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
-        rho[sel] = m["density_kg_per_m3"]
-        ref[inv_parts[pid]] = {"material": name, **{k: float(m[k]) for k in
-                                                    ("youngs_modulus_Pa", "poisson_ratio", "density_kg_per_m3")}}
-    return lam, mu, rho, ref
-
-
-def assemble_solid_parts(cfg: dict, rig, rmesh, basis) -> tuple[dict, dict]:
-    """The solids per part, ``K_solid_<part>`` and ``M_solid_<part>`` at the materials of ``cfg``,
-    for every part but the one with the most elements (the complement, formed from ``K0`` and ``M0``
-    when asked, :meth:`jointid.fe.fem.Model.solid_term`).  Returns ``(terms, meta)``, meta
-    ``{"parts": reference materials (:func:`element_constants`), "complement": part}``."""
-    lam, mu, rho, ref = element_constants(cfg, rig, rmesh)
-    count = {p: int(np.count_nonzero(rmesh.part == PART_IDS[p])) for p in ref}
-    complement = max(count, key=lambda p: (count[p], p))
-    terms = {}
-    for part in ref:
-        if part != complement:
-            K, M = fem.assemble_elasticity(basis, lam, mu, rho, elements=np.flatnonzero(rmesh.part == PART_IDS[part]))
-            terms[f"K_solid_{part}"], terms[f"M_solid_{part}"] = K, M
-    return terms, {"parts": ref, "complement": complement}
-
-
-def solid_coefficients(cfg: dict, model: fem.Model) -> tuple[dict[str, float], dict[str, float]]:
-    """Coefficients of the solid terms at the materials of ``cfg``: ``K_solid_<part>``:
-    ``E / E_ref - 1`` and ``M_solid_<part>``: ``rho / rho_ref - 1``, the reference being the material
-    the model was built with (``model.meta['solids']``); only the non-zero ones (none at the
-    reference).  :class:`ModelError` on a changed Poisson's ratio (the model is affine in E and rho
-    only).  A model without solid terms (a mesh file's, or one written before them) gives none."""
-    kc: dict[str, float] = {}
-    mc: dict[str, float] = {}
-    if is_mesh_model(cfg):
-        return kc, mc
-    parts = (model.meta.get("solids") or {}).get("parts") or {}
-    for part, section in PART_SECTIONS.items():
-        if part not in parts:
-            continue
-        name = cfg["rig"][section]["material"]
-        m = cfg["materials"][name]
-        r = parts[part]
-        if float(m["poisson_ratio"]) != r["poisson_ratio"]:
-            raise ModelError(f"rig.{section}.material: {name} has Poisson's ratio {m['poisson_ratio']:g}, the "
-                             f"model was built with {r['poisson_ratio']:g} ({r['material']}) — the model is affine "
-                             "in Young's modulus and density only; build a model of this configuration")
-        c = float(m["youngs_modulus_Pa"]) / r["youngs_modulus_Pa"] - 1.0
-        d = float(m["density_kg_per_m3"]) / r["density_kg_per_m3"] - 1.0
-        if c != 0.0:
-            kc[f"K_solid_{part}"] = c
-        if d != 0.0:
-            mc[f"M_solid_{part}"] = d
-    return kc, mc
-
-
 def dof_parts(basis, rmesh) -> np.ndarray:
     """Part id of each scalar DOF (the last part in id order wins on shared nodes; -1: none)."""
     part = -np.ones(basis.N, dtype=int)
@@ -342,11 +278,6 @@ def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | Non
     mc.update(ms)
     return kc, mc
 
-
-def motor_mass_kg(cfg: dict) -> float:
-    """The motor primaries' mass on the table of ``cfg``'s rig, kg (count x mass each): the
-    coefficient of ``M_motor`` (a 1 kg layer), so a changed motor mass needs no model of its own."""
-    return float(cfg["rig"]["motors"]["count"] * cfg["rig"]["motors"]["mass_each_kg"])
 
 
 # ---------------------------------------------------------------- cache
