@@ -343,7 +343,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     if tie_rule and len(tie_rule["tied"]) > 1:
         log(f"identify[{state}]: {len(tie_rule['tied'])} exactly tied pairings, chosen by {tie_rule['rule']}: "
             + "; ".join(f"tracked modes {[doc['tracked_modes'][j] for j in t['pairing']]} "
-                        f"{'resolvable' if t['resolvable'] else 'not resolvable'} (damping ratio needed "
+                        f"{ {True: 'resolvable', False: 'not resolvable'}.get(t['resolvable'], 'resolvability not judged')} (damping ratio needed "
                         f"{t['damping_ratio_needed']:.4f})" for t in tie_rule["tied"]))
     for m in msgs:
         log("warning: " + m)
