@@ -19,13 +19,15 @@ from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
 
 AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are reported as alternatives
+TIE_DAMPING_KEYS = tuple(f"harmonic.damping.{k}" for k in ("model", "damping_ratio", "alpha_per_s", "beta_s"))
+"""The damping keys the resolvability rule among tied pairings reads (:func:`tie_damping`), not the range."""
 
 
 def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
     """Config keys of rule ``identify``: the shared sections, this state's settings and the other
     states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
     return ("rig", "model", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
-            "harmonic.band_Hz", "harmonic.drive_point", "harmonic.damping", f"states.{state}",
+            "harmonic.band_Hz", "harmonic.drive_point", *TIE_DAMPING_KEYS, f"states.{state}",
             *(f"states.{s}.dataset" for s in states))
 
 
@@ -34,7 +36,7 @@ def scout_config_keys(states: list[str]) -> tuple[str, ...]:
     not the motor force)."""
     return ("joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
             "identify.weights", "identify.pairing", "identify.visible_threshold", "solver.min_freq_Hz",
-            "harmonic.band_Hz", "harmonic.drive_point", "harmonic.damping", "measurements",
+            "harmonic.band_Hz", "harmonic.drive_point", *TIE_DAMPING_KEYS, "measurements",
             *(f"states.{s}.dataset" for s in states))
 
 
