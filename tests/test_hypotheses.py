@@ -17,7 +17,7 @@ from jointid.data.dataset import read_dataset
 from jointid.diagnosis import synth
 from jointid.diagnosis import terms as T
 from jointid.diagnosis.hypotheses import (LinkedLaw, fit_hypothesis, hypothesis_config, needs_own_model,
-                                          rank_hypotheses)
+                                          rank_hypotheses, reconstruction_ranges)
 from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
 from jointid.fe.model import build_model
@@ -208,3 +208,23 @@ def test_a_visible_mode_left_out_of_the_data_is_reported_missing(setup, tmp_path
         lo, hi = 0.97 * fs[fs < f].max(), 1.03 * fs[fs > f].min()
         assert any(lo < m["freq_Hz"] < hi for m in missing if m["state"] == state), (state, lo, f, hi, missing)
     assert all(s["n_unpaired_visible"] >= 1 for s in recs["paper_rig"]["states"])
+
+
+def test_reconstruction_ranges_span_the_admissible_hypotheses():
+    def rec(k_off, k_on, kd_off, kd_on, f):
+        mk = lambda name, k, kd: {"state": name, "joints_N_per_m3": {"k": k}, "dynamic_stiffness": {"k_min_N_per_m": kd},  # noqa: E731
+                                  "f_model_Hz": [f], "error_pct": [f - 100.0]}
+        return {"states": [mk("off", k_off, kd_off), mk("on", k_on, kd_on)]}
+    recs = {"a": rec(1.0, 2.0, 10.0, 15.0, 101.0), "b": rec(3.0, 3.3, 20.0, 22.0, 99.0), "c": rec(9.0, 9.0, 1.0, 1.0, 50.0)}
+    rows = [{"hypothesis": "a", "rank": 1, "delta_qaicc": 0.0, "weight": 0.75},
+            {"hypothesis": "b", "rank": 2, "delta_qaicc": 2.2, "weight": 0.25},
+            {"hypothesis": "c", "rank": 3, "delta_qaicc": 9.0, "weight": 0.0}]
+    out = {(r["quantity"], r["state"], r["mode"]): r for r in reconstruction_ranges(recs, rows, delta=4.0)}
+    k_on = out[("k", "on", 0)]
+    assert (k_on["value_min"], k_on["value_max"], k_on["n_hypotheses"]) == (2.0, 3.3, 2)
+    assert k_on["value_weighted"] == pytest.approx(0.75 * 2.0 + 0.25 * 3.3)
+    inc = out[("k change from off", "on", 0)]
+    assert (inc["value_min"], inc["value_max"]) == pytest.approx((10.0, 100.0))
+    t1 = out[("table1_k_dyn_min change from off", "on", 0)]
+    assert (t1["value_min"], t1["value_max"]) == pytest.approx((10.0, 50.0))
+    assert out[("model_freq", "off", 1)]["hypotheses"] == "a b"  # c lies outside delta QAICc < 4

@@ -58,6 +58,7 @@ if HYPOTHESES:
             spread=f"{R}/hypotheses/spread.csv",
             md=f"{R}/hypotheses/ranking.md",
             linked=f"{R}/hypotheses/linked.json",
+            ranges=f"{R}/hypotheses/reconstruction.csv",
         params:
             cfg=sections(config, *hyp_stage.RANKING_CONFIG),
         log:

@@ -19,7 +19,10 @@ import numpy as np
 from jointid.diagnosis.results import Fit
 from jointid.identification.model_error import ModelError, akaike_weights, estimate, qaicc, support_text
 
-__all__ = ["fit_label", "judge_fits", "model_error_of", "qaicc_of"]
+__all__ = ["SUPPORTED", "fit_label", "judge_fits", "model_error_of", "qaicc_of", "supported"]
+
+SUPPORTED = ("strongly", "moderately")
+"""The ``support`` values of a candidate the data support against the current model."""
 
 
 def fit_label(label: str) -> str:
@@ -65,5 +68,6 @@ def judge_fits(current: Fit, fits: dict, rows: list[dict], combos: list[dict], d
 
 
 def supported(rows) -> np.ndarray:
-    """Which rows (a DataFrame) are supported against the current model (``support`` not ``not``)."""
-    return rows["support"].fillna("not").astype(str).ne("not").to_numpy()
+    """Which rows (a DataFrame) are supported against the current model (``support`` strongly or
+    moderately; rows not refitted have none)."""
+    return rows["support"].isin(SUPPORTED).to_numpy()

@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
+from jointid.diagnosis.judging import SUPPORTED
 from jointid.diagnosis.loop import Diagnosis
 from jointid.diagnosis.page import html_page
 
@@ -42,7 +43,7 @@ def supported_names(res: Diagnosis) -> list[str]:
     out = []
     for df, col in ((res.ranking, "effect"), (res.combinations, "effects")):
         if len(df) and "support" in df:
-            ok = df[df["support"].fillna("not").astype(str) != "not"]
+            ok = df[df["support"].isin(SUPPORTED)]
             out += list(zip(ok["delta_qaicc"], ok[col].astype(str)))
     return [n for _, n in sorted(out)]
 

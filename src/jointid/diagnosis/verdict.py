@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from jointid.diagnosis.judging import SUPPORTED
 from jointid.diagnosis.results import Fit
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 
@@ -215,7 +216,7 @@ def partial_text(f: Findings) -> str:
     or, with none supported, the misfit against the stated noise (docs/effects.md, "Reading the verdict")."""
     me = f.model_error
     judged = _judged(f)
-    sup = judged[judged["support"].fillna("not").astype(str) != "not"]
+    sup = judged[judged["support"].isin(SUPPORTED)]
     if not len(sup):
         ratio = np.sqrt(max(me.c_hat, 0.0))
         best = f" (the best, {judged.iloc[0]['name']}, ΔQAICc {daicc(judged.iloc[0]['delta_qaicc'])})" \

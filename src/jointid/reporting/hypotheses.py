@@ -35,7 +35,7 @@ def linked_frequency_table(rec: dict, paper_tables: dict | None = None) -> pd.Da
 
 
 def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame | None, html_table,
-                    paper_tables: dict | None = None) -> str:
+                    paper_tables: dict | None = None, ranges: pd.DataFrame | None = None) -> str:
     """The section's HTML: one-line calibration statement, ranking, the best hypothesis's linked fit
     and the parameter spread (``html_table`` renders a frame)."""
     esc = html.escape
@@ -86,4 +86,14 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
                    "range), their weighted value and the union of their 95 % intervals.</p>")
         out.append(html_table(spread, {"value_min": ".4g", "value_max": ".4g", "combined_ci95_low": ".4g",
                                        "combined_ci95_high": ".4g"}, text_cols=("parameter", "hypotheses")))
+    if ranges is not None and len(ranges):
+        top = ranges[ranges["mode"] == 0][["quantity", "state", "unit", "value_min", "value_max", "value_weighted",
+                                           "n_hypotheses"]]
+        out.append("<p class='note'>The answers over the same admissible reconstructions: each joint stiffness "
+                   "per state and its change with the motor powered, and Table 1's minimum dynamic stiffness "
+                   "(modal superposition of each fit's modes at the nominal damping) and its change. A single "
+                   "identified value means little where this range is wide.</p>")
+        out.append(html_table(top, {"value_min": ".4g", "value_max": ".4g", "value_weighted": ".4g",
+                                    "n_hypotheses": "d"}, {"value_weighted": "weighted"},
+                              text_cols=("quantity", "state", "unit")))
     return "".join(out)

@@ -368,7 +368,7 @@ def _hypotheses_html(data: dict) -> str:
     from jointid.reporting.hypotheses import hypotheses_html
 
     h = data["hypotheses"]
-    return hypotheses_html(h["ranking"], h["records"], h["spread"], html_table, data["tables"])
+    return hypotheses_html(h["ranking"], h["records"], h["spread"], html_table, data["tables"], h.get("ranges"))
 
 
 def _provenance_html(cfg: dict, prov: dict) -> str:

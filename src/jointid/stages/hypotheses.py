@@ -2,8 +2,9 @@
 
 * :func:`run_hypothesis` fits one hypothesis (``hypotheses.<name>`` in config.yaml) to the run's
   measured states under the linked two-state law and writes ``results/hypotheses/<name>/fit.json``;
-* :func:`run_ranking` ranks the fitted hypotheses by AICc: ``results/hypotheses/ranking.csv``,
-  ``spread.csv`` (joint parameters over the hypotheses within delta AICc < 4) and ``ranking.md``.
+* :func:`run_ranking` ranks the fitted hypotheses by QAICc (AICc with the model error of the best):
+  ``results/hypotheses/ranking.csv``, ``spread.csv`` (joint parameters over the hypotheses within
+  delta QAICc < 4: the reconstruction range) and ``ranking.md``.
 
 See :mod:`jointid.diagnosis.hypotheses` and docs/reconstruction.md, "Hypotheses".
 """
@@ -22,10 +23,12 @@ from jointid.config import load_config
 from jointid.config.datasets import dataset_folder
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
-from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model, rank_hypotheses
+from jointid.diagnosis.hypotheses import (fit_hypothesis, hypothesis_config, needs_own_model, rank_hypotheses,
+                                          reconstruction_ranges)
 from jointid.diagnosis.terms import build_system
 from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
+from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 from jointid.fe.model import build_model, load_model
 from jointid.threads import limit_threads
 
@@ -98,22 +101,26 @@ CREDIBLE_RATIO = (0.6, 1.5)
 
 
 def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv: str, out_md: str,
-                linked_json: str | None = None, *, log=print_log) -> pd.DataFrame:
-    """Rank the fitted hypotheses by AICc and write the ranking, the parameter spread and a summary;
+                linked_json: str | None = None, ranges_csv: str | None = None, *, log=print_log) -> pd.DataFrame:
+    """Rank the fitted hypotheses by QAICc and write the ranking, the parameter spread and a summary;
     with ``linked_json`` (and ``cfg``, :data:`RANKING_CONFIG`) also the best hypothesis's linked fit
     per state with the rigidity of one carriage on its rail under its joints."""
     records = {}
     for path in fit_jsons:
         rec = io.read_json(path)
         records[rec["hypothesis"]] = rec
-    rows, spread = rank_hypotheses(records, delta=ADMISSIBLE_DELTA_AICC)
+    rows, spread, me = rank_hypotheses(records, delta=ADMISSIBLE_DELTA_AICC)
     ranking = pd.DataFrame(rows)
+    ranking["rank"] = ranking["rank"].astype("Int64")  # blank for the hypotheses listed apart
     linked = None
     if linked_json:
         linked = linked_summary(cfg, records[rows[0]["hypothesis"]], log)
     io.write_csv(ranking, out_csv)
     io.write_csv(pd.DataFrame(spread), spread_csv)
-    io.write_text(out_md, ranking_markdown(ranking, pd.DataFrame(spread), records, linked))
+    ranges = pd.DataFrame(reconstruction_ranges(records, rows, delta=ADMISSIBLE_DELTA_AICC))
+    if ranges_csv:
+        io.write_csv(ranges, ranges_csv)
+    io.write_text(out_md, ranking_markdown(ranking, pd.DataFrame(spread), records, linked, me, ranges))
     if linked_json:
         io.write_json(linked_json, linked)
     return ranking
@@ -147,28 +154,47 @@ def linked_summary(cfg: dict, rec: dict, log=print_log) -> dict:
             "all_parameters_inside_bounds": not any(p.get("at_bound") for p in rec["parameters"])}
 
 
-def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict, linked: dict | None = None) -> str:
+def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict, linked: dict | None = None,
+                     me: ModelError | None = None, ranges: pd.DataFrame | None = None) -> str:
     """The ranking as a short Markdown page (report and README)."""
-    lines = ["# Reconstruction hypotheses ranked by AICc", "",
+    me = me or NO_MODEL_ERROR
+    lines = ["# Reconstruction hypotheses ranked by QAICc", "", me.sentence(), "",
              "Each hypothesis is fitted to both states at once under the linked contact law "
              "(docs/reconstruction.md, \"Hypotheses\"); unpaired, clearly visible model modes count as "
-             "misfits in chi-square and in the errors.", "",
-             "| rank | hypothesis | ΔAICc | weight | χ² | max error per state (%) | unpaired visible | β | P (N) |",
+             "misfits in chi-square and in the errors. QAICc is AICc at the stated noise plus that model error "
+             f"(c_hat = {me.c_hat:.1f}, held fixed for all); weights are Akaike weights of QAICc.", "",
+             "| rank | hypothesis | ΔQAICc | weight | χ² | max error per state (%) | unpaired visible | β | P (N) |",
              "|---:|---|---:|---:|---:|---|---|---:|---:|"]
+    apart = []
     for _, r in ranking.iterrows():
         rec = records[r["hypothesis"]]
         errs = " / ".join(f"{s['max_abs_error_pct']:.2f}" for s in rec["states"])
+        if r.get("listed_apart"):
+            apart.append(f"| {r['hypothesis']} | {errs} | {r['listed_apart']} |")
+            continue
         mis = " / ".join(str(s["n_unpaired_visible"]) for s in rec["states"])
         beta = r.get("em_preload.beta", np.nan)
         pre = "—" if rec.get("preload_N") is None else f"{rec['preload_N']:g}"
-        lines.append(f"| {r['rank']} | {r['hypothesis']} | {r['delta_aicc']:.1f} | {r['akaike_weight']:.2f} | "
+        lines.append(f"| {r['rank']} | {r['hypothesis']} | {r['delta_qaicc']:.1f} | {r['weight']:.2f} | "
                      f"{r['chi2']:.1f} | {errs} | {mis} | {beta:.3f} | {pre} |")
-    lines += ["", f"Joint parameters over the hypotheses within ΔAICc < {ADMISSIBLE_DELTA_AICC:g} (the "
-              "reconstruction uncertainty; intervals scaled by max(1, √(χ²/dof))):", "",
-              "| parameter | hypotheses | value range | combined 95 % interval |", "|---|---:|---|---|"]
+    if apart:
+        lines += ["", "Listed apart (a broken reading, not a competitor; no QAICc is given):", "",
+                  "| hypothesis | max error per state (%) | reason |", "|---|---|---|"] + apart
+    lines += ["", f"Joint parameters over the hypotheses within ΔQAICc < {ADMISSIBLE_DELTA_AICC:g} (the "
+              "reconstruction range; intervals scaled by max(1, √(χ²/dof))):", "",
+              "| parameter | hypotheses | value range | weighted value | combined 95 % interval |",
+              "|---|---:|---|---:|---|"]
     for _, s in spread.iterrows():
         lines.append(f"| {s['parameter']} | {s['n_hypotheses']} | {s['value_min']:.4g} … {s['value_max']:.4g} | "
-                     f"{s['combined_ci95_low']:.4g} … {s['combined_ci95_high']:.4g} |")
+                     f"{s['value_weighted']:.4g} | {s['combined_ci95_low']:.4g} … {s['combined_ci95_high']:.4g} |")
+    if ranges is not None and len(ranges):
+        top = ranges[ranges["mode"] == 0]
+        lines += ["", "The answers over the same admissible reconstructions (reconstruction.csv; Table 1 by modal "
+                  "superposition of each fit's modes at the nominal damping):", "",
+                  "| quantity | state | unit | range | weighted | hypotheses |", "|---|---|---|---|---:|---:|"]
+        for _, r in top.iterrows():
+            lines.append(f"| {r['quantity']} | {r['state']} | {r['unit']} | {r['value_min']:.4g} … "
+                         f"{r['value_max']:.4g} | {r['value_weighted']:.4g} | {r['n_hypotheses']} |")
     if linked:
         lines += ["", f"The linked fit of the best hypothesis ({linked['hypothesis']}): a carriage on its rail under "
                   "its joints (rule carriage_rigidity's test):", "",

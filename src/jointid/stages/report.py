@@ -45,16 +45,20 @@ def load_inputs(inputs: dict) -> dict:
 
 
 def _hypotheses(inputs: dict):
-    """The hypotheses' ranking, records and spread (None when the run has no hypotheses)."""
+    """The hypotheses' ranking, records, spread and reconstruction ranges (None when the run has no
+    hypotheses)."""
     import pandas as pd
 
     if not inputs.get("hypotheses"):
         return None
     ranking = pd.read_csv(inputs["hypotheses"])
     records = {r["hypothesis"]: r for r in map(io.read_json, _as_list(inputs.get("hypothesis_fits") or []))}
-    spread = Path(inputs["hypotheses"]).with_name("spread.csv")
-    return {"ranking": ranking, "records": records,
-            "spread": pd.read_csv(spread) if spread.exists() and spread.stat().st_size > 1 else None}
+    def beside(name):
+        path = Path(inputs["hypotheses"]).with_name(name)
+        return pd.read_csv(path) if path.exists() and path.stat().st_size > 1 else None
+
+    return {"ranking": ranking, "records": records, "spread": beside("spread.csv"),
+            "ranges": beside("reconstruction.csv")}
 
 
 def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:

@@ -1,0 +1,93 @@
+"""Known truths for the likelihood with model error (issue: honest when the model is wrong).
+
+Synthetic data (fixed seeds, the coarse rig of the diagnosis tests) whose stated noise is wrong, or
+whose truth holds something outside the library:
+
+* (a) the noise stated 2x too small, nothing hidden: no effect is named; the verdict gives the misfit
+  against the stated noise (about 2x) and the model error it implies;
+* (b) the noise stated 2x too small, a hidden effect: that effect ranks first (or leads a tie that
+  holds it), is supported, and the verdict reports the remaining model error;
+* (d) a hidden library effect plus a decoy outside the library at the right noise: the library effect
+  ranks first and is supported; the verdict reports the remaining model error.
+"""
+
+import re
+
+import pytest
+
+from jointid.data.dataset import read_dataset
+from jointid.diagnosis import synth
+from jointid.diagnosis.loop import diagnose
+from jointid.diagnosis.outputs import verdict_record
+from jointid.diagnosis.variants import dataset_states
+from conftest import diagnosis_rig
+
+JOINTS = {"k_normal_N_per_m3": 8.0e11, "k_lateral_N_per_m3": 6.0e11}
+TWO_STATES = {"power_off": {"em_force_N": 0.0}, "power_on": {"em_force_N": 1000.0}}
+
+
+@pytest.fixture(scope="module")
+def rig():
+    """The coarse rig of the synthetic diagnosis tests (:func:`conftest.diagnosis_rig`)."""
+    return diagnosis_rig()
+
+
+def run(rig, truth: dict, folder, **options):
+    """Synthesise ``truth``, diagnose it (``options``: ``diagnosis`` settings of this case) and print
+    the verdict (pytest -s)."""
+    synth.write_synthetic(truth, rig["cfg"], folder, model=rig["model"])
+    ds = read_dataset(folder, measuring_points=rig["system"].meta["points"])
+    data = dataset_states(ds, rig["system"], rig["cfg"])
+    cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), **options}}
+    res = diagnose(rig["system"], cfg, data, log=lambda m: None)
+    print(f"\n[{folder.parent.name}] {res.verdict}")
+    return res
+
+
+def truth(*, seed: int, effects=None, perturbations=None, pct=0.2, stated=None) -> dict:
+    t = {"joints": JOINTS, "states": TWO_STATES, "effects": effects or {},
+         "measurement": {"band_Hz": [100.0, 3500.0], "max_modes": 10, "shapes": True},
+         "noise": {"seed": seed, "frequency_pct": pct, "shape_pct": 2.0, "stated_frequency_pct": stated}}
+    if perturbations:
+        t["perturbations"] = perturbations
+    return t
+
+
+def test_a_understated_noise_alone_names_no_effect(rig, tmp_path):
+    res = run(rig, truth(seed=31, pct=0.4, stated=0.2), tmp_path / "ds")
+    rec = verdict_record(res, "a", {})
+    assert res.explained_by == "unexplained" and rec["supported"] == [], res.verdict
+    assert not res.ranking.explains.any()
+    me = res.model_error
+    # the misfit is about twice the stated noise: c_hat near 4 (dof about 18: 2.2 .. 7 holds 95 %)
+    assert 2.0 < me.c_hat < 8.0, me
+    ratio = float(re.search(r"The misfit is about ([0-9.]+) times the stated noise", res.verdict).group(1))
+    assert ratio == pytest.approx(me.c_hat ** 0.5, abs=0.051)
+    assert "either the noise is understated by that factor" in res.verdict
+    assert "outside the library" not in res.verdict
+    # the model error that the understatement implies: sqrt(0.4^2 - 0.2^2) = 0.35 % in truth
+    assert 0.15 < 100 * me.sigma_model_rel < 0.6
+
+
+def test_b_understated_noise_with_a_hidden_effect_ranks_it_first(rig, tmp_path):
+    res = run(rig, truth(seed=32, pct=0.4, stated=0.2, effects={"added_mass_table": {"mass_kg": 4.0}}),
+              tmp_path / "ds")
+    top = res.ranking.iloc[0]
+    tied = {top.effect} | set(str(top.indistinguishable_from or "").split(";")) - {""}
+    assert "added_mass_table" in tied, res.ranking[["effect", "delta_qaicc", "support", "explains"]]
+    assert top.effect == "added_mass_table" or len(tied) > 1
+    assert top.support in ("strongly", "moderately"), res.verdict
+    assert "added_mass_table removes" in res.verdict and "A model error of about" in res.verdict
+    assert res.model_error.c_hat > 1.5
+
+
+def test_d_library_effect_plus_decoy_is_found_and_the_rest_called_model_error(rig, tmp_path):
+    t = truth(seed=33, effects={"added_mass_table": {"mass_kg": 4.0}},
+              perturbations=[{"kind": "carriage_joint_scale", "carriage": 0, "factor": 0.7}])
+    res = run(rig, t, tmp_path / "ds", n_refit=3, n_combine=2)  # one pair: the search is not what is tested
+    top = res.ranking.iloc[0]
+    assert top.effect == "added_mass_table", res.ranking[["effect", "delta_qaicc", "support", "explains"]]
+    assert res.model_error.c_hat > 1.0, res.verdict
+    if not bool(top.explains):  # the decoy leaves a misfit above the noise: said with its size
+        assert top.support == "strongly", res.verdict
+        assert "A model error of about" in res.verdict, res.verdict
