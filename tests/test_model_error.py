@@ -56,3 +56,11 @@ def test_sentence_states_the_numbers():
     assert me.c_hat == pytest.approx(20.0)
     txt = me.sentence()
     assert "4.4 % per mode" in txt and "4.4 times" in txt and "the baseline" in txt
+
+
+def test_from_chi2_equals_the_general_estimate_for_one_sigma():
+    r = np.array([3.0, -2.0, 4.0, 1.0, -3.5, 2.5, 0.5])
+    a = M.from_chi2(float(r @ r), 5, 0.01)
+    b = M.estimate(r, 0.01, 2)
+    assert a.sigma_model_rel == pytest.approx(b.sigma_model_rel, rel=1e-9) and a.c_hat == pytest.approx(b.c_hat)
+    assert M.from_chi2(3.0, 5, 0.01).sigma_model_rel == 0.0

@@ -222,12 +222,15 @@ def partial_text(f: Findings) -> str:
         best = f" (the best, {judged.iloc[0]['name']}, ΔQAICc {daicc(judged.iloc[0]['delta_qaicc'])})" \
             if len(judged) else ""
         return (f" No listed effect or pair removes a part of the misfit that the data support against the "
-                f"model error{best}. The misfit is about {ratio:.1f} times the stated noise: either the noise is "
-                f"understated by that factor, or the model has an error of about "
-                f"{100 * me.sigma_model_rel:.2g} % per mode that no listed effect explains. " + me.sentence())
+                f"model error{best}. The misfit is about {ratio:.1f} times the stated noise of "
+                f"{100 * me.sigma_noise_rel:.2g} % (chi2/dof = {me.c_hat:.1f} for {me.reference}): either the "
+                f"noise is understated by that factor, or the model has an error of about "
+                f"{100 * me.sigma_model_rel:.2g} % per mode that no listed effect explains.")
     b = sup.iloc[0]
     tie = f.ranking.attrs.get("tie_delta_aicc", 4.0)
-    others = [str(n) for n in sup["name"].iloc[1:][(sup["delta_qaicc"].iloc[1:] - b["delta_qaicc"]) < tie]]
+    # within the tie of the best, leaving out the best with one more effect (it adds nothing supported)
+    others = [str(n) for n, d in zip(sup["name"].iloc[1:], sup["delta_qaicc"].iloc[1:])
+              if d - b["delta_qaicc"] < tie and not set(str(b["name"]).split(" + ")) < set(str(n).split(" + "))]
     txt = (f" {b['name']} removes {100 * b['removed_fraction']:.0f} % of the misfit and is {b['support']} "
            f"supported (ΔQAICc {daicc(b['delta_qaicc'])} against the current model, weight {b['weight']:.2f}); "
            f"refitted, the max error is {b['max_abs_error_pct_after']:.2f} %.")

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-__all__ = ["ModelError", "NO_MODEL_ERROR", "estimate", "qaicc", "akaike_weights", "support_text",
+__all__ = ["ModelError", "NO_MODEL_ERROR", "estimate", "from_chi2", "qaicc", "akaike_weights", "support_text",
            "SUPPORT_STRONG", "SUPPORT_SOME"]
 
 SUPPORT_STRONG = 10.0
@@ -162,6 +162,15 @@ def estimate(r, sigma_rel, n_params: int, *, known_rel=None, reference: str = ""
         var_m = brentq(excess, 0.0, hi, xtol=1e-16, rtol=1e-12)
     return ModelError(sigma_model_rel=math.sqrt(var_m), sigma_noise_rel=noise, c_hat=chi2 / dof,
                       reference=reference, chi2=chi2, dof=dof, sigma_known_rel=known)
+
+
+def from_chi2(chi2: float, dof: int, sigma_rel: float, *, reference: str = "") -> ModelError:
+    """The model error of a fit with one stated uncertainty ``sigma_rel`` for all rows: ``c_hat = chi2 / dof``
+    and ``sigma_m = sigma sqrt(max(c_hat - 1, 0))`` (:func:`estimate` with one sigma and no known part)."""
+    dof = max(int(dof), 1)
+    c_hat = float(chi2) / dof
+    return ModelError(sigma_model_rel=float(sigma_rel) * math.sqrt(max(c_hat - 1.0, 0.0)),
+                      sigma_noise_rel=float(sigma_rel), c_hat=c_hat, reference=reference, chi2=float(chi2), dof=dof)
 
 
 def qaicc(chi2_total: float, n: int, k: int) -> float:

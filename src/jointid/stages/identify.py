@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointid import io
+from jointid.identification.model_error import from_chi2
 from jointid.stages.doe import parameter_bounds
 from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
@@ -266,7 +267,9 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
             "weak_combination": res.weak_combination,
             "on_bound": res.on_bound if polish is None else polish["on_bound"],
             "n_starts_agreeing": res.n_starts_agreeing, "warnings": msgs,
-            "frequency_uncertainty_pct": sigma_pct}
+            "frequency_uncertainty_pct": sigma_pct,
+            "model_error": None if polish is None else from_chi2(
+                polish["chi2"], polish["dof"], sigma_pct / 100, reference=f"identify[{state}]").record()}
 
 
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
