@@ -106,3 +106,16 @@ def test_the_file_keeps_the_parts_but_the_largest(run, tmp_path):
     assert set(mc) >= {"M_solid_base", "M_solid_rail", "M_solid_carriage"}
     assert abs(back.M(mc) - model.M(mc)).max() == 0.0
     assert abs(back.K(kc) - model.K(kc)).max() == 0.0
+
+
+def test_coefficients_hold_on_a_mesh_with_hanging_nodes():
+    # mesh.edge_refine_levels: the solid terms are projected onto the free nodes like every other term
+    raw = deep_merge(coarse_config_dict(), {"mesh": {"edge_refine_levels": 1}})
+    change = {"materials": {"aluminium": {"youngs_modulus_Pa": 6.0e10, "density_kg_per_m3": 1350.0}},
+              "rig": {"motors": {"mass_each_kg": 1.0}}}
+    model = build_model(load_config(raw))
+    cfg2 = load_config(deep_merge(raw, change))
+    own = build_model(cfg2)
+    assert model.n_dofs == own.n_dofs and "K_solid_table" in model.solids
+    np.testing.assert_allclose(_freqs(model, *base_coefficients(cfg2, model)),
+                               _freqs(own, *base_coefficients(cfg2, own)), rtol=1e-9)
