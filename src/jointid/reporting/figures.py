@@ -173,11 +173,14 @@ def catalogue_rigidity(comparisons: dict[str, dict]):
     fig, ax = plt.subplots(figsize=(7.2, 4.4))
     n = len(comparisons)
     for j, d in enumerate(dirs):
-        for name, c in first["directions"][d]["classes"].items():
+        classes = first["directions"][d]["classes"]
+        values = [c["catalogue_N_per_um"] for c in classes.values()]
+        ax.fill_between([j - 0.42, j + 0.42], min(values), max(values), color="0.88", zorder=0)
+        for k, (name, c) in enumerate(sorted(classes.items(), key=lambda kv: kv[1]["catalogue_N_per_um"])):
             v = c["catalogue_N_per_um"]
-            ax.hlines(v, j - 0.42, j + 0.42, color="0.45", lw=1.6, zorder=1)
-            ax.annotate(f"{name} {v:,.0f}", (j + 0.42, v), textcoords="offset points", xytext=(3, -3),
-                        fontsize=8, color="0.3")
+            ax.hlines(v, j - 0.42, j + 0.42, color="0.45", lw=1.4, zorder=1)
+            ax.annotate(f"{name} {v:,.0f}", (j - 0.42, v), textcoords="offset points", xytext=(-3, 4 * k - 4),
+                        fontsize=7.5, color="0.3", ha="right", va="center")
         for i, (state, comp) in enumerate(comparisons.items()):
             doc = comp["directions"][d]
             v = doc["identified_N_per_um"]
@@ -187,12 +190,12 @@ def catalogue_rigidity(comparisons: dict[str, dict]):
                         color=STATE_COLOURS[i % len(STATE_COLOURS)], label=_label(state) if j == 0 else None)
     ax.set_xticks(range(len(dirs)))
     ax.set_xticklabels([f"{d} ({'Y' if d == 'normal' else 'X'})" for d in dirs])
-    ax.set_xlim(-0.6, len(dirs) - 0.1)
+    ax.set_xlim(-0.85, len(dirs) - 0.45)
     ax.set_ylim(0, None)
     ax.set_ylabel("rigidity of one carriage (N/µm)")
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(title="identified (carriage on its rail,\n95 % interval)", fontsize=8, title_fontsize=8,
-              loc="upper left")
+              loc="upper right")
     ax.set_title(f"Identified vs catalogue (grey: {first['block'].split(' (')[0]} preload classes)", fontsize=10)
     fig.tight_layout()
     return fig

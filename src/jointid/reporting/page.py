@@ -277,7 +277,7 @@ def _catalogue_html(data: dict, figs: dict | None = None) -> str:
     names = list(next(iter(first["directions"].values()))["classes"])
     rows, fm, heads, lines, fallback = [], {"identified": ",.0f", "low": ",.0f", "high": ",.0f"}, {}, [], False
     for state, comp in comps.items():
-        for d, doc in comp["directions"].items():
+        for d, doc in sorted(comp["directions"].items(), key=lambda kv: kv[0] != "normal"):
             row = {"state": state, "direction": d, "identified": doc["identified_N_per_um"],
                    "low": doc.get("identified_ci95_low_N_per_um"), "high": doc.get("identified_ci95_high_N_per_um")}
             for n in names:
@@ -288,7 +288,7 @@ def _catalogue_html(data: dict, figs: dict | None = None) -> str:
             row["beyond"] = ("above the stiffest" if doc["exceeds_stiffest"] else
                              "below the softest" if doc["below_softest"] else "")
             rows.append(row)
-            lines.append(f"{state}: {catalogue_verdict(d, doc)}")
+            lines.append(f"{state}: {catalogue_verdict(d, doc)}".replace("N/um", "N/µm"))
         if "lateral_to_normal" in comp:
             cat = ", ".join(f"{n} {v:.2f}" for n, v in comp["lateral_to_normal"]["catalogue"].items())
             lines.append(f"{state}: lateral / normal {comp['lateral_to_normal']['identified']:.2f} (catalogue {cat})")
@@ -298,7 +298,7 @@ def _catalogue_html(data: dict, figs: dict | None = None) -> str:
     heads |= {"identified": "identified (N/µm)", "low": "95 % low", "high": "95 % high", "nearest": "nearest class",
               "beyond": "beyond the classes"}
     img = _img(figs["catalogue"], "identified rigidity vs catalogue classes") if figs and figs.get("catalogue") else ""
-    return (f"<h3>Against the catalogue: {_esc(first['block'])}</h3>"
+    return (f"<h3>Against the catalogue: {_esc(first['block'].split(' (')[0])}</h3>"
             + html_table(pd.DataFrame(rows), fm, heads, text_cols=("state", "direction", "nearest", "beyond"))
             + img
             + f"<ul class='note'>{''.join(f'<li>{_esc(x)}</li>' for x in lines)}</ul>"
@@ -306,7 +306,8 @@ def _catalogue_html(data: dict, figs: dict | None = None) -> str:
               "ratio = identified / catalogue; nearest = the class the identified value is the smallest factor from"
             + (". The catalogue states one rigidity per class, used for the lateral direction as well" if fallback
                else "")
-            + f". Source: {_esc(first['source'])} (config section <code>catalogue</code>).</p>")
+            + f". Block: {_esc(first['block'])}. Source: {_esc(first['source'])} (config section "
+              "<code>catalogue</code>).</p>")
 
 
 def _mesh_check_html(data: dict) -> str:

@@ -51,6 +51,6 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
            "directions": rows}
     doc["catalogue"] = catalogue_comparison(rows, cfg.get("catalogue"))
     for d, c in (doc["catalogue"] or {}).get("directions", {}).items():
-        log(f"carriage_rigidity[{state}]: catalogue ({doc['catalogue']['block']}): {catalogue_verdict(d, c)}")
+        log(f"carriage_rigidity[{state}]: against {doc['catalogue']['block'].split(' (')[0]}: {catalogue_verdict(d, c)}")
     io.write_json(out_json, doc)
     return doc
