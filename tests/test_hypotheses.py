@@ -228,3 +228,22 @@ def test_reconstruction_ranges_span_the_admissible_hypotheses():
     t1 = out[("table1_k_dyn_min change from off", "on", 0)]
     assert (t1["value_min"], t1["value_max"]) == pytest.approx((10.0, 50.0))
     assert out[("model_freq", "off", 1)]["hypotheses"] == "a b"  # c lies outside delta QAICc < 4
+
+
+def test_report_section_lists_broken_hypotheses_apart_and_shows_the_ranges():
+    from jointid.reporting.hypotheses import hypotheses_html
+    from jointid.reporting.page import html_table
+
+    def rec(chi2, err):
+        states = [{"state": s, "max_abs_error_pct": abs(err), "n_unpaired_visible": 0, "f_meas_Hz": [100.0],
+                   "f_model_Hz": [100.0 * (1 + err / 100)], "error_pct": [err], "joints_N_per_m3": {"k": 1.0},
+                   "dynamic_stiffness": {"k_min_N_per_m": 1e8}} for s in ("off", "on")]
+        return {"aicc": chi2 + 4, "chi2": chi2, "n_data": 12, "n_params": 2, "dof": 10, "states": states,
+                "preload_N": 0.0, "interval_scale": 1.0, "unpaired_visible": [],
+                "parameters": [{"parameter": "k", "value": 1.0, "ci95_low": 0.9, "ci95_high": 1.1, "at_bound": False}]}
+    recs = {"good": rec(20.0, 2.0), "other": rec(22.0, 3.0), "broken": rec(10.0, 80.0)}
+    rows, spread, _ = rank_hypotheses(recs)
+    ranges = pd.DataFrame(reconstruction_ranges(recs, rows))
+    page = hypotheses_html(pd.DataFrame(rows), recs, pd.DataFrame(spread), html_table, None, ranges)
+    assert "Listed apart" in page and "<b>broken</b>: rejected: off mode 1 without a partner within 50 %" in page
+    assert "table1_k_dyn_min" in page and "ΔQAICc" in page and "σ_m = " in page

@@ -19,14 +19,19 @@ LAW_TEXT = ("k = k0·((P + F_c)/(P + F_c,0))^β per carriage in X and Y, F_c the
             "feed stiffness k_feed is one servo/brake term for both states")
 
 
-def linked_frequency_table(rec: dict, paper_tables: dict | None = None) -> pd.DataFrame:
-    """Measured and linked-fit frequencies of every state of a hypothesis record, with the paper's
-    per-state method beside them when ``paper_tables`` (state -> Table 2/3 frame) is given."""
+def linked_frequency_table(rec: dict, paper_tables: dict | None = None, ranges: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Measured and linked-fit frequencies of every state of a hypothesis record, with the range of the
+    error over the admissible reconstructions when ``ranges`` (reconstruction.csv) is given and the
+    paper's per-state method beside them when ``paper_tables`` (state -> Table 2/3 frame) is given."""
     rows = []
+    err = {} if ranges is None else {(r.state, int(r.mode)): (r.value_min, r.value_max)
+                                     for r in ranges[ranges["quantity"] == "error"].itertuples()}
     for s in rec["states"]:
         paper = (paper_tables or {}).get(s["state"])
         for i, (fm, f, e) in enumerate(zip(s["f_meas_Hz"], s["f_model_Hz"], s["error_pct"]), start=1):
             row = {"state": s["state"], "mode": i, "test_Hz": fm, "linked_Hz": f, "linked_error_pct": e}
+            if (s["state"], i) in err:
+                row["error_low_pct"], row["error_high_pct"] = err[(s["state"], i)]
             if paper is not None and "simulation_Hz" in paper and i <= len(paper):
                 row["paper_method_Hz"] = paper["simulation_Hz"].iloc[i - 1]
                 row["paper_method_error_pct"] = paper["relative_error_pct"].iloc[i - 1]
@@ -49,7 +54,7 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
            f"chi-square at the stated noise plus the model error of the best hypothesis, σ_m = {sig:.2g} % per mode "
            f"(χ²/dof = {c_hat:.1f}); hypotheses whose fit is broken are listed apart with the reason.</p>"]
     apart = ranking[ranking["listed_apart"].fillna("").astype(str) != ""] if "listed_apart" in ranking else ranking[:0]
-    ranking = ranking.drop(apart.index)
+    ranking = ranking.drop(apart.index).astype({"rank": int})
     cols = ["rank", "hypothesis", "description", "delta_qaicc", "weight", "chi2"]
     cols += [c for c in ranking.columns if c.startswith("max_abs_error_") or c.startswith("unpaired_visible_")]
     cols += [c for c in ("em_preload.beta", "preload_N") if c in ranking.columns]
@@ -73,7 +78,7 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
                f"scaled by max(1, √(χ²/dof)) = {rec['interval_scale']:.2f}.</p>")
     out.append(html_table(par, {"value": ".4g", "ci95_low": ".4g", "ci95_high": ".4g"},
                           {"ci95_low": "95 % low", "ci95_high": "95 % high"}, text_cols=("parameter",)))
-    freq = linked_frequency_table(rec, paper_tables)
+    freq = linked_frequency_table(rec, paper_tables, ranges)
     out.append("<p class='note'>Tables 2 and 3 under the linked fit, beside the paper's method (each state "
                "fitted alone, the Tables 2–3 section above).</p>")
     out.append(html_table(freq, {c: ".2f" for c in freq.columns if c not in ("state", "mode")}, text_cols=("state",)))
