@@ -109,9 +109,9 @@ def test_tie_note_says_the_resolvability_rule_chose_and_why(tmp_path):
     assert note["rests_on_tie"] and note["rule"] == "resolvability"
     assert note["note"] == ("an exactly tied pairing leaves the governing mode (FE mode 3, 1314.0 Hz) without the "
                             "measured partner 2 it has here: the fit cannot choose between them; the resolvability "
-                            "rule did (that pairing leaves 1314 Hz (power_off), -7.2 % from measured mode 2 "
-                            "(1416 Hz), outside its half-power band ±3.0 % unpaired: a peak the test would have "
-                            "shown); measured mode shapes would confirm it")
+                            "rule did (that pairing leaves unpaired 1314 Hz (power_off), -7.2 % from measured "
+                            "mode 2 (1416 Hz), outside its half-power band ±3.0 %: a peak the test would have "
+                            "shown on its own); measured mode shapes would confirm it")
     fallback = {**_par_resolvability(), "tie_rule": {"rule": "nearest partners (fallback: none of the 2 tied "
                                                              "pairings lets every unpaired visible mode hide in a "
                                                              "measured peak)", "tied": []}}

@@ -218,10 +218,10 @@ def _chosen_by(rule: str, par: dict | None, alternative: int) -> str:
     out = ": the fit cannot choose between them; the resolvability rule did"
     if lost:
         far = [m for m in lost["unpaired_visible"] if m["hides"] is False]
-        out += (" (that pairing leaves " + "; ".join(
+        out += (" (that pairing leaves unpaired " + "; ".join(
             f"{m['freq_Hz']:.0f} Hz{' (' + m['state'] + ')' if 'state' in m else ''}, {m['offset_pct']:+.1f} % from "
             f"measured mode {m['measured_order']} ({m['measured_Hz']:.0f} Hz), outside its half-power band "
-            f"±{100 * m['damping_ratio']:.1f} %" for m in far) + " unpaired: a peak the test would have shown)")
+            f"±{100 * m['damping_ratio']:.1f} %" for m in far) + ": a peak the test would have shown on its own)")
     return out + "; measured mode shapes would confirm it"
 
 
