@@ -7,8 +7,12 @@ whose truth holds something outside the library:
   against the stated noise (about 2x) and the model error it implies;
 * (b) the noise stated 2x too small, a hidden effect: that effect ranks first (or leads a tie that
   holds it), is supported, and the verdict reports the remaining model error;
+* (c) the truth's moving mass 30 % lighter than the model's, bracketed by mass hypotheses: those
+  admissible by QAICc span the true mass and their joints span the true joints;
 * (d) a hidden library effect plus a decoy outside the library at the right noise: the library effect
-  ranks first and is supported; the verdict reports the remaining model error.
+  ranks first and is supported; the verdict reports the remaining model error;
+* (e) the truth solved on a finer mesh: the discretisation error shows as a model error, and the
+  hidden effect's widened 95 % interval covers the true value.
 """
 
 import re
@@ -35,7 +39,8 @@ def rig():
 def run(rig, truth: dict, folder, **options):
     """Synthesise ``truth``, diagnose it (``options``: ``diagnosis`` settings of this case) and print
     the verdict (pytest -s)."""
-    synth.write_synthetic(truth, rig["cfg"], folder, model=rig["model"])
+    # a truth with overrides (another mesh, other masses) builds a model of its own
+    synth.write_synthetic(truth, rig["cfg"], folder, model=None if truth.get("overrides") else rig["model"])
     ds = read_dataset(folder, measuring_points=rig["system"].meta["points"])
     data = dataset_states(ds, rig["system"], rig["cfg"])
     cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), **options}}
@@ -91,3 +96,59 @@ def test_d_library_effect_plus_decoy_is_found_and_the_rest_called_model_error(ri
     if not bool(top.explains):  # the decoy leaves a misfit above the noise: said with its size
         assert top.support == "strongly", res.verdict
         assert "A model error of about" in res.verdict, res.verdict
+
+
+def test_c_a_lighter_moving_mass_is_covered_by_the_reconstruction_range(rig, tmp_path):
+    """The truth's moving mass (table and motors) is 30 % lighter than the analysis model's.  The
+    analysis brackets the mass by hypotheses at 100, 80, 60 and 40 % (coefficient changes of one
+    model, none of them the truth): those admissible by QAICc span the true mass, and the joint
+    stiffness over them spans the true joints."""
+    from jointid.config import load_config
+    from jointid.diagnosis.hypotheses import (fit_hypothesis, hypothesis_config, needs_own_model,
+                                              rank_hypotheses, reconstruction_ranges)
+    from jointid.diagnosis.terms import build_system
+
+    cfg = rig["cfg"]
+    mat = cfg["rig"]["table"]["material"]
+    rho = cfg["materials"][mat]["density_kg_per_m3"]
+    motor_kg = cfg["rig"]["motors"]["mass_each_kg"]
+
+    def lighter(f: float) -> dict:
+        return {"overrides": {"materials": {mat: {"density_kg_per_m3": rho * f}},
+                              "rig": {"motors": {"mass_each_kg": motor_kg * f}}}}
+
+    t = truth(seed=34, effects={"em_preload": {"beta": 0.3}})
+    t["overrides"] = lighter(0.7)["overrides"]
+    synth.write_synthetic(t, cfg, tmp_path / "ds")  # the truth's own model, built from its overrides
+    factors = {"mass_100": 1.0, "mass_80": 0.8, "mass_60": 0.6, "mass_40": 0.4}
+    records = {}
+    for name, f in factors.items():
+        hyp = lighter(f)
+        assert not needs_own_model(hyp, cfg)  # a coefficient change of the one model
+        cfg_h = load_config(hypothesis_config(cfg, name, hyp))
+        system = build_system(rig["model"], cfg_h)
+        ds = read_dataset(tmp_path / "ds", measuring_points=system.meta["points"])
+        records[name] = fit_hypothesis(system, cfg_h, dataset_states(ds, system, cfg_h), log=lambda m: None)
+    rows, _, me = rank_hypotheses(records)
+    admissible = [r["hypothesis"] for r in rows if r["rank"] is not None and r["delta_qaicc"] < 4.0]
+    print("\n[c]", me.sentence(), [(r["hypothesis"], round(r["delta_qaicc"], 1), round(r["chi2"], 1)) for r in rows])
+    masses = [factors[n] for n in admissible]
+    assert min(masses) <= 0.7 <= max(masses), rows
+    ranges = {(r["quantity"], r["state"]): r for r in reconstruction_ranges(records, rows)}
+    for par, true in JOINTS.items():
+        r = ranges[(par, "power_off")]  # power off: the joints without the attraction's preload
+        assert r["value_min"] <= true <= r["value_max"], (par, r)
+
+
+def test_e_truth_on_a_finer_mesh_the_effect_interval_covers_it(rig, tmp_path):
+    """The truth solved on a mesh refined once (the analysis's mesh is stiffer), right noise: the
+    mesh's discretisation error is a model error the fit shows, and the hidden effect's 95 % interval,
+    widened by it, covers the true value."""
+    t = truth(seed=35, effects={"added_mass_table": {"mass_kg": 4.0}})
+    t["overrides"] = {"mesh": {"refine": 2}}
+    res = run(rig, t, tmp_path / "ds", n_refit=3, n_combine=2)
+    row = res.ranking.set_index("effect").loc["added_mass_table"]
+    print("\n[e]", res.model_error.sentence(), row[["estimate", "ci95_low", "ci95_high", "interval_scale"]].to_dict())
+    assert res.model_error.c_hat > 1.5  # the mesh's error shows as a model error above the noise
+    assert row.interval_scale > 1.2  # and widens the interval
+    assert row.ci95_low <= 4.0 <= row.ci95_high, row[["estimate", "ci95_low", "ci95_high", "interval_scale"]]

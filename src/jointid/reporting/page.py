@@ -138,7 +138,28 @@ def _summary(data: dict) -> dict:
                             for s, t in data["tables"].items()),
         "damping": ", ".join(f"{k} = {v}" for k, v in d0["damping"]["config"].items()),
         "problems": data.get("table1_problems", []),
+        "model_error": _model_error_text(data),
     }
+
+
+def _model_error_text(data: dict) -> str:
+    """The model error of each state's identification, and of the hypotheses' comparison when there is
+    one: the fit's remaining error per mode beside the stated noise (docs/effects.md, "Statistics")."""
+    parts = []
+    for state, p in data["params"].items():
+        me = p.get("model_error")
+        if me:
+            parts.append(f"{state.replace('_', '-')}: about {me['sigma_model_pct']:.1f} % per mode "
+                         f"(χ²/dof = {me['c_hat']:.0f} at the stated {me['sigma_noise_pct']:.2g} %)")
+    h = data.get("hypotheses")
+    if h is not None and "sigma_model_pct" in h["ranking"]:
+        r = h["ranking"].iloc[0]
+        parts.append(f"the best reconstruction hypothesis ({r.hypothesis}, both states): about "
+                     f"{r.sigma_model_pct:.1f} % per mode (χ²/dof = {r.c_hat:.0f})")
+    if not parts:
+        return ""
+    return ("Model error, the part of the misfit the stated noise does not cover: " + "; ".join(parts)
+            + ". Intervals, rankings and weights are widened by it.")
 
 
 def _table1_html(data: dict) -> str:
