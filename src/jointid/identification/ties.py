@@ -33,14 +33,6 @@ def least_cost_tied(options: list, cost) -> list:
     return [o for o in options if cost(o) < low + TIE]
 
 
-def least_cost_nearest(options: list, cost, paired_ss, pairing):
-    """The option of least ``cost``; among those tied with it (within 1e-12: a visible mode paired or
-    left a misfit against the same measured mode costs the same) the one of nearest partners (least
-    ``paired_ss``), then the first ``pairing`` in order, so the choice does not depend on which tied
-    pairing a multistart happened to find first."""
-    return min(least_cost_tied(options, cost), key=lambda o: (paired_ss(o), [int(c) for c in pairing(o)]))
-
-
 def hiding_peak(f_model_Hz: float, f_meas_Hz, zeta) -> dict:
     """The measured peak a model mode at ``f_model_Hz`` comes nearest to hiding in, in units of each
     measured mode's half-power half-width.

@@ -228,7 +228,9 @@ def _chosen_by(rule: str, par: dict | None, alternative: int) -> str:
 def pairing_orders(chosen_order, tied_csv: str | None) -> dict:
     """Per admissible pairing (``"chosen"``, then ``"tied 1"``, ``"tied 2"``, ... as
     ``tied_pairings.csv`` numbers them), the order of the measured mode paired with each FE mode
-    (0 = none), as ``chosen_order`` (the verify table's) gives it for the chosen pairing."""
+    (0 = none), as ``chosen_order`` (the verify table's) gives it for the chosen pairing.  The response
+    itself is the chosen pairing's: tied pairings share the parameters, but measured damping ratios
+    (when the dataset has them) stay on the chosen pairing's partners."""
     chosen_order = np.asarray(chosen_order, dtype=int)
     out = {"chosen": chosen_order}
     if tied_csv:
