@@ -22,7 +22,7 @@ def _diagnosis_inputs(wc):
 
 
 def _diagnosis_cfg(wc):
-    cfg = sections(config, "rig", "model", "joints", "solver", "identify", "effects", "diagnosis", "states", "harmonic")
+    cfg = sections(config, "materials", "rig", "model", "joints", "solver", "identify", "effects", "diagnosis", "states", "harmonic")
     cfg["dataset"] = {"name": wc.dataset, **DIAG_DATASETS[wc.dataset]}
     return cfg
 

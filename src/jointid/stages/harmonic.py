@@ -45,7 +45,7 @@ DAMPING_RANGE_WHY = ("harmonic.damping.damping_ratio_range, assumed (the paper p
 
 def config_keys(state: str) -> tuple[str, ...]:
     """Config keys of rule ``harmonic``: the shared sections and this state's settings only."""
-    return ("rig", "model", "joints", "solver", "harmonic", "measurements", "datasets", f"states.{state}")
+    return ("materials", "rig", "model", "joints", "solver", "harmonic", "measurements", "datasets", f"states.{state}")
 
 
 def frf_frame(res) -> pd.DataFrame:

@@ -27,7 +27,7 @@ TIE_DAMPING_KEYS = tuple(f"harmonic.damping.{k}" for k in ("model", "damping_rat
 def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
     """Config keys of rule ``identify``: the shared sections, this state's settings and the other
     states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
-    return ("rig", "model", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
+    return ("materials", "rig", "model", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
             "harmonic.band_Hz", "harmonic.drive_point", *TIE_DAMPING_KEYS, f"states.{state}",
             *(f"states.{s}.dataset" for s in states))
 

@@ -17,7 +17,7 @@ SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min
 """Config keys of a full FE solve (:func:`jointid.identification.polish.solve_point`) in the later stages."""
 ROM_KEYS = ("method", "rom_tolerance")
 """``solver`` keys of the reduced-order model only."""
-CONFIG_ROM = ("rig", "model", "joints", "solver")
+CONFIG_ROM = ("materials", "rig", "model", "joints", "solver")
 """Config keys of rule ``rom``."""
 
 
@@ -29,7 +29,7 @@ def config_keys(config: dict) -> tuple[str, ...]:
     """
     if config["solver"]["method"] == "rom":
         return CONFIG_ROM
-    return ("rig", "model", "joints", *(f"solver.{k}" for k in config["solver"] if k not in ROM_KEYS))
+    return ("materials", "rig", "model", "joints", *(f"solver.{k}" for k in config["solver"] if k not in ROM_KEYS))
 
 
 def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, rom: str | None = None) -> None:

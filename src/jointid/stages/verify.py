@@ -13,7 +13,7 @@ from jointid import io
 from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
 
-CONFIG = ("rig", "model", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
+CONFIG = ("materials", "rig", "model", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
 """Config keys of rule ``verify`` (``mesh.extrapolate_edges``: it also solves on the meshes with one
 and two more edge levels)."""
 
