@@ -16,8 +16,8 @@ from jointid.config import load_config
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis import synth
 from jointid.diagnosis import terms as T
-from jointid.diagnosis.hypotheses import (LinkedLaw, fit_hypothesis, hypothesis_config, needs_own_model,
-                                          rank_hypotheses, reconstruction_ranges)
+from jointid.diagnosis.hypotheses import LinkedLaw, fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
 from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
 from jointid.fe.model import build_model

@@ -104,8 +104,8 @@ def test_c_a_lighter_moving_mass_is_covered_by_the_reconstruction_range(rig, tmp
     model, none of them the truth): those admissible by QAICc span the true mass, and the joint
     stiffness over them spans the true joints."""
     from jointid.config import load_config
-    from jointid.diagnosis.hypotheses import (fit_hypothesis, hypothesis_config, needs_own_model,
-                                              rank_hypotheses, reconstruction_ranges)
+    from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+    from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
     from jointid.diagnosis.terms import build_system
 
     cfg = rig["cfg"]

@@ -136,19 +136,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects_cfg)
     refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log, list(fits.values())[:-1])
     profile_candidate(diag, current, rows, fits, alpha, log)
-    needed = current.p_value < alpha
-    for row, _, _ in rows:  # nothing needs explaining when the current model fits within the noise
-        if "explains" in row:
-            row["explains"] = bool(row["explains"] and needed)
-    any_explains = any(bool(r[0].get("explains")) for r in rows)
-    combos = combinations(diag, current, rows, fits, opt, log) if needed and not any_explains else []
-    me = model_error_of({**fits, "current": current}, diag.data)
-    current_weight = judge_fits(current, fits, [r[0] for r in rows], combos, diag.data, me)
-    combos = combination_frame(combos)
-    ranking = ranking_frame([r[0] for r in rows])
-    ranking.attrs["tie_delta_aicc"] = float(opt["tie_delta_aicc"])
-    ranking.attrs["model_error"] = me
-    ranking["indistinguishable_from"] = tie_groups(ranking, float(opt["tie_delta_aicc"]))
+    combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
     absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]), me)
     tie_detail, nxt = explain_tie(diag, ranking, fits, me)
     ident, curve = identifiable_fits(diag, current, fits, ranking, combos, log)
@@ -290,6 +278,28 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
             refit(diag, current, spec, st["t_hat"], verify=i == 0)
         row.update(refit_row(f, current, diag.data, alpha))
         fits["+" + row["effect"]] = f
+
+
+def combine_and_judge(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt: dict, log):
+    """Steps 4b-5: whether anything needs explaining (nothing explains when the current model fits within
+    the noise), the pairs when no single refit explains (:func:`combinations`), every fit judged with
+    the model error (:func:`jointid.diagnosis.judging.judge_fits`) and the ranking with its ties.
+
+    Returns ``(combinations frame, ranking, model error, the current model's weight)``.
+    """
+    needed = current.p_value < float(opt["alpha"])
+    for row, _, _ in rows:
+        if "explains" in row:
+            row["explains"] = bool(row["explains"] and needed)
+    any_explains = any(bool(r[0].get("explains")) for r in rows)
+    combos = combinations(diag, current, rows, fits, opt, log) if needed and not any_explains else []
+    me = model_error_of({**fits, "current": current}, diag.data)
+    current_weight = judge_fits(current, fits, [r[0] for r in rows], combos, diag.data, me)
+    ranking = ranking_frame([r[0] for r in rows])
+    ranking.attrs["tie_delta_aicc"] = float(opt["tie_delta_aicc"])
+    ranking.attrs["model_error"] = me
+    ranking["indistinguishable_from"] = tie_groups(ranking, float(opt["tie_delta_aicc"]))
+    return combination_frame(combos), ranking, me, current_weight
 
 
 def combinations(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt: dict, log) -> list[dict]:

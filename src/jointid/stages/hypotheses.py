@@ -23,8 +23,8 @@ from jointid.config import load_config
 from jointid.config.datasets import dataset_folder
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
-from jointid.diagnosis.hypotheses import (fit_hypothesis, hypothesis_config, needs_own_model, rank_hypotheses,
-                                          reconstruction_ranges)
+from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
 from jointid.diagnosis.terms import build_system
 from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
