@@ -98,7 +98,8 @@ def test_default_config_is_the_paper_rig(default):
     assert default["rig"]["carriages"]["length_m"] == 0.084 and default["rig"]["table"]["position_m"] == 0.0
     assert default["joints"]["parameters"]["k_normal_N_per_m3"] == {"direction": "y", "lower": 2e11, "upper": 4e12}
     assert list(default["joints"]["parameters"]) == ["k_normal_N_per_m3", "k_lateral_N_per_m3", "k_feed_N_per_m3"]
-    assert default["harmonic"]["damping"] == {"model": "modal", "damping_ratio": 0.03}
+    assert default["harmonic"]["damping"] == {"model": "modal", "damping_ratio": 0.03,
+                                              "damping_ratio_range": [0.02, 0.05]}
     assert default["datasets"] == {} and default["effects"] == {} and default["report"] == {}
 
 
@@ -135,8 +136,10 @@ def test_damping_models_match_damping_module():
 def test_schema_is_valid_and_complete():
     schema = load_schema(SCHEMA)
     jsonschema.Draft202012Validator.check_schema(schema)
-    # optional (absent unless given); damping_ratio has a model-dependent default (if/then)
-    optional_without_default = {"alpha_per_s", "beta_s", "joint_loss_factor_s", "dataset", "damping_ratio"}
+    # optional (absent unless given); damping_ratio has a model-dependent default (if/then); a catalogue
+    # class without lateral_N_per_um is compared laterally with its normal_N_per_um
+    optional_without_default = {"alpha_per_s", "beta_s", "joint_loss_factor_s", "dataset", "damping_ratio",
+                                "lateral_N_per_um"}
     missing = []
 
     def walk(node, path, required):
@@ -528,11 +531,13 @@ RAYLEIGH = {"model": "rayleigh", "alpha_per_s": 10, "beta_s": "1e-6"}  # beta as
 
 def test_overlay_switches_damping_model_with_null():
     cfg = load_config(CONFIG, overrides={"harmonic": {"damping": {**RAYLEIGH, "damping_ratio": None}}})
-    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6}
+    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6,
+                                          "damping_ratio_range": [0.02, 0.05]}
     # the same from --set strings: an empty value is null
     cfg = load_config(CONFIG, overrides=["harmonic.damping.model=rayleigh", "harmonic.damping.alpha_per_s=10",
                                          "harmonic.damping.beta_s=1e-6", "harmonic.damping.damping_ratio="])
-    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6}
+    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6,
+                                          "damping_ratio_range": [0.02, 0.05]}
 
 
 def test_overlay_without_null_says_how_to_switch():
@@ -558,14 +563,16 @@ def test_snakemake_merge_of_configfiles_gives_the_same(tmp_path, monkeypatch):
     update_config(config, load_configfile(str(mine)))
     assert config["harmonic"]["damping"]["damping_ratio"] is None
     cfg = validated(config)
-    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6}
+    assert cfg["harmonic"]["damping"] == {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6,
+                                          "damping_ratio_range": [0.02, 0.05]}
     assert cfg == load_config(CONFIG, overrides={"harmonic": {"damping": {**RAYLEIGH, "damping_ratio": None}}})
 
 
 def test_null_means_default_but_unknown_and_required_keys_are_still_reported(default):
     cfg = load_config({"mesh": {"refine": None}, "harmonic": {"damping": {"model": None}}, "datasets": None})
     assert cfg["mesh"]["refine"] == 1 and cfg["datasets"] == {}
-    assert cfg["harmonic"]["damping"] == {"model": "modal", "damping_ratio": 0.03}
+    assert cfg["harmonic"]["damping"] == {"model": "modal", "damping_ratio": 0.03,
+                                          "damping_ratio_range": [0.02, 0.05]}
     # a state removed by an overlay
     cfg = load_config(CONFIG, overrides={"states": {"power_on": None}})
     assert list(cfg["states"]) == ["power_off"]
