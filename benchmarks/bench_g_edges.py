@@ -60,7 +60,7 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     from jointid.fe.model import build_model, joint_terms
     from jointid.geometry.rig import build_rig
     from jointid.identification.polish import solve_point
-    from jointid.identification.updating import log_jacobian
+    from jointid.identification.polish import log_jacobian
 
     res = Result("g")
     cfg = load_config(ROOT / "config.yaml", overrides=COARSE if quick else None)

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from jointid.fe.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit, level_config
 from jointid.identification.polish import corrected as _corrected
-from jointid.identification.updating import log_jacobian
+from jointid.identification.polish import log_jacobian
 from test_localrefine import _cantilever_freqs
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from jointid.identification.meshcheck import first_order_shift
-from jointid.identification.updating import log_jacobian
+from jointid.identification.polish import log_jacobian
 
 
 def test_shift_equals_the_refit_of_a_linear_model():

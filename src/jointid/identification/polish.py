@@ -1,12 +1,14 @@
 """FE polish of the surface optimum, and modal solves on mesh-extrapolated frequencies.
 
 The response surfaces give each state a first optimum; the polish refines it by Gauss-Newton on the
-full FE model (or on the verified reduced-order model), see
-:func:`jointid.identification.updating.fe_polish`.  With ``mesh.extrapolate_edges`` the polish fits
-the frequencies extrapolated over the mesh's edge-refinement levels (:mod:`jointid.fe.extrapolate`,
-docs/reconstruction.md, "Mesh extrapolation"): :func:`extrapolated_polish` repeats it with the
-factors taken at its last optimum until they settle.
+full FE model (or on the verified reduced-order model), see :func:`fe_polish`.  With
+``mesh.extrapolate_edges`` the polish fits the frequencies extrapolated over the mesh's
+edge-refinement levels (:mod:`jointid.fe.extrapolate`, docs/reconstruction.md, "Mesh
+extrapolation"): :func:`extrapolated_polish` repeats it with the factors taken at its last optimum
+until they settle.
 
+* :func:`fe_polish` - the Gauss-Newton polish itself, on any solve function;
+* :func:`log_jacobian` - exact modal sensitivities ``d ln f / d log10 theta``;
 * :func:`solve_point` - modal solve of a cached model at joint parameters (Hz, shapes at the
   measuring points);
 * :func:`edge_limit_at` - the mesh-extrapolated frequencies of a model at joint parameters;
@@ -22,20 +24,122 @@ from functools import partial
 
 import numpy as np
 
+from jointid.correlate.mac import mac
+from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
+from jointid.errors import DataError
 from jointid.fe.describe import describe_modes
 from jointid.fe.extrapolate import FrequencyCorrection, edge_limit
 from jointid.fe.modal import solve_model
 from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
 from jointid.identification.rom import ROM, load_rom
-from jointid.identification.updating import fe_polish, log_jacobian
+from jointid.identification.visibility import misfit_table
 from jointid.progress import Work, stamp
 
 __all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "corrected", "edge_limit_at", "extrapolated_polish",
-           "model_sizes", "polish_on_model", "polish_optimum", "solve_point"]
+           "fe_polish", "log_jacobian", "model_sizes", "polish_on_model", "polish_optimum", "solve_point"]
 
 EXTRAPOLATION_PASSES = 3  # polishes on extrapolated frequencies, each with factors taken at the last optimum
 EXTRAPOLATION_SETTLED = 2e-3  # the factors have settled once their first-order change over a polish is below this
+
+
+def log_jacobian(stiffness: dict, phi: np.ndarray, lam: np.ndarray, terms: list[dict[str, float]],
+                 theta: np.ndarray) -> np.ndarray:
+    """``d ln f / d log10 theta_i`` of mass-normalised modes ``phi`` (columns) with eigenvalues ``lam``.
+
+    Exact modal sensitivities: ``d lambda / d theta_i = sum_t c phi^T K_t phi`` over the stiffness
+    terms ``terms[i] = {name: c}`` of parameter i (``stiffness[name]`` the matrices, in the space of
+    ``phi``); ``d ln f = d lambda / (2 lambda)``.  Returns ``(n_modes, n_params)``.
+    """
+    J = np.empty((phi.shape[1], len(theta)))
+    for i, (tm, th) in enumerate(zip(terms, theta)):
+        dlam = sum(c * np.einsum("ij,ij->j", phi, stiffness[t] @ phi) for t, c in tm.items())
+        J[:, i] = dlam * th * np.log(10) / (2 * lam)
+    return J
+
+
+def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
+              target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
+              max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print,
+              repair_min_Hz: float | None = None, rule=None):
+    # long: one Gauss-Newton loop whose every iterate re-pairs, scores the misfits and keeps the best
+    """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
+
+    ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms[, extra])`` gives the FE
+    modes (``extra`` ``(n, n_params)``: a part of ``d ln f / d log10 theta`` beyond ``phi``'s);
+    each measured mode follows the FE mode with the highest MAC to its current shape (starting from
+    ``target_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
+    exact modal sensitivities ``d lambda / d theta_i = phi^T K_i phi`` (mass-normalised phi).
+    ``terms[i]`` maps stiffness term names to the coefficient per unit of parameter i.
+    With ``repair_min_Hz`` (frequency-only data) the measured modes are re-paired at every iterate by
+    the order-preserving frequency assignment among FE modes above that frequency, the same rule as
+    on the surfaces; the best iterate is kept.  ``rule``
+    (:class:`jointid.identification.visibility.VisibilityRule`, its labels those of the solve's
+    shapes): FE modes the test would clearly have seen that no measured mode takes are misfits, extra
+    residuals with exact sensitivities, and the frequency re-pairing pays for leaving them unpaired.
+
+    Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations, unpaired_visible,
+    chi2, dof)``.
+    """
+    lo, hi = np.log10(lower), np.log10(upper)
+    y = np.log10(np.asarray(theta0, float))
+    w = np.ones(len(f_meas)) if weights is None else np.asarray(weights, float)
+    shapes_now = np.asarray(target_shapes)
+    history = []
+    best = None
+    for it in range(max_iter + 1):
+        freqs, shapes, phi, stiff, *extra = solve(10 ** y)
+        vis = rule.visibility(shapes, freqs) if rule is not None else None
+        if repair_min_Hz is not None:
+            cand = np.flatnonzero(freqs >= repair_min_Hz)
+            index = (cand[pair_by_frequency(f_meas, freqs[cand])] if rule is None
+                     else rule.pair_by_frequency(f_meas, freqs, vis, cand))
+            macs = np.array([float(mac(shapes_now[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
+        else:
+            index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
+        if np.any(index < 0):
+            raise DataError("FE polish: a paired mode could not be followed by MAC — widen the DOE "
+                            "or check the pairing in results/identify/<state>/params.json")
+        pen, tgt = rule.misfits(index, freqs, vis, f_meas) if rule is not None else (np.zeros(0, int), np.zeros(0))
+        rows = np.concatenate([index, pen]).astype(int)
+        f, f_all = freqs[index], freqs[rows]
+        target = np.concatenate([f_meas, tgt])
+        sw = np.sqrt(np.concatenate([w, np.ones(pen.size)]))
+        r = sw * (f_all - target) / target
+        # d(f / f_target) / d log10 theta = (f / f_target) d ln f / d log10 theta
+        dlnf = log_jacobian(stiff, phi[:, rows], (2 * np.pi * f_all) ** 2, terms, 10 ** y)
+        if extra:  # a part of d ln f / d log10 theta that the solve knows beyond phi (e.g. a correction factor's)
+            dlnf = dlnf + np.asarray(extra[0])[rows]
+        J = (sw * f_all / target)[:, None] * dlnf
+        history.append(float(r @ r))
+        if best is None or history[-1] < best[0]:
+            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs),
+                    None if vis is None else vis.copy())
+        log(f"  FE polish it {it}: max |error| {100 * np.abs(r[:len(f_meas)] / np.sqrt(w)).max():.3f} %"
+            + (f" (+{pen.size} unpaired visible, max misfit {100 * np.abs(r[len(f_meas):]).max():.2f} %)"
+               if pen.size else "") + ", " + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
+        shapes_now = shapes[:, index]
+        if it == max_iter:
+            break
+        # Levenberg-Marquardt step, clipped to the bounds
+        lam = 1e-3 * np.trace(J.T @ J) / len(y)
+        step = -np.linalg.solve(J.T @ J + lam * np.eye(len(y)), J.T @ r)
+        y_new = np.clip(y + step, lo, hi)
+        if np.max(np.abs(y_new - y)) < tol:
+            y = y_new
+            break
+        y = y_new
+    chi2_raw, y, f, index, macs, J, freqs, vis = best
+    cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
+    band = (np.min(f_meas), np.max(f_meas))
+    unpaired = [float(freqs[j]) for j in range(len(freqs))
+                if band[0] <= freqs[j] <= band[1] and j not in set(index.tolist())]
+    visible = [] if rule is None else misfit_table(rule, index, freqs, vis, f_meas)
+    return {"theta": 10 ** y, "f_fe": f, "index": index, "mac": macs, "jacobian_log10": J,
+            "unpaired_in_band_Hz": unpaired, "unpaired_visible": visible,
+            "chi2": chi2_raw / sigma_rel**2, "dof": max(1, len(f_meas) - len(y)),
+            "cov_log10": cov, "iterations": it, "cost_history": history,
+            "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}
 
 
 def _log(msg: str) -> None:
@@ -122,7 +226,7 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
 def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shapes, lower, upper, *,
                     weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None,
                     correction=None, rule=None):
-    """FE polish (:func:`jointid.identification.updating.fe_polish`) of joint parameters ``names`` on ``model``.
+    """FE polish (:func:`fe_polish`) of joint parameters ``names`` on ``model``.
 
     ``model`` is the full FE model (:class:`jointid.fe.fem.Model`) or a reduced-order model
     (:class:`jointid.identification.rom.ROM`, evaluated in its generalised coordinates, where the sensitivities
@@ -166,7 +270,7 @@ def corrected(solve, correction):
     """``solve`` with each mode's frequency scaled by its mesh-extrapolation factor (in ascending order).
 
     A factor adds its own ``d ln c / d log10 theta`` to the mode's ``d ln f / d log10 theta``, which
-    the polish gets as a fifth return value; :func:`jointid.identification.updating.log_jacobian` computes the
+    the polish gets as a fifth return value; :func:`log_jacobian` computes the
     mesh's part as ``phi^T K' phi / (2 lambda)`` from the frequency it is given, so ``phi`` is scaled
     by the same factor to keep that part exact.
     """

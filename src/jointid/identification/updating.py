@@ -24,10 +24,8 @@ from jointid.identification.identify import identify
 from jointid.identification.surface import Surface, fit_surface
 from jointid.identification.surface_checks import diagnostics
 from jointid.identification.ties import choose_tied, hiding_peak, least_cost_tied, paired_ss
-from jointid.correlate.mac import mac
 from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
 from jointid.identification.tracking import track_doe
-from jointid.identification.visibility import misfit_table
 
 
 class LogFrequencyModel:
@@ -349,103 +347,3 @@ def coded(theta: dict, names: list[str], lower, upper) -> np.ndarray:
 
 def physical(x, lower, upper) -> np.ndarray:
     return to_physical(np.asarray(x, float), lower, upper)
-
-
-# ------------------------------------------------------------------ FE polish
-def log_jacobian(stiffness: dict, phi: np.ndarray, lam: np.ndarray, terms: list[dict[str, float]],
-                 theta: np.ndarray) -> np.ndarray:
-    """``d ln f / d log10 theta_i`` of mass-normalised modes ``phi`` (columns) with eigenvalues ``lam``.
-
-    Exact modal sensitivities: ``d lambda / d theta_i = sum_t c phi^T K_t phi`` over the stiffness
-    terms ``terms[i] = {name: c}`` of parameter i (``stiffness[name]`` the matrices, in the space of
-    ``phi``); ``d ln f = d lambda / (2 lambda)``.  Returns ``(n_modes, n_params)``.
-    """
-    J = np.empty((phi.shape[1], len(theta)))
-    for i, (tm, th) in enumerate(zip(terms, theta)):
-        dlam = sum(c * np.einsum("ij,ij->j", phi, stiffness[t] @ phi) for t, c in tm.items())
-        J[:, i] = dlam * th * np.log(10) / (2 * lam)
-    return J
-
-
-def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
-              target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
-              max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print,
-              repair_min_Hz: float | None = None, rule=None):
-    # long: one Gauss-Newton loop whose every iterate re-pairs, scores the misfits and keeps the best
-    """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
-
-    ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms[, extra])`` gives the FE
-    modes (``extra`` ``(n, n_params)``: a part of ``d ln f / d log10 theta`` beyond ``phi``'s);
-    each measured mode follows the FE mode with the highest MAC to its current shape (starting from
-    ``target_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
-    exact modal sensitivities ``d lambda / d theta_i = phi^T K_i phi`` (mass-normalised phi).
-    ``terms[i]`` maps stiffness term names to the coefficient per unit of parameter i.
-    With ``repair_min_Hz`` (frequency-only data) the measured modes are re-paired at every iterate by
-    the order-preserving frequency assignment among FE modes above that frequency, the same rule as
-    on the surfaces; the best iterate is kept.  ``rule``
-    (:class:`jointid.identification.visibility.VisibilityRule`, its labels those of the solve's
-    shapes): FE modes the test would clearly have seen that no measured mode takes are misfits, extra
-    residuals with exact sensitivities, and the frequency re-pairing pays for leaving them unpaired.
-
-    Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations, unpaired_visible,
-    chi2, dof)``.
-    """
-    lo, hi = np.log10(lower), np.log10(upper)
-    y = np.log10(np.asarray(theta0, float))
-    w = np.ones(len(f_meas)) if weights is None else np.asarray(weights, float)
-    shapes_now = np.asarray(target_shapes)
-    history = []
-    best = None
-    for it in range(max_iter + 1):
-        freqs, shapes, phi, stiff, *extra = solve(10 ** y)
-        vis = rule.visibility(shapes, freqs) if rule is not None else None
-        if repair_min_Hz is not None:
-            cand = np.flatnonzero(freqs >= repair_min_Hz)
-            index = (cand[pair_by_frequency(f_meas, freqs[cand])] if rule is None
-                     else rule.pair_by_frequency(f_meas, freqs, vis, cand))
-            macs = np.array([float(mac(shapes_now[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
-        else:
-            index, macs = pair_by_shapes(shapes_now, shapes, threshold=0.2)
-        if np.any(index < 0):
-            raise DataError("FE polish: a paired mode could not be followed by MAC — widen the DOE "
-                            "or check the pairing in results/identify/<state>/params.json")
-        pen, tgt = rule.misfits(index, freqs, vis, f_meas) if rule is not None else (np.zeros(0, int), np.zeros(0))
-        rows = np.concatenate([index, pen]).astype(int)
-        f, f_all = freqs[index], freqs[rows]
-        target = np.concatenate([f_meas, tgt])
-        sw = np.sqrt(np.concatenate([w, np.ones(pen.size)]))
-        r = sw * (f_all - target) / target
-        # d(f / f_target) / d log10 theta = (f / f_target) d ln f / d log10 theta
-        dlnf = log_jacobian(stiff, phi[:, rows], (2 * np.pi * f_all) ** 2, terms, 10 ** y)
-        if extra:  # a part of d ln f / d log10 theta that the solve knows beyond phi (e.g. a correction factor's)
-            dlnf = dlnf + np.asarray(extra[0])[rows]
-        J = (sw * f_all / target)[:, None] * dlnf
-        history.append(float(r @ r))
-        if best is None or history[-1] < best[0]:
-            best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs),
-                    None if vis is None else vis.copy())
-        log(f"  FE polish it {it}: max |error| {100 * np.abs(r[:len(f_meas)] / np.sqrt(w)).max():.3f} %"
-            + (f" (+{pen.size} unpaired visible, max misfit {100 * np.abs(r[len(f_meas):]).max():.2f} %)"
-               if pen.size else "") + ", " + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
-        shapes_now = shapes[:, index]
-        if it == max_iter:
-            break
-        # Levenberg-Marquardt step, clipped to the bounds
-        lam = 1e-3 * np.trace(J.T @ J) / len(y)
-        step = -np.linalg.solve(J.T @ J + lam * np.eye(len(y)), J.T @ r)
-        y_new = np.clip(y + step, lo, hi)
-        if np.max(np.abs(y_new - y)) < tol:
-            y = y_new
-            break
-        y = y_new
-    chi2_raw, y, f, index, macs, J, freqs, vis = best
-    cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
-    band = (np.min(f_meas), np.max(f_meas))
-    unpaired = [float(freqs[j]) for j in range(len(freqs))
-                if band[0] <= freqs[j] <= band[1] and j not in set(index.tolist())]
-    visible = [] if rule is None else misfit_table(rule, index, freqs, vis, f_meas)
-    return {"theta": 10 ** y, "f_fe": f, "index": index, "mac": macs, "jacobian_log10": J,
-            "unpaired_in_band_Hz": unpaired, "unpaired_visible": visible,
-            "chi2": chi2_raw / sigma_rel**2, "dof": max(1, len(f_meas) - len(y)),
-            "cov_log10": cov, "iterations": it, "cost_history": history,
-            "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}

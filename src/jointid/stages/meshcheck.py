@@ -27,7 +27,7 @@ def _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices, say):
     """
     from jointid.fe.model import joint_terms, load_model
     from jointid.identification.polish import edge_limit_at, solve_point
-    from jointid.identification.updating import log_jacobian
+    from jointid.identification.polish import log_jacobian
 
     coarse = load_model(matrices)
     _, shapes_c, _, modes_c = solve_point(cfg, coarse, theta_d, describe=False)
