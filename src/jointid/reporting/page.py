@@ -3,7 +3,8 @@
 Tables 1-3 beside the paper, FRFs, errors, identified parameters, surface diagnostics, mode shapes,
 configuration and provenance.  The page is rendered from the jinja2 templates in ``templates/``
 (``page.html.j2``: the frame, summary and sections; ``page.css``), its tables by pandas' Styler
-(:func:`html_table`).  The workflow stage that reads the inputs and writes the page is
+(:func:`html_table`); the key box's numbers come from :func:`jointid.reporting.summary.key_numbers`.
+The workflow stage that reads the inputs and writes the page is
 :func:`jointid.stages.report.run_report`.
 """
 
@@ -16,6 +17,8 @@ from functools import lru_cache
 
 import pandas as pd
 from markupsafe import Markup
+
+from jointid.reporting.summary import key_numbers
 
 __all__ = ["build_html", "html_table", "report_figures"]
 
@@ -104,62 +107,6 @@ def report_figures(cfg: dict, data: dict) -> dict[str, bytes]:
         "mode_shapes": fg.png_bytes(fg.mode_shapes(data["points"], _mode_pictures(data)), dpi=90),
         **({"catalogue": fg.png_bytes(fg.catalogue_rigidity(comps))} if (comps := _catalogue_comparisons(data)) else {}),
     }
-
-
-def _summary(data: dict) -> dict:
-    """The key numbers above the sections: Table 1 (status, identified value or why not, the lowest
-    paired peak), its increases, the ranges, the frequency errors, the damping."""
-    t1 = data["table1"]
-    d0 = next(iter(data["stiffness"].values()))
-    num = lambda v, f: "–" if pd.isna(v) else format(v, f)  # noqa: E731
-    stiffness = []
-    for _, r in t1.iterrows():
-        value = (f"{r.dynamic_stiffness_N_per_mm:,.0f} N/mm" if r.status == "identified" else
-                 f"not identified ({r.not_identified_dynamic_stiffness_N_per_mm:,.0f} N/mm at unpaired FE mode "
-                 f"{r.governing_mode}, {r.governing_description})")
-        if bool(getattr(r, "status_rests_on_tie", False)):
-            value += " — rests on a tie: " + str(r.tie_note)
-        stiffness.append({"state": r.state.replace("_", "-"), "value": value,
-                          "paired": num(r.paired_dynamic_stiffness_N_per_mm, ",.0f"),
-                          "paper": f"{r.paper_dynamic_stiffness_N_per_mm:,.0f}"})
-    rng = data.get("table1_ranges")
-    ranges = [] if rng is None else [
-        {"basis": r.basis, "over": r.over, "value": f"{num(r.increase_low_pct, '+.1f')} … {num(r.increase_high_pct, '+.1f')}",
-         "inside": "inside" if r.paper_inside in (True, "True") else "outside"}
-        for r in rng.itertuples() if r.over == "points × damping laws"]
-    return {
-        "stiffness": stiffness,
-        "increase": [{"value": "n/a (a state is not identified)" if pd.isna(r.increase_pct) else f"{r.increase_pct:+.1f} %",
-                      "paired": num(r.paired_increase_pct, "+.1f"),
-                      "paper": f"{r.paper_increase_pct:+.1f}"} for _, r in t1[t1.paper_increase_pct.notna()].iterrows()],
-        "ranges": ranges,
-        "errors": "; ".join(f"{s.replace('_', '-')} max |error| {t.relative_error_pct.abs().max():.1f} % "
-                            f"(paper {t.paper_relative_error_pct.abs().max():.1f} %)"
-                            for s, t in data["tables"].items()),
-        "damping": ", ".join(f"{k} = {v}" for k, v in d0["damping"]["config"].items()),
-        "problems": data.get("table1_problems", []),
-        "model_error": _model_error_text(data),
-    }
-
-
-def _model_error_text(data: dict) -> str:
-    """The model error of each state's identification, and of the hypotheses' comparison when there is
-    one: the fit's remaining error per mode beside the stated noise (docs/effects.md, "Statistics")."""
-    parts = []
-    for state, p in data["params"].items():
-        me = p.get("model_error")
-        if me:
-            parts.append(f"{state.replace('_', '-')}: about {me['sigma_model_pct']:.1f} % per mode "
-                         f"(χ²/dof = {me['c_hat']:.0f} at the stated {me['sigma_noise_pct']:.2g} %)")
-    h = data.get("hypotheses")
-    if h is not None and "sigma_model_pct" in h["ranking"]:
-        r = h["ranking"].iloc[0]
-        parts.append(f"the best reconstruction hypothesis ({r.hypothesis}, both states): about "
-                     f"{r.sigma_model_pct:.1f} % per mode (χ²/dof = {r.c_hat:.0f})")
-    if not parts:
-        return ""
-    return ("Model error, the part of the misfit the stated noise does not cover: " + "; ".join(parts)
-            + ". Intervals, rankings and weights are widened by it.")
 
 
 def _table1_html(data: dict) -> str:
@@ -446,5 +393,5 @@ def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str
     ]
     band = f"{d0['band_Hz'][0]:g}–{d0['band_Hz'][1]:g} Hz"
     return _env().get_template("page.html.j2").render(
-        prov=prov, short_commit=_short(prov["package_commit"]), d0=d0, band=band, summary=_summary(data),
+        prov=prov, short_commit=_short(prov["package_commit"]), d0=d0, band=band, summary=key_numbers(data),
         sections=[{"key": k, "title": t, "html": Markup(c)} for k, t, c in sections])
