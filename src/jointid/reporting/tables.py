@@ -120,40 +120,7 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
         where both states are identified).
     """
     p = paper.set_index("state") if len(paper) else pd.DataFrame()
-    rows = []
-    for d in stiffness:
-        g, s, pm = d["governing_mode"], d["state"], d.get("paired_minimum") or {}
-        status = d.get("status") or (IDENTIFIED if g.get("measured_order") else "not identified")
-        k = d["dynamic_stiffness_N_per_m"] * 1e-3
-        rows.append({
-            "state": s, "status": status,
-            "dynamic_stiffness_N_per_mm": k if status == IDENTIFIED else math.nan,
-            "paper_dynamic_stiffness_N_per_mm": float(p.loc[s, "paper_dynamic_stiffness_N_per_mm"])
-            if s in p.index else math.nan,
-            "governing_mode": int(g["fe_mode"]),
-            "static_stiffness_N_per_mm": math.nan if d.get("static_stiffness_N_per_m") is None
-            else d["static_stiffness_N_per_m"] * 1e-3,
-            "not_identified_dynamic_stiffness_N_per_mm": math.nan if status == IDENTIFIED else k,
-            "paired_dynamic_stiffness_N_per_mm": pm.get("dynamic_stiffness_N_per_m", math.nan) * 1e-3,
-            "paired_f_at_min_Hz": pm.get("f_at_min_Hz", math.nan),
-            "paired_governing_mode": pm.get("fe_mode"),
-            "paired_governing_freq_Hz": pm.get("freq_Hz", math.nan),
-            "paired_governing_description": pm.get("description", ""),
-            "paired_governing_measured_order": pm.get("measured_order"),
-            "f_at_min_Hz": d["f_at_min_Hz"],
-            "governing_freq_Hz": g["freq_Hz"],
-            "governing_description": g["description"],
-            "governing_measured_order": g.get("measured_order"),
-            "damping_model": d["damping"]["config"].get("model", "modal"),
-            "damping_ratio_governing": g["damping_ratio"],
-            "drive_point": f"{d['drive_point']}:{d['direction']}",
-            "patch_diameter_m": d.get("patch_diameter_m", 0.0),
-            "status_rests_on_tie": bool((d.get("tie") or {}).get("rests_on_tie", False)),
-            "tie_note": (d.get("tie") or {}).get("note", ""),
-            "tie_rule": (d.get("tie") or {}).get("rule", ""),
-            **(damping_range_cells(d["damping_range"], "chosen") if d.get("damping_range") else {}),
-        })
-    df = pd.DataFrame(rows)
+    df = pd.DataFrame([_table1_row(d, p) for d in stiffness])
     ref = df.state == reference_state(list(df["state"]))
     pk = df["paper_dynamic_stiffness_N_per_mm"]
 
@@ -174,6 +141,42 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
         df[f"{col}_low_pct"] = [v if (both or name) else math.nan for v in map(lo.get, df["state"])]
         df[f"{col}_high_pct"] = [v if (both or name) else math.nan for v in map(hi.get, df["state"])]
     return df
+
+
+def _table1_row(d: dict, p: pd.DataFrame) -> dict:
+    """One state's row of :func:`table1_frame` before the increases: ``d`` its ``dynamic_stiffness.json``,
+    ``p`` the paper's Table 1 indexed by state (empty without it)."""
+    g, s, pm = d["governing_mode"], d["state"], d.get("paired_minimum") or {}
+    status = d.get("status") or (IDENTIFIED if g.get("measured_order") else "not identified")
+    k = d["dynamic_stiffness_N_per_m"] * 1e-3
+    return {
+        "state": s, "status": status,
+        "dynamic_stiffness_N_per_mm": k if status == IDENTIFIED else math.nan,
+        "paper_dynamic_stiffness_N_per_mm": float(p.loc[s, "paper_dynamic_stiffness_N_per_mm"])
+        if s in p.index else math.nan,
+        "governing_mode": int(g["fe_mode"]),
+        "static_stiffness_N_per_mm": math.nan if d.get("static_stiffness_N_per_m") is None
+        else d["static_stiffness_N_per_m"] * 1e-3,
+        "not_identified_dynamic_stiffness_N_per_mm": math.nan if status == IDENTIFIED else k,
+        "paired_dynamic_stiffness_N_per_mm": pm.get("dynamic_stiffness_N_per_m", math.nan) * 1e-3,
+        "paired_f_at_min_Hz": pm.get("f_at_min_Hz", math.nan),
+        "paired_governing_mode": pm.get("fe_mode"),
+        "paired_governing_freq_Hz": pm.get("freq_Hz", math.nan),
+        "paired_governing_description": pm.get("description", ""),
+        "paired_governing_measured_order": pm.get("measured_order"),
+        "f_at_min_Hz": d["f_at_min_Hz"],
+        "governing_freq_Hz": g["freq_Hz"],
+        "governing_description": g["description"],
+        "governing_measured_order": g.get("measured_order"),
+        "damping_model": d["damping"]["config"].get("model", "modal"),
+        "damping_ratio_governing": g["damping_ratio"],
+        "drive_point": f"{d['drive_point']}:{d['direction']}",
+        "patch_diameter_m": d.get("patch_diameter_m", 0.0),
+        "status_rests_on_tie": bool((d.get("tie") or {}).get("rests_on_tie", False)),
+        "tie_note": (d.get("tie") or {}).get("note", ""),
+        "tie_rule": (d.get("tie") or {}).get("rule", ""),
+        **(damping_range_cells(d["damping_range"], "chosen") if d.get("damping_range") else {}),
+    }
 
 
 def damping_range_cells(rng: dict | None, pairing: str) -> dict:
