@@ -138,17 +138,38 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     orders = pairing_orders(pts["measured_order"], tied_csv)
     out["pairings"] = [{"pairing": name, "governing_measured_order": int(o[res.governing]) or None,
                         **_paired_summary(res, desc, o, band)} for name, o in orders.items()]
-    out["damping_range"] = damping_ratio_range(
-        band, res.freqs_Hz, res.zeta, res.participation, res.residual_flexibility_m_per_N or 0.0,
-        (h.get("damping") or {}).get("damping_ratio_range", DAMPING_RATIO_RANGE),
-        fixed=np.asarray(res.damping_source) == "measured", paired={n: o > 0 for n, o in orders.items()},
-        n_freq=int(h["n_freq"]))
-    out["damping_range"]["source"] = DAMPING_RANGE_WHY
+    out["damping_range"] = _damping_range(h, band, res, orders)
     for p in out["pairings"]:
         progress(f"harmonic[{state}]: under the {p['pairing']} pairing: {p['status']}")
     io.write_json(out_json, out)
     if out_points:
         io.write_npz(out_points, **pts)
+    _write_mode_files(model, state, res, modes, desc, out_vtu, out_uff, out_modes)
+    g = res.governing
+    static = out["static_stiffness_N_per_mm"]
+    progress(f"harmonic[{state}]: K_dyn,min = {out['dynamic_stiffness_N_per_mm']:.5g} N/mm at "
+             f"{out['f_at_min_Hz']:.1f} Hz (FE mode {g + 1}, {desc['description'][g]}), static "
+             f"{'n/a' if static is None else format(static, '.5g')} N/mm; {out['status']}")
+    return out
+
+
+def _damping_range(h: dict, band: list[float], res, orders: dict) -> dict:
+    """``dynamic_stiffness.json``'s ``damping_range``: the band minimum and the paired peaks over
+    ``harmonic.damping.damping_ratio_range`` (:func:`jointid.response.ranges.damping_ratio_range`) under
+    each pairing of ``orders`` (:func:`pairing_orders`), the measured ratios kept, with its ``source``."""
+    rng = damping_ratio_range(
+        band, res.freqs_Hz, res.zeta, res.participation, res.residual_flexibility_m_per_N or 0.0,
+        (h.get("damping") or {}).get("damping_ratio_range", DAMPING_RATIO_RANGE),
+        fixed=np.asarray(res.damping_source) == "measured", paired={n: o > 0 for n, o in orders.items()},
+        n_freq=int(h["n_freq"]))
+    rng["source"] = DAMPING_RANGE_WHY
+    return rng
+
+
+def _write_mode_files(model, state: str, res, modes, desc: pd.DataFrame, out_vtu: str | None,
+                      out_uff: str | None, out_modes: str | None) -> None:
+    """The identified model's modes for ParaView (``out_vtu``), for test software (``out_uff``) and at
+    the measuring points (``out_modes``), each only when given (see :func:`run_harmonic`)."""
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
     if out_vtu:
         write_mesh_vtu(model, out_vtu, modes.phi, res.freqs_Hz, descriptions=desc["description"].to_numpy())
@@ -160,12 +181,6 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
         io.write_npz(out_modes, freqs_Hz=res.freqs_Hz, shapes=model.probe @ modes.phi, labels=np.array(labels),
                      description=desc["description"].to_numpy().astype(str), zeta=res.zeta,
                      participation=res.participation)
-    g = res.governing
-    static = out["static_stiffness_N_per_mm"]
-    progress(f"harmonic[{state}]: K_dyn,min = {out['dynamic_stiffness_N_per_mm']:.5g} N/mm at "
-             f"{out['f_at_min_Hz']:.1f} Hz (FE mode {g + 1}, {desc['description'][g]}), static "
-             f"{'n/a' if static is None else format(static, '.5g')} N/mm; {out['status']}")
-    return out
 
 
 def status_text(fe_mode: int, freq_Hz: float, description: str, measured_order) -> str:
