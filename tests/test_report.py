@@ -173,7 +173,9 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
     assert "paper +42.1 %" in (wd / t1).with_suffix(".md").read_text()
 
     page = (wd / "results" / "report" / "index.html").read_text()
-    assert page.count("src='data:image/png;base64,") == 6
+    # six figures of the workflow plus the carriage against the catalogue classes (config.yaml's catalogue)
+    assert page.count("src='data:image/png;base64,") == 7
+    assert "HGH25CA" in page
     assert not re.search(r"""(src|href)=['"](?!data:|#)""", page), "the page must not link external files"
     cfg = load_config(REPO / "config.yaml", overrides=__import__("yaml").safe_load(
         (REPO / "tests" / "coarse_config.yaml").read_text()))
