@@ -122,13 +122,17 @@ def test_every_result_table_has_a_matching_provenance_sidecar(coarse_run, cfg):
     ident = json.loads(provenance_path(wd / "results/identify/power_on/params.json").read_text())
     # harmonic: the test band and drive point, which tell the identification which model modes the
     # test would clearly have seen (identify.visible_threshold)
-    assert ident["config_sections"] == ["harmonic", "identify", "joints", "measurements", "mesh", "model", "rig",
-                                        "solver", "states"]
-    one_state = {k: cfg[k] for k in ("identify", "joints", "measurements", "model", "rig")}
+    # materials: the solids' coefficients are read against the model's materials (jointid.fe.solids)
+    assert ident["config_sections"] == ["harmonic", "identify", "joints", "materials", "measurements", "mesh",
+                                        "model", "rig", "solver", "states"]
+    one_state = {k: cfg[k] for k in ("identify", "joints", "materials", "measurements", "model", "rig")}
     one_state["mesh"] = {"extrapolate_edges": cfg["mesh"]["extrapolate_edges"]}
     one_state["solver"] = {k: cfg["solver"][k] for k in ("n_modes", "shift_Hz", "backend", "min_freq_Hz")}
     one_state["states"] = {"power_on": cfg["states"]["power_on"]}
     one_state["harmonic"] = {k: cfg["harmonic"][k] for k in ("band_Hz", "drive_point")}
+    # and the damping the resolvability rule among tied pairings reads (jointid.identification.ties)
+    one_state["harmonic"]["damping"] = {k: v for k, v in cfg["harmonic"]["damping"].items()
+                                        if k in ("model", "damping_ratio", "alpha_per_s", "beta_s")}
     assert ident["config_hash"] == config_hash(one_state)
     tab = json.loads(provenance_path(wd / TABLE2).read_text())
     assert {"materials", "mesh", "doe", "surface", "identify", "states"} <= set(tab["config_sections"])
