@@ -13,13 +13,13 @@ chi-square of a fit is ``r^T r`` and sigma is known:
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
 from jointid.fe.reduced import Solution
+from jointid.identification.model_error import qaicc
 
 if TYPE_CHECKING:
     from jointid.diagnosis.fitting import Diagnoser, Evaluation, Fit
@@ -36,7 +36,8 @@ def chi2_p_value(chi2: float, dof: int) -> float:
 
 
 def aicc(chi2: float, n: int, k: int) -> float:
-    """Corrected Akaike criterion ``chi2 + 2k + 2k(k+1)/(n-k-1)`` (sigma known; inf for n <= k + 1).
+    """Corrected Akaike criterion ``chi2 + 2k + 2k(k+1)/(n-k-1)`` (sigma known; inf for n <= k + 1):
+    :func:`jointid.identification.model_error.qaicc` of a chi-square at the stated noise.
 
     Parameters
     ----------
@@ -45,8 +46,7 @@ def aicc(chi2: float, n: int, k: int) -> float:
     n, k : int
         Number of residuals and of fitted parameters.
     """
-    corr = 2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else math.inf
-    return chi2 + 2 * k + corr
+    return qaicc(chi2, n, k)
 
 
 def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -> np.ndarray:
