@@ -14,9 +14,9 @@ import pandas as pd
 
 from jointid import io
 from jointid.geometry.points import dof_labels
-from jointid.response import damping as dm
 from jointid.config.datasets import dataset_folder
 from jointid.data.uff_export import write_modes_uff
+from jointid.stages.frf_compare import write_frf_comparison
 from jointid.fe.vtk import write_mesh_vtu
 from jointid.response.drive_point import (MODE_FACTOR, drive_vector, harmonic_response, joint_stiffness,
                                           modal_damping_ratios, solve_band_modes)
@@ -145,6 +145,7 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     if out_points:
         io.write_npz(out_points, **pts)
     _write_mode_files(model, state, res, modes, desc, out_vtu, out_uff, out_modes)
+    write_frf_comparison(cfg, state, model, modes, res, pts, out, out_json, progress)  # with frf.csv only
     g = res.governing
     static = out["static_stiffness_N_per_mm"]
     progress(f"harmonic[{state}]: K_dyn,min = {out['dynamic_stiffness_N_per_mm']:.5g} N/mm at "
