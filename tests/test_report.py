@@ -135,6 +135,39 @@ def test_figures_render_to_png():
     assert fg.png_bytes(fg.mode_shapes(points, {"power_off": [{"title": "bounce", "u": u}]})).startswith(PNG)
 
 
+# ------------------------------------------------------------------ page layout
+def table_widths(page: str) -> list[int]:
+    """Columns of each HTML table of ``page`` (its widest row)."""
+    return [max(len(re.findall(r"<t[hd][\s>]", row)) for row in re.findall(r"<tr.*?</tr>", t, re.S))
+            for t in re.findall(r"<table.*?</table>", page, re.S)]
+
+
+def test_wide_frames_are_split_into_tables_of_eight_columns_at_most():
+    from jointid.diagnosis.page import html_table as diagnosis_table
+    from jointid.reporting.htmltable import MAX_COLUMNS, html_table
+
+    df = pd.DataFrame({"state": ["power_off", "power_on"], **{f"c{i}": [1.5 * i, 2.5 * i] for i in range(12)},
+                       "note": ["a long sentence that belongs under the table", ""]})
+    page = html_table(df.drop(columns="note"), {f"c{i}": ".2f" for i in range(12)}, text_cols=("state",))
+    assert MAX_COLUMNS == 8 and table_widths(page) == [8, 6]
+    assert page.count(">power_off<") == 2 and ">16.50<" in page and ">27.50<" in page  # keys repeated, no value lost
+    page = str(diagnosis_table(df, groups=[["c3", "c4"]], note_cols=("note",)))
+    assert table_widths(page) == [3, 8, 4] and "<li>power_off — note: a long sentence" in page
+    assert ">2.5<" in page and ">27.5<" in page
+
+
+def test_short_verdict_is_one_sentence():
+    from jointid.diagnosis.summary import short_verdict
+
+    ranking = pd.DataFrame({"effect": ["em_preload", "base_support"], "support": ["moderately", "not"],
+                            "delta_qaicc": [-8.38, -0.03], "removed_fraction": [0.468, 0.12]})
+    text = short_verdict("unexplained", ranking, pd.DataFrame())
+    assert text == ("No listed effect explains the residual to the noise; the best supported is em_preload "
+                    "(moderately supported: ΔQAICc -8.4, it removes 47 % of the misfit).")
+    assert short_verdict("em_preload", ranking).startswith("em_preload explains")
+    assert short_verdict("a+b", ranking).startswith("a and b together explain")
+
+
 # ------------------------------------------------------------------ the workflow (coarse)
 @pytest.mark.slow
 def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
@@ -175,6 +208,14 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
     page = (wd / "results" / "report" / "index.html").read_text()
     # six figures of the workflow plus the carriage against the catalogue classes (config.yaml's catalogue)
     assert page.count("src='data:image/png;base64,") == 7
+    # the summary card leads: one sentence each, and the parameters figure, before any table
+    card = page[page.index("<section class='card'"):page.index("</section>")]
+    assert page.index("<section class='card'") < page.index("<table")
+    for key in ("Max |error| after identification", "Joint stiffness, 95 % intervals", "Table 1.", "Model error σ_m",
+                "Diagnosis.", "results/diagnosis/", "src='data:image/png;base64,"):
+        assert key in card, key
+    assert f"{tab.dynamic_stiffness_N_per_mm.iloc[0]:,.0f} N/mm (paper 104,547 N/mm)" in card
+    assert max(table_widths(page)) <= 8, table_widths(page)  # no table wider than eight columns on screen
     assert "HGH25CA" in page
     assert not re.search(r"""(src|href)=['"](?!data:|#)""", page), "the page must not link external files"
     cfg = load_config(REPO / "config.yaml", overrides=__import__("yaml").safe_load(

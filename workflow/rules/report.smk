@@ -5,6 +5,7 @@
 # Captions of the figures: workflow/report/*.rst (paths relative to this file).
 
 from jointid.config.datasets import dataset_folder as _dataset_folder
+from jointid.config.datasets import registered_datasets as _registered_datasets
 from jointid.stages import harmonic as harmonic_stage
 from jointid.stages.hypotheses import hypothesis_names as _hypothesis_names
 
@@ -95,6 +96,8 @@ rule report:
         mesh_check=expand(f"{R}/mesh_check/{{state}}.json", state=STATES) if config["mesh_check"]["enabled"] else [],
         hypotheses=f"{R}/hypotheses/ranking.csv" if _hypothesis_names(config) else [],  # rules/hypotheses.smk
         hypothesis_fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=_hypothesis_names(config)),
+        # the summary card's verdict (rules/diagnosis.smk; verdict.json and combinations.csv are read beside)
+        diagnosis=expand(f"{R}/diagnosis/{{dataset}}/ranking.csv", dataset=list(_registered_datasets(config))),
     output:
         html=report(f"{R}/report/index.html", caption="../report/index.rst", category="Report"),
         frf=report(f"{R}/report/figures/frf.png", caption="../report/frf.rst", category="Harmonic response"),

@@ -26,6 +26,15 @@ Truth file (all keys optional except ``states``)::
     noise: {seed: 1, frequency_pct: 0.2, shape_pct: 2.0, damping_ratio: 0.02,
             stated_frequency_pct: 0.1}      # what the dataset states (default: frequency_pct);
                                             # set it below frequency_pct to understate the noise
+    joint_loss_factors: {k_normal_N_per_m3: 0.08}   # hidden joint damping per joint parameter
+    zeta0: 0.004                                     # hidden structural damping ratio
+
+With ``joint_loss_factors`` and/or ``zeta0`` (default 0), the damping ratio of every mode follows the
+hysteretic law ``zeta_r = zeta0 + sum_j eta_j e_rj / 2`` (``e_rj`` the share of mode r's strain energy in
+the joint layers of parameter j, at the state's coefficients), the drive-point FRF uses these ratios,
+and ``noise.damping_pct`` (relative, 1 sigma, seeded apart from the other noise) perturbs the measured
+ratios; ``noise.stated_damping_pct`` (default ``damping_pct``) goes into conditions.yaml as
+``damping_uncertainty_pct``.  Without them the ratios are ``noise.damping_ratio`` with 10 % scatter.
 """
 
 from __future__ import annotations
@@ -43,19 +52,22 @@ from jointid.diagnosis.effects import apply_effects, enabled_effects
 from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system, term_component
 from jointid.errors import ConfigError, JointidError
 from jointid.fe.modal import solve_model
-from jointid.fe.model import build_model
+from jointid.fe.model import build_model, joint_terms
+from jointid.response.damping import joint_energy_share
+from jointid.response.drive_point import joint_stiffness
 from jointid.response.harmonic import frf_modal
 from jointid.threads import limit_threads
 from jointid.yamlio import deep_merge, read_merged, read_yaml
 
-__all__ = ["synthesise", "write_synthetic", "load_truth", "main"]
+__all__ = ["synthesise", "write_synthetic", "load_truth", "main", "joint_shares", "hysteretic_ratios"]
 
 TRUTH_KEYS = {"description", "base_config", "overrides", "joints", "states", "effects", "perturbations",
-              "measurement", "noise"}
+              "measurement", "noise", "joint_loss_factors", "zeta0"}
 MEASUREMENT_DEFAULTS = {"band_Hz": [100.0, 3500.0], "max_modes": 12, "shapes": True,
                         "directions": ["x", "y", "z"], "frf": False, "drive_point": "T05",
                         "drive_direction": "y", "n_freq": 400}
 NOISE_DEFAULTS = {"seed": 0, "frequency_pct": 0.2, "shape_pct": 2.0, "damping_ratio": 0.02}
+DAMPING_STREAM = 40  # the damping noise's own random stream (seed, 40): issue 40
 
 
 def load_truth(path) -> dict:
@@ -81,6 +93,11 @@ def check_truth(truth: dict, where: str = "truth") -> None:
         if p.get("kind") not in ("carriage_joint_scale", "term_scale"):
             problems.append(f"{where}: perturbations[{i}].kind: {p.get('kind')!r} is unknown — use "
                             "carriage_joint_scale or term_scale")
+    for name, eta in (truth.get("joint_loss_factors") or {}).items():
+        if not isinstance(eta, (int, float)) or not eta >= 0:
+            problems.append(f"{where}: joint_loss_factors.{name}: {eta!r} is not a loss factor >= 0")
+    if not isinstance(truth.get("zeta0", 0.0), (int, float)) or not truth.get("zeta0", 0.0) >= 0:
+        problems.append(f"{where}: zeta0: {truth['zeta0']!r} is not a damping ratio >= 0")
     if problems:
         raise ConfigError(problems)
 
@@ -126,7 +143,8 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
     -------
     dict
         ``modes``, ``shapes`` (or None), ``frf`` (or None) DataFrames and ``conditions`` dict, ready
-        for :func:`jointid.data.dataset.write_dataset`; plus ``truth_freqs_Hz`` per state (noise-free).
+        for :func:`jointid.data.dataset.write_dataset`; plus ``truth_freqs_Hz`` per state (noise-free)
+        and ``truth_damping`` per state with hidden joint damping (:func:`_hidden_damping`).
     """
     check_truth(truth)
     cfg = truth_config(truth, base_cfg)
@@ -135,13 +153,14 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
     meas = {**MEASUREMENT_DEFAULTS, **(truth.get("measurement") or {})}
     noise = {**NOISE_DEFAULTS, **(truth.get("noise") or {})}
     rng = np.random.default_rng(int(noise["seed"]))
+    rng_damping = np.random.default_rng([int(noise["seed"]), DAMPING_STREAM])  # apart: the rest stays as it was
     specs = enabled_effects(truth.get("effects") or {})
     theta = {k: float(v) for k, v in (truth.get("joints") or {}).items()}
     pts = system.meta["points"]
     labels = system.labels
     keep_rows = [i for i, lab in enumerate(labels) if lab.split(":")[1] in meas["directions"]]
     lo, hi = map(float, meas["band_Hz"])
-    modes_rows, shape_rows, frf_rows, conds, clean = [], [], [], {}, {}
+    modes_rows, shape_rows, frf_rows, conds, clean, truth_damping = [], [], [], {}, {}, {}
     truncated = False
     for sname, scfg in truth["states"].items():
         state = StateInfo(sname, float((scfg or {}).get("em_force_N", 0.0)))
@@ -159,6 +178,9 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         f_noisy = f_true * (1 + noise["frequency_pct"] / 100 * rng.standard_normal(len(sel)))
         order = np.argsort(f_noisy)
         zeta = noise["damping_ratio"] * (1 + 0.1 * rng.standard_normal(len(sel)))
+        zeta_all = None
+        if {"joint_loss_factors", "zeta0"} & set(truth):  # hidden damping (else as before this key existed)
+            zeta, zeta_all, truth_damping[sname] = _hidden_damping(system, cfg, kc, modes, truth, sel, rng_damping)
         shapes = (system.probe @ modes.phi[:, sel])
         for new, j in enumerate(order):
             modes_rows.append({"state": sname, "mode": new + 1, "freq_Hz": float(f_noisy[j]),
@@ -174,18 +196,93 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
                                        "direction": direction, "value": float(val)})
         cond = {"em_force_N": state.em_force_N}
         if meas["frf"]:
-            frf_rows += drive_point_frf(system, modes, sname, meas, noise["damping_ratio"])
+            frf_rows += drive_point_frf(system, modes, sname, meas,
+                                        noise["damping_ratio"] if zeta_all is None else zeta_all)
             cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
         conds[sname] = cond
-    conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
-                  "frequency_uncertainty_pct": float(noise.get("stated_frequency_pct") or noise["frequency_pct"]),
-                  "states": conds}
-    if not truncated:  # every mode in the band was measured: the test declares its band
-        conditions["test_setup"] = {"band_Hz": [lo, hi]}
+    conditions = _conditions(noise, conds, None if truncated else [lo, hi], bool(truth_damping))
     return {"modes": pd.DataFrame(modes_rows),
             "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
             "frf": pd.DataFrame(frf_rows) if frf_rows else None,
-            "conditions": conditions, "truth_freqs_Hz": clean, "points": pts}
+            "conditions": conditions, "truth_freqs_Hz": clean, "points": pts, "truth_damping": truth_damping}
+
+
+def _conditions(noise: dict, states: dict, band_Hz, damped: bool) -> dict:
+    """conditions.yaml of the synthetic dataset: source, stated uncertainties, the states and, when every
+    mode in the band was measured (``band_Hz`` not None), the test's band."""
+    conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
+                  "frequency_uncertainty_pct": float(noise.get("stated_frequency_pct") or noise["frequency_pct"]),
+                  "states": states}
+    if band_Hz is not None:  # every mode in the band was measured: the test declares its band
+        conditions["test_setup"] = {"band_Hz": band_Hz}
+    stated = float(noise.get("stated_damping_pct") or noise.get("damping_pct") or 0.0)
+    if damped and stated > 0:
+        conditions["damping_uncertainty_pct"] = stated
+    return conditions
+
+
+def _hidden_damping(system, cfg, kc, modes, truth, sel, rng):
+    """The truth's hysteretic joint damping in one state: ``(measured ratios of the modes sel, with the
+    relative noise noise.damping_pct; ratios of every solved mode; the truth's record)``."""
+    meas = {**MEASUREMENT_DEFAULTS, **(truth.get("measurement") or {})}
+    pct = float({**NOISE_DEFAULTS, **(truth.get("noise") or {})}.get("damping_pct", 0.0))
+    zeta_all, shares = hysteretic_ratios(system, cfg, kc, modes, truth)
+    zeta = zeta_all[sel] * (1 + pct / 100 * rng.standard_normal(len(sel)))
+    return zeta, zeta_all, {"freqs_Hz": modes.freqs_Hz, "damping_ratio": zeta_all, "shares": shares,
+                            "measured_modes": sel, "drive_participation": drive_participation(system, modes, meas)}
+
+
+def joint_shares(system, phi, freqs_Hz, kc: dict, terms: dict[str, list[str]], names) -> np.ndarray:
+    """Share of each mode's strain energy in the joint layers of each joint parameter.
+
+    Parameters
+    ----------
+    system : jointid.diagnosis.terms.System or jointid.fe.fem.Model
+        Its ``stiffness`` terms (joint layers ``K_<face>_<d>`` or split per carriage ``K_<face>_<d>@<c>``).
+    phi : ndarray, shape (n_dofs, n_modes)
+        Mass-normalised modes.
+    freqs_Hz : array_like, shape (n_modes,)
+        Their frequencies (Hz), > 0.
+    kc : dict
+        Stiffness coefficients of the state (N/m^3 for the joint layers).
+    terms : dict
+        Joint parameter -> its layer terms (:func:`jointid.fe.model.joint_terms`).
+    names : sequence of str
+        The parameters of the columns.
+
+    Returns
+    -------
+    ndarray, shape (n_modes, len(names))
+        ``e_rj = phi_r^T (sum_t kc_t K_t) phi_r / w_r^2`` over parameter j's terms (dimensionless).
+    """
+    out = np.empty((len(freqs_Hz), len(names)))
+    for j, name in enumerate(names):
+        coeffs = {t: c for t, c in kc.items() if t.split("@")[0] in terms[name]}
+        K_j = joint_stiffness(system, coeffs)
+        if K_j.nnz == 0 and any(coeffs.values()):
+            raise ConfigError(f"joint_loss_factors.{name}: its layers {terms[name]} are no joint-layer terms of "
+                              "the model")
+        out[:, j] = joint_energy_share(phi, freqs_Hz, K_j)
+    return out
+
+
+def hysteretic_ratios(system, cfg: dict, kc: dict, modes, truth: dict):
+    """``(zeta (n_modes,), shares (n_modes, n_dirs))`` of every solved mode under the truth's hysteretic
+    joint damping: ``zeta_r = zeta0 + sum_j eta_j e_rj / 2`` (``joint_loss_factors``, ``zeta0``)."""
+    terms = joint_terms(cfg["joints"], cfg.get("model"))
+    eta = {str(k): float(v) for k, v in (truth.get("joint_loss_factors") or {}).items()}
+    unknown = sorted(set(eta) - set(terms))
+    if unknown:
+        raise ConfigError(f"joint_loss_factors: {', '.join(unknown)} not joint parameters — use one of "
+                          f"{', '.join(terms)}")
+    shares = joint_shares(system, modes.phi, modes.freqs_Hz, kc, terms, list(eta))
+    return float(truth.get("zeta0", 0.0)) + shares @ np.array(list(eta.values())) / 2.0, shares
+
+
+def drive_participation(system, modes, meas: dict) -> np.ndarray:
+    """``p^T phi_r`` of every mode at the truth's drive point and direction (``measurement``)."""
+    row = system.labels.index(f"{meas['drive_point']}:{meas['drive_direction']}")
+    return np.asarray(system.probe[row] @ modes.phi).ravel()
 
 
 def drive_point_frf(system, modes, state: str, meas: dict, damping_ratio: float) -> list[dict]:
@@ -198,12 +295,11 @@ def drive_point_frf(system, modes, state: str, meas: dict, damping_ratio: float)
     state : str
     meas : dict
         The truth's ``measurement`` section (``drive_point``, ``drive_direction``, ``band_Hz``, ``n_freq``).
-    damping_ratio : float
-        Modal damping ratio of every mode.
+    damping_ratio : float or ndarray, shape (n_modes,)
+        Modal damping ratio of every mode (one for all, or per mode).
     """
     lo, hi = map(float, meas["band_Hz"])
-    row = system.labels.index(f"{meas['drive_point']}:{meas['drive_direction']}")
-    drive = np.asarray(system.probe[row] @ modes.phi).ravel()
+    drive = drive_participation(system, modes, meas)
     f_axis = np.linspace(lo, hi, int(meas["n_freq"]))
     H = frf_modal(f_axis, modes.freqs_Hz, damping_ratio, drive, drive)
     return [{"state": state, "point": meas["drive_point"], "direction": meas["drive_direction"],

@@ -39,6 +39,32 @@ def linked_frequency_table(rec: dict, paper_tables: dict | None = None, ranges: 
     return pd.DataFrame(rows)
 
 
+def _ranking_html(ranking: pd.DataFrame, html_table) -> str:
+    """The ranking (at most eight columns), each hypothesis's max errors and misfits per state beside it,
+    and the hypotheses' descriptions as notes."""
+    esc = html.escape
+    cols = ["rank", "hypothesis", "delta_qaicc", "weight", "chi2"]
+    cols += [c for c in ("em_preload.beta", "preload_N") if c in ranking.columns]
+    errs = [c for c in ranking.columns if c.startswith("max_abs_error_") or c.startswith("unpaired_visible_")]
+    fm = {c: ".2f" for c in cols + errs if c != "hypothesis"}
+    fm.update({"rank": "d", "weight": ".3f", "chi2": ".1f", "delta_qaicc": ".1f", "em_preload.beta": ".3f",
+               "preload_N": ".0f"})
+    fm.update({c: "d" for c in errs if c.startswith("unpaired_visible_")})
+    heads = {"delta_qaicc": "ΔQAICc", "weight": "weight", "chi2": "χ²", "em_preload.beta": "β", "preload_N": "P (N)"}
+    heads |= {c: f"max |error| {c[len('max_abs_error_'):].removesuffix('_pct')} (%)" for c in errs
+              if c.startswith("max_abs_error_")}
+    heads |= {c: f"unpaired visible, {c[len('unpaired_visible_'):]}" for c in errs if c.startswith("unpaired_visible_")}
+    out = [html_table(ranking[cols], fm, heads, text_cols=("hypothesis",), keys=2)]
+    if errs:
+        out.append("<p class='note'>Each hypothesis's largest frequency error per state, and the clearly visible "
+                   "model modes without a measured partner (misfits):</p>"
+                   + html_table(ranking[["rank", "hypothesis", *errs]], fm, heads, text_cols=("hypothesis",), keys=2))
+    if "description" in ranking:
+        out.append("<ul class='note'>" + "".join(f"<li><b>{esc(str(r.hypothesis))}</b>: {esc(str(r.description))}</li>"
+                                                 for r in ranking.itertuples()) + "</ul>")
+    return "".join(out)
+
+
 def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame | None, html_table,
                     paper_tables: dict | None = None, ranges: pd.DataFrame | None = None) -> str:
     """The section's HTML: one-line calibration statement, ranking, the best hypothesis's linked fit
@@ -55,16 +81,7 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
            f"(χ²/dof = {c_hat:.1f}); hypotheses whose fit is broken are listed apart with the reason.</p>"]
     apart = ranking[ranking["listed_apart"].fillna("").astype(str) != ""] if "listed_apart" in ranking else ranking[:0]
     ranking = ranking.drop(apart.index).astype({"rank": int})
-    cols = ["rank", "hypothesis", "description", "delta_qaicc", "weight", "chi2"]
-    cols += [c for c in ranking.columns if c.startswith("max_abs_error_") or c.startswith("unpaired_visible_")]
-    cols += [c for c in ("em_preload.beta", "preload_N") if c in ranking.columns]
-    fm = {c: ".2f" for c in cols if c not in ("hypothesis", "description")}
-    fm.update({"rank": "d", "weight": ".3f", "chi2": ".1f", "delta_qaicc": ".1f", "em_preload.beta": ".3f",
-               "preload_N": ".0f"})
-    fm.update({c: "d" for c in cols if c.startswith("unpaired_visible_")})
-    out.append(html_table(ranking[cols], fm, {"delta_qaicc": "ΔQAICc", "weight": "weight", "chi2": "χ²",
-                                              "em_preload.beta": "β", "preload_N": "P (N)"},
-                          text_cols=("hypothesis", "description")))
+    out.append(_ranking_html(ranking, html_table))
     if len(apart):
         out.append("<p class='note'>Listed apart (a broken reading, not a competitor): "
                    + "; ".join(f"<b>{esc(str(r.hypothesis))}</b>: {esc(str(r.listed_apart))}"
@@ -79,9 +96,16 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
     out.append(html_table(par, {"value": ".4g", "ci95_low": ".4g", "ci95_high": ".4g"},
                           {"ci95_low": "95 % low", "ci95_high": "95 % high"}, text_cols=("parameter",)))
     freq = linked_frequency_table(rec, paper_tables, ranges)
+    if {"error_low_pct", "error_high_pct"} <= set(freq.columns):  # one column for the range: eight at most
+        freq.insert(freq.columns.get_loc("error_low_pct"), "error_range_pct",
+                    [f"{a:.2f} … {b:.2f}" if pd.notna(a) and pd.notna(b) else "–"
+                     for a, b in zip(freq.error_low_pct, freq.error_high_pct)])
+        freq = freq.drop(columns=["error_low_pct", "error_high_pct"])
     out.append("<p class='note'>Tables 2 and 3 under the linked fit, beside the paper's method (each state "
-               "fitted alone, the Tables 2–3 section above).</p>")
-    out.append(html_table(freq, {c: ".2f" for c in freq.columns if c not in ("state", "mode")}, text_cols=("state",)))
+               "fitted alone, the Tables 2–3 section above). The error range is over the admissible "
+               "reconstructions.</p>")
+    out.append(html_table(freq, {c: ".2f" for c in freq.columns if c not in ("state", "mode", "error_range_pct")},
+                          text_cols=("state",), keys=2))
     if rec.get("unpaired_visible"):
         out.append(html_table(pd.DataFrame(rec["unpaired_visible"]),
                               {"freq_Hz": ".1f", "target_Hz": ".1f", "misfit_pct": ".2f"},
@@ -89,8 +113,14 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
     if spread is not None and len(spread):
         out.append("<p class='note'>Joint parameters over the hypotheses within ΔQAICc &lt; 4 (the reconstruction "
                    "range), their weighted value and the union of their 95 % intervals.</p>")
-        out.append(html_table(spread, {"value_min": ".4g", "value_max": ".4g", "combined_ci95_low": ".4g",
-                                       "combined_ci95_high": ".4g"}, text_cols=("parameter", "hypotheses")))
+        names = ("; ".join(f"{r.parameter}: {r.hypotheses}" for r in spread.itertuples())
+                 if spread["hypotheses"].nunique() > 1 else str(spread["hypotheses"].iloc[0])) \
+            if "hypotheses" in spread else ""
+        out.append(html_table(spread.drop(columns="hypotheses", errors="ignore"),
+                              {"value_min": ".4g", "value_max": ".4g", "combined_ci95_low": ".4g",
+                               "combined_ci95_high": ".4g"}, text_cols=("parameter",)))
+        if names:
+            out.append(f"<p class='note'>The hypotheses: {esc(names)}.</p>")
     if ranges is not None and len(ranges):
         top = ranges[ranges["mode"] == 0][["quantity", "state", "unit", "value_min", "value_max", "value_weighted",
                                            "n_hypotheses"]]

@@ -1,24 +1,26 @@
 """The self-contained HTML report of a run: one page, figures embedded as base64 PNG.
 
-Tables 1-3 beside the paper, FRFs, errors, identified parameters, surface diagnostics, mode shapes,
-configuration and provenance.  The page is rendered from the jinja2 templates in ``templates/``
-(``page.html.j2``: the frame, summary and sections; ``page.css``), its tables by pandas' Styler
-(:func:`html_table`); the key box's numbers come from :func:`jointid.reporting.summary.key_numbers`.
-The workflow stage that reads the inputs and writes the page is
-:func:`jointid.stages.report.run_report`.
+A summary card first (:func:`jointid.reporting.summary.card_items`: one sentence each, and the
+parameters figure), then Tables 1-3 beside the paper, the identified parameters, FRFs, mode shapes,
+the hypotheses, surface diagnostics, configuration and provenance.  The page is rendered from the
+jinja2 templates in ``templates/`` (``page.html.j2``: the frame, card and sections; ``page.css``),
+its tables by pandas' Styler (:func:`jointid.reporting.htmltable.html_table`, at most eight columns
+wide, long text in notes under them).  The workflow stage that reads the inputs and writes the page
+is :func:`jointid.stages.report.run_report`.
 """
 
 from __future__ import annotations
 
 import base64
-import html
-import math
 from functools import lru_cache
 
 import pandas as pd
 from markupsafe import Markup
 
-from jointid.reporting.summary import key_numbers
+from jointid.reporting.htmltable import esc as _esc
+from jointid.reporting.htmltable import html_table, notes, reset_ids
+from jointid.reporting.summary import card_items, key_numbers
+from jointid.reporting.table_sections import freq_tables_html, table1_html
 
 __all__ = ["build_html", "html_table", "report_figures"]
 
@@ -29,38 +31,6 @@ def _env():
 
     return jinja2.Environment(loader=jinja2.PackageLoader("jointid.reporting", "templates"), autoescape=True,
                               keep_trailing_newline=False)
-
-
-def _esc(x) -> str:
-    return html.escape(str(x))
-
-
-def _fmt(v, spec: str) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)) or (not isinstance(v, str) and pd.isna(v)):
-        return "–"
-    return format(v, spec) if spec else str(v)
-
-
-_TABLE_IDS = [0]  # tables on the page so far: each gets its own id (Styler's uuid)
-
-
-def html_table(df: pd.DataFrame, formats: dict[str, str] | None = None, headers: dict[str, str] | None = None,
-               text_cols=()) -> str:
-    """``df`` as an HTML table (pandas Styler): cells formatted by ``formats`` (format specs; missing
-    and non-finite values as "–"), columns renamed by ``headers``, ``text_cols`` left-aligned."""
-    formats, headers = formats or {}, headers or {}
-    cells = df.rename(columns=headers)
-    names = [headers.get(c, c) for c in df.columns]
-    text = [headers.get(c, c) for c in df.columns if c in text_cols]
-    fm = {headers.get(c, c): (lambda v, spec=formats.get(c, ""): _esc(_fmt(v, spec))) for c in df.columns}
-    classes = pd.DataFrame([["t" if c in text else "" for c in names]] * len(cells), columns=names,
-                           index=cells.index)
-    uid = f"t{_TABLE_IDS[0]}"
-    _TABLE_IDS[0] += 1
-    st = (cells.style.format(fm).format_index(escape="html", axis=1).hide(axis="index").set_uuid(uid)
-          .set_td_classes(classes)
-          .set_table_styles({c: [{"selector": "th", "props": "text-align:left"}] for c in text}, overwrite=False))
-    return st.to_html()
 
 
 def _img(png: bytes, alt: str) -> str:
@@ -107,75 +77,6 @@ def report_figures(cfg: dict, data: dict) -> dict[str, bytes]:
         "mode_shapes": fg.png_bytes(fg.mode_shapes(data["points"], _mode_pictures(data)), dpi=90),
         **({"catalogue": fg.png_bytes(fg.catalogue_rigidity(comps))} if (comps := _catalogue_comparisons(data)) else {}),
     }
-
-
-def _table1_html(data: dict) -> str:
-    t = data["table1"].copy()
-    order = lambda v: "" if pd.isna(v) else f" (measured mode {int(v)})"  # noqa: E731
-    t["ratio_to_paper"] = t.dynamic_stiffness_N_per_mm / t.paper_dynamic_stiffness_N_per_mm
-    t["governing"] = [f"FE mode {r.governing_mode}: {r.governing_description}, {r.governing_freq_Hz:.0f} Hz"
-                      + order(r.governing_measured_order) for _, r in t.iterrows()]
-    t["paired_governing"] = ["–" if pd.isna(r.paired_governing_mode) else
-                             f"FE mode {r.paired_governing_mode}: {r.paired_governing_description}, "
-                             f"{r.paired_governing_freq_Hz:.0f} Hz" + order(r.paired_governing_measured_order)
-                             for _, r in t.iterrows()]
-    cols = ["state", "status", "dynamic_stiffness_N_per_mm", "not_identified_dynamic_stiffness_N_per_mm",
-            "paper_dynamic_stiffness_N_per_mm", "ratio_to_paper", "increase_pct", "paper_increase_pct", "f_at_min_Hz",
-            "governing", "paired_dynamic_stiffness_N_per_mm", "paired_increase_pct", "paired_governing",
-            "damping_ratio_governing", "static_stiffness_N_per_mm"]
-    heads = {"dynamic_stiffness_N_per_mm": "K_dyn,min identified (N/mm)",
-             "not_identified_dynamic_stiffness_N_per_mm": "K_dyn,min not identified (N/mm)",
-             "paper_dynamic_stiffness_N_per_mm": "paper (N/mm)", "ratio_to_paper": "ratio to paper",
-             "increase_pct": "increase (%)", "paper_increase_pct": "paper increase (%)",
-             "f_at_min_Hz": "minimum at (Hz)", "governing": "governing mode",
-             "paired_dynamic_stiffness_N_per_mm": "lowest peak of a paired mode (N/mm)",
-             "paired_increase_pct": "its increase (%)", "paired_governing": "that paired mode",
-             "damping_ratio_governing": "ζ of the governing mode", "static_stiffness_N_per_mm": "static 1/H(0) (N/mm)"}
-    fm = {c: ",.0f" for c in cols if c.endswith("_N_per_mm")}
-    fm.update({"ratio_to_paper": ".2f", "increase_pct": "+.1f", "paper_increase_pct": "+.1f", "paired_increase_pct": "+.1f",
-               "f_at_min_Hz": ".1f", "damping_ratio_governing": ".3g"})
-    out = html_table(t[cols], fm, heads, text_cols=("state", "status", "governing", "paired_governing"))
-    rng = data.get("table1_ranges")
-    if rng is not None and len(rng):
-        r = rng.copy()
-        r["paper_inside"] = r["paper_inside"].map(lambda v: "yes" if v in (True, "True") else "no")
-        ref = r["reference_state"].iloc[0]
-        rc = ["state", "basis", "over", "n_cases", "reference_k_min_low_N_per_mm", "reference_k_min_high_N_per_mm",
-              "k_min_low_N_per_mm", "k_min_high_N_per_mm", "increase_low_pct", "increase_high_pct", "paper_inside"]
-        rh = {"basis": "K_min of", "n_cases": "cases", "reference_k_min_low_N_per_mm": f"{ref} lowest (N/mm)",
-              "reference_k_min_high_N_per_mm": f"{ref} highest (N/mm)", "k_min_low_N_per_mm": "lowest (N/mm)",
-              "k_min_high_N_per_mm": "highest (N/mm)", "increase_low_pct": "increase from (%)",
-              "increase_high_pct": "increase to (%)", "paper_inside": "paper +42.1 % inside"}
-        rf = {c: ",.0f" for c in rc if c.endswith("_N_per_mm")}
-        rf.update({"increase_low_pct": "+.1f", "increase_high_pct": "+.1f"})
-        out += ("<h3>Ranges over the 18 table points and three damping laws</h3>"
-                + html_table(r[rc], rf, rh, text_cols=("state", "basis", "over", "paper_inside"))
-                + "<p class='note'>Each case: drive and response at one table point (T01…T18) in the drive direction, "
-                  "over a hammer-tip patch; damping laws: constant modal ζ; joint dashpots c = η·k_joint (ζ_r = η ω_r e_r / 2, "
-                  "e_r the mode's strain-energy share in the joints); a constant joint loss factor k_joint(1 + iγ) "
-                  "(ζ_r ≈ γ e_r / 2). The laws are calibrated so that the reference state's governing paired mode at "
-                  "the drive point has the configured ratio, so they differ only in how the damping changes between the "
-                  "states. The increase is taken case by case. 'Paired modes': the lowest resonance peak of a mode "
-                  "paired with a measured one; 'all modes': the band minimum, whichever mode sets it.</p>")
-    return out
-
-
-def _freq_tables_html(data: dict) -> str:
-    out = []
-    titles = {"power_off": "Table 2 — power-off", "power_on": "Table 3 — power-on"}
-    for state, tab in data["tables"].items():
-        t = tab.copy()
-        ver = data["verify"].get(state)
-        if ver is not None:
-            t = t.merge(ver[["order", "fe_mode", "mac_to_tracked", "description"]], on="order", how="left")
-        heads = {"order": "order", "experimental_Hz": "test (Hz)", "simulation_Hz": "this model (Hz)",
-                 "relative_error_pct": "error (%)", "paper_simulation_Hz": "paper ANSYS (Hz)",
-                 "paper_relative_error_pct": "paper error (%)", "fe_mode": "FE mode", "mac_to_tracked": "MAC to tracked",
-                 "description": "FE mode shape"}
-        fm = {"experimental_Hz": ".1f", "simulation_Hz": ".1f", "relative_error_pct": "+.2f",
-              "paper_simulation_Hz": ".1f", "paper_relative_error_pct": "+.2f", "mac_to_tracked": ".3f"}
-        out.append(f"<div><h3>{titles.get(state, state)}</h3>{html_table(t, fm, heads, text_cols=('description',))}</div>")
-    return "<div class='row'>" + "".join(out) + "</div>"
 
 
 def _params_html(data: dict) -> str:
@@ -266,8 +167,12 @@ def _catalogue_html(data: dict, figs: dict | None = None) -> str:
     heads |= {"identified": "identified (N/µm)", "low": "95 % low", "high": "95 % high", "nearest": "nearest class",
               "beyond": "beyond the classes"}
     img = _img(figs["catalogue"], "identified rigidity vs catalogue classes") if figs and figs.get("catalogue") else ""
+    df, text = pd.DataFrame(rows), ("state", "direction", "nearest", "beyond")
+    classes = [c for n in names for c in (f"{n}_value", f"{n}_ratio")]
     return (f"<h3>Against the catalogue: {_esc(first['block'].split(' (')[0])}</h3>"
-            + html_table(pd.DataFrame(rows), fm, heads, text_cols=("state", "direction", "nearest", "beyond"))
+            + html_table(df[["state", "direction", "identified", "low", "high", "nearest", "beyond"]], fm, heads,
+                         text_cols=text)
+            + html_table(df[["state", "direction", *classes]], fm, heads, text_cols=text, keys=2)
             + img
             + f"<ul class='note'>{''.join(f'<li>{_esc(x)}</li>' for x in lines)}</ul>"
             + "<p class='note'>Identified: the carriage on its rail (springs and parts in series), one block; "
@@ -329,8 +234,11 @@ def _diag_html(data: dict) -> str:
                 + " (the first DOE's surfaces over the whole bounds: results/surface/diagnostics.csv).</p>")
     else:
         head = "<p class='note'>Surfaces over the whole bounds of joints.parameters.</p>"
-    return head + html_table(d, fm, {"verify_max_error_pct": "verification max error (%)"},
-                              text_cols=("description",))
+    shapes = ("Tracked modes: " + "; ".join(f"{r.tracked_mode} {r.description}" for r in d.itertuples()) + "."
+              if {"tracked_mode", "description"} <= set(d.columns) else "")
+    return head + html_table(d.drop(columns="description", errors="ignore") if shapes else d, fm,
+                             {"verify_max_error_pct": "verification max error (%)"},
+                             text_cols=("description",)) + notes([shapes])
 
 
 def _hypotheses_html(data: dict) -> str:
@@ -357,41 +265,53 @@ def _short(commit: str) -> str:
     return sha[:12] + commit[len(sha):] if len(sha) == 40 else commit
 
 
-def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str:
-    """The report page (one string, figures embedded); ``data`` as read by
-    :func:`jointid.stages.report.load_inputs`, ``prov`` by :func:`jointid.reporting.provenance.run_record`."""
-    _TABLE_IDS[0] = 0
+def _table1_section(data: dict) -> str:
     d0 = next(iter(data["stiffness"].values()))
     pt = data["points"].set_index("point").loc[d0["drive_point"]]
-    sections = [
-        ("table1", "Table 1 — dynamic stiffness",
-         _table1_html(data)
-         + f"<p class='note'>Drive point {d0['drive_point']} ({pt['part']} top at x = {pt['x_m']:.3f} m, "
-           f"z = {pt['z_m']:.3f} m), force and response in {d0['direction'].upper()}, spread and averaged over a "
-           f"{1e3 * d0.get('patch_diameter_m', 0.0):g} mm hammer-tip patch. The minimum of |F/X| over the "
-           "band sits at a resonance, K_min ≈ 2 ζ_r k_r: its absolute value follows the assumed damping ratio "
-           "(the paper gives none) and which modes the drive point excites, so the absolute numbers are not "
-           "expected to match the paper's ANSYS model. A state is <i>identified</i> only when the mode that sets "
-           "the minimum is paired with a measured mode (verify stage); otherwise the model's minimum is shown "
-           "apart, as not identified, beside the lowest resonance peak of a paired mode.</p>"),
+    return (table1_html(data)
+            + f"<p class='note'>Drive point {d0['drive_point']} ({pt['part']} top at x = {pt['x_m']:.3f} m, "
+              f"z = {pt['z_m']:.3f} m). Force and response in {d0['direction'].upper()}, spread and averaged over a "
+              f"{1e3 * d0.get('patch_diameter_m', 0.0):g} mm hammer-tip patch. The minimum of |F/X| over the "
+              "band sits at a resonance, K_min ≈ 2 ζ_r k_r. So its absolute value follows the assumed damping ratio "
+              "(the paper gives none) and which modes the drive point excites: the absolute numbers are not "
+              "expected to match the paper's ANSYS model. A state is <i>identified</i> only when the mode that sets "
+              "the minimum is paired with a measured mode (verify stage). Otherwise the model's minimum is shown "
+              "apart, as not identified, beside the lowest resonance peak of a paired mode.</p>")
+
+
+def _sections(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> list[tuple[str, str, str]]:
+    """The sections below the summary card: (anchor, title, HTML)."""
+    return [
+        ("table1", "Table 1 — dynamic stiffness", _table1_section(data)),
+        ("freq", "Tables 2 and 3 — natural frequencies",
+         freq_tables_html(data) + _img(figs["errors"], "per-mode errors")
+         + "<p class='note'>Bars: simulation − test in % of the test frequency. Error bars and the grey band: "
+           "±2σ of the assumed measurement uncertainty.</p>"),
+        ("params", "Identified joint parameters",
+         "<p class='note'>The figure of the summary shows these values and intervals.</p>"
+         + _params_html(data) + _rigidity_html(data, figs) + _mesh_check_html(data)),
         ("frf", "Frequency response, power-off vs power-on",
          _img(figs["frf"], "FRF overlay") + _harmonic_notes(data)),
-        ("freq", "Tables 2 and 3 — natural frequencies",
-         _freq_tables_html(data) + _img(figs["errors"], "per-mode errors")
-         + "<p class='note'>Bars: simulation − test in % of the test frequency; error bars and the grey band: "
-           "±2σ of the assumed measurement uncertainty.</p>"),
         ("shapes", "Mode shapes of the paired modes", _img(figs["mode_shapes"], "mode shapes")
          + "<p class='note'>FE modes paired with the measured modes (verify stage), drawn at the 36 measuring "
-           "points: table 3×6 grid on top, base lines below; the scale is arbitrary.</p>"),
-        ("params", "Identified joint parameters", _img(figs["parameters"], "identified parameters")
-         + _params_html(data) + _rigidity_html(data, figs) + _mesh_check_html(data)),
+           "points: table 3×6 grid on top, base lines below. The scale is arbitrary.</p>"),
         *([("hypotheses", "Reconstruction hypotheses — the linked two-state fit", _hypotheses_html(data))]
           if data.get("hypotheses") else []),
         ("surface", "DOE and response-surface diagnostics", _img(figs["doe"], "DOE")
          + _img(figs["surface"], "surface diagnostics") + _diag_html(data)),
         ("prov", "Configuration and provenance", _provenance_html(cfg, prov)),
     ]
+
+
+def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str:
+    """The report page (one string, figures embedded): the summary card (:func:`card_items`, with the
+    parameters figure), then the sections. ``data`` as read by :func:`jointid.stages.report.load_inputs`,
+    ``prov`` by :func:`jointid.reporting.provenance.run_record`."""
+    reset_ids()
+    d0 = next(iter(data["stiffness"].values()))
+    sections = _sections(cfg, data, figs, prov)
     band = f"{d0['band_Hz'][0]:g}–{d0['band_Hz'][1]:g} Hz"
     return _env().get_template("page.html.j2").render(
         prov=prov, short_commit=_short(prov["package_commit"]), d0=d0, band=band, summary=key_numbers(data),
+        card=card_items(data), card_figure=Markup(_img(figs["parameters"], "identified joint stiffness, 95 % intervals")),
         sections=[{"key": k, "title": t, "html": Markup(c)} for k, t, c in sections])

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointid import io
+from jointid.identification import joint_damping
 from jointid.identification.model_error import from_chi2
 from jointid.stages.doe import parameter_bounds
 from jointid.stages.modal import SOLVE_KEYS
@@ -342,7 +343,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     out["observability"] = None if vis_rule is None else {
         "excitation": list(vis_rule.setup.excitation), "response": list(vis_rule.setup.response),
         "note": vis_rule.setup.note, "band_Hz": list(vis_rule.band_Hz), "threshold": vis_rule.threshold}
-    io.write_json(out_json, out)
+    io.write_json(out_json, out | joint_damping.params_entry(cfg, state, names, polish, f_meas, weights, edge, log))
     log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))
         + f"; max |error| {np.abs(out['residual_pct']).max():.2f} %")
     if tie_rule and len(tie_rule["tied"]) > 1:

@@ -41,7 +41,29 @@ def load_inputs(inputs: dict) -> dict:
         "rigidity": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("rigidity") or []))},
         "table1_problems": check_table1(inputs["table1"]),
         "hypotheses": _hypotheses(inputs),
+        "diagnosis": _diagnosis(inputs),
     }
+
+
+def _csv_or_none(path: Path):
+    import pandas as pd
+
+    return pd.read_csv(path) if path.exists() and path.stat().st_size > 1 else None
+
+
+def _diagnosis(inputs: dict) -> dict:
+    """Per diagnosed dataset (its folder's name): ``verdict`` (verdict.json), ``ranking`` and
+    ``combinations`` (the CSVs beside it); empty when the run's report has no diagnosis."""
+    import pandas as pd
+
+    out = {}
+    for p in map(Path, _as_list(inputs.get("diagnosis") or [])):
+        if p.with_name("verdict.json").exists():
+            ranking = _csv_or_none(p)
+            out[p.parent.name] = {"verdict": io.read_json(p.with_name("verdict.json")),
+                                  "ranking": pd.DataFrame() if ranking is None else ranking,
+                                  "combinations": _csv_or_none(p.with_name("combinations.csv"))}
+    return out
 
 
 def _hypotheses(inputs: dict):
@@ -72,8 +94,9 @@ def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
         Paths: ``table1, table2, table3, paper_table1, diagnostics, sheet, points`` (one each),
         ``table1_ranges`` (optional),
         ``verify, params, frf, stiffness, modes`` (one per state; the state is the parent folder name)
-        and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check) and ``rigidity``
-        (one JSON per state, from the rule carriage_rigidity).
+        and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check), ``rigidity``
+        (one JSON per state, from the rule carriage_rigidity) and ``diagnosis`` (one ranking.csv per
+        diagnosed dataset, rule diagnose; its verdict.json is read beside it).
     outputs : dict
         ``html`` and one PNG path per figure (``frf, errors, parameters, surface, doe, mode_shapes``);
         figures without a path are only embedded.
