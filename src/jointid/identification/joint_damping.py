@@ -352,7 +352,7 @@ def stage_record(cfg: dict, state: str, names, polish, f_meas_Hz, weights=None, 
     (:func:`jointid.identification.polish.fe_polish`; None: no energy shares, the record says so);
     ``f_meas_Hz`` ``(n_meas,)``: the measured frequencies in the dataset's mode order; ``weights``:
     ``identify.weights``; ``extrapolated``: the polish fitted mesh-extrapolated frequencies.  Returns
-    ``{"identified": True, **JointDamping.record(), "energy_share_source"}``, or ``{"identified": False,
+    ``{"identified": True, **JointDamping.record(), "shares_source"}``, or ``{"identified": False,
     "note"}`` when the ratios cannot be used.
     """
     from jointid.config.datasets import dataset_folder
@@ -374,7 +374,7 @@ def stage_record(cfg: dict, state: str, names, polish, f_meas_Hz, weights=None, 
                                 reference=f"identify[{state}] joint damping")
     except DataError as exc:
         return {"identified": False, "note": str(exc)}
-    return {"identified": True, **res.record(), "energy_share_source": "FE polish sensitivities at its optimum"
+    return {"identified": True, **res.record(), "shares_source": "FE polish sensitivities at its optimum"
             + (" (mesh-extrapolated: with the extrapolation factors' own part)" if extrapolated else "")}
 
 
