@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from jointid.identification.meshcheck import first_order_shift
+from jointid.identification.meshcheck import error_budget, first_order_shift
 from jointid.identification.polish import log_jacobian
 
 
@@ -37,3 +37,18 @@ def test_log_jacobian_of_a_spring_mass():
     phi = np.array([[1 / np.sqrt(m)]])
     J = log_jacobian({"K_a": sp.csr_matrix([[1.0]])}, phi, np.array([k / m]), [{"K_a": 1.0}], np.array([k]))
     assert J[0, 0] == pytest.approx(np.log(10) / 2, rel=1e-12)
+
+
+def test_error_budget_holds_the_mesh_error_against_a_third_of_the_total_uncertainty():
+    # noise 1 %, model error sqrt(15) %: total 4 %, a third of it 1.333 %
+    par = {"frequency_uncertainty_pct": 1.0, "model_error": {"sigma_model_pct": 15 ** 0.5}}
+    b = error_budget([0.5, -1.2, np.nan], par, 1 / 3)
+    assert b["uncertainty_pct"] == pytest.approx(4.0)
+    assert b["budget_pct"] == pytest.approx(4.0 / 3)
+    assert b["max_error_pct"] == pytest.approx(1.2) and b["worst_mode"] == 2 and b["within"]
+    # the same mesh against the noise alone (an exact model): 1.2 % > 0.333 %
+    b = error_budget([0.5, -1.2, np.nan], {"frequency_uncertainty_pct": 1.0}, 1 / 3)
+    assert not b["within"] and b["budget_pct"] == pytest.approx(1 / 3)
+    assert "above it" in b["sentence"]
+    # nothing followed: not within
+    assert not error_budget([np.nan], par, 1 / 3)["within"]

@@ -71,7 +71,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     import pandas as pd
 
     from jointid.correlate.pairing import pair_by_shapes
-    from jointid.identification.meshcheck import first_order_shift, mode_table, parameter_changes
+    from jointid.identification.meshcheck import error_budget, first_order_shift, mode_table, parameter_changes
 
     mc_cfg = cfg["mesh_check"]
     halve = tuple(mc_cfg["halve"])
@@ -81,6 +81,8 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     theta = np.array([par["parameters"][n]["value"] for n in names])
     theta_d = dict(zip(names, theta))
     say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
+    # mesh_check.edge_levels: both meshes extrapolated over their edge levels; else both at their base level
+    edge_matrices = edge_matrices if mc_cfg.get("edge_levels", False) else None
     say("default mesh at the identified parameters")
     f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices,
                                                              say)
@@ -105,8 +107,13 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     params, notes = parameter_changes(par, delta, limit)
     warnings += notes
     raw = None if not edge_matrices else {"default_mesh_Hz": f_c_mesh, "refined_mesh_Hz": f_f_mesh}
-    io.write_csv(mode_table(f_c, f_f, index, macs, fe_mode, raw), out_csv)
+    table = mode_table(f_c, f_f, index, macs, fe_mode, raw)
+    io.write_csv(table, out_csv)
+    change = np.full(len(fe_mode), np.nan)
+    change[use] = 100 * np.expm1(dlnf)
+    budget = error_budget(change, par, float(mc_cfg.get("budget_fraction", 1 / 3)))
     doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": bool(edge_matrices),
+           "budget": budget,
            "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
            "parameters": params, "max_parameter_change_pct": limit, "warnings": warnings,
            "max_paired_frequency_change_pct": float(100 * np.max(np.abs(np.expm1(dlnf))))}
@@ -114,6 +121,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     for n, p in params.items():
         log(f"mesh_check[{state}]: {n} {p['value']:.4g} -> {p['value_refined_first_order']:.4g} N/m^3 "
             f"({p['change_pct']:+.2f} %; 95 % interval +-{p['ci95_half_width_pct']:.1f} %)")
+    say(budget["sentence"])
     for w in warnings:
         log(f"mesh_check[{state}]: WARNING {w}")
     return doc
