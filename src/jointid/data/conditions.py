@@ -18,7 +18,7 @@ from jointid.yamlio import number_from_text
 __all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "SETUP_KEYS", "check_conditions", "hz_confirmed"]
 
 TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "test_setup", "notes", "frequencies_in_Hz_confirmed",
-            "damping_uncertainty_pct")
+            "damping_uncertainty_pct", "shape_uncertainty_pct")
 """``frequencies_in_Hz_confirmed: true`` says the frequencies are in Hz as written (a file format that
 defines its unit, such as UFF 55, or a structure whose modes lie below 20 Hz): the kHz plausibility
 check of modes.csv is skipped."""
@@ -106,13 +106,16 @@ def check_conditions(path, label, problems, points, has_frf_states):
     _unknown_keys(problems, f"{label}:", data, TOP_KEYS)
     _as_number(data, "frequency_uncertainty_pct")
     _as_number(data, "damping_uncertainty_pct")
+    _as_number(data, "shape_uncertainty_pct")
     source = data.get("source")
     if not isinstance(source, str) or not source.strip():
         problems.add(f"{label}:source", "source is missing or empty",
                      "add 'source: <where the data came from: rig, date, operator, paper>'")
     for key, hint in (("frequency_uncertainty_pct", "give the 1-sigma frequency uncertainty in percent, e.g. 1.0"),
                       ("damping_uncertainty_pct", "give the 1-sigma uncertainty of each damping ratio in percent "
-                                                  "of the ratio, e.g. 10")):
+                                                  "of the ratio, e.g. 10"),
+                      ("shape_uncertainty_pct", "give the 1-sigma noise of each modal displacement in percent of "
+                                                "the RMS of that mode's displacements, e.g. 5")):
         u = data.get(key, 1.0)
         if not _is_number(u) or not 0 < u < 100:
             problems.add(f"{label}:{key}", f"{key} = {u!r} is not a number in (0, 100)", hint)

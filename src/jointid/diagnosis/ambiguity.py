@@ -8,8 +8,9 @@ decide (docs/effects.md, "When the data cannot decide").
 * :func:`tie_groups` — candidates that explain the data within ``tie_delta_aicc`` of each other.
 * :func:`next_measurements` — for an indistinguishable set, the measurements whose predictions differ
   most between the candidates' refits, relative to the noise (expected chi-square difference): a
-  further mode (a model mode not measured today) or another force level.  The diagnosis fits
-  frequencies (shapes only pair the modes), so the measurements proposed are frequencies.
+  further mode (a model mode not measured today), another force level, or, for a state measured
+  without shapes, an accelerometer pair whose mode shapes would decide (:mod:`jointid.diagnosis.shape_proposal`;
+  the fits use shapes where they are measured, :mod:`jointid.diagnosis.shape_residuals`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import pandas as pd
 
 from jointid.correlate.pairing import pair_by_shapes
 from jointid.diagnosis.judging import supported
-from jointid.diagnosis.results import row_sigma
+from jointid.diagnosis.results import frequency_rows, row_sigma, row_weights
+from jointid.diagnosis.shape_proposal import accelerometer_rows
 from jointid.diagnosis.terms import StateInfo
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 
@@ -51,12 +53,14 @@ def absorption(current, Jt: np.ndarray, data, shift_pct: float, me: ModelError =
     """
     ev = current.ev
     jt = np.asarray(Jt, float)[:, 0]
+    f = frequency_rows(ev)
+    jf = jt[f] if not f.all() else jt
     s = row_sigma(ev, data)
-    peak = float(np.max(np.abs(jt * s))) if jt.size else 0.0
+    peak = float(np.max(np.abs(jf * s))) if jf.size else 0.0
     if peak <= 0 or ev.J.shape[1] == 0:
         return {"absorbed": False, "size_t": 0.0, "chi2_raw": 0.0, "chi2_left": 0.0, "bias_pct": {}}
     t = shift_pct / 100.0 / peak
-    w = np.sqrt(me.row_weights(s))  # rows in units of the total uncertainty (1 without a model error)
+    w = np.sqrt(row_weights(ev, data, me))  # rows in units of the total uncertainty (1 without a model error)
     d = jt * t * w
     Jw = ev.J * w[:, None]
     dx, *_ = np.linalg.lstsq(Jw, d, rcond=None)
@@ -185,10 +189,12 @@ def next_measurements(diag, fits: dict, names: list[str], top: int = 3,
 
     Each row: ``measurement`` (what to measure), ``kind`` (further mode, force level), ``state``,
     ``em_force_N``, ``expected_delta_chi2`` (the smallest, over candidate pairs, squared difference of
-    their predictions in noise units), ``predictions`` (candidate: Hz).  A force level is one new
+    their predictions in noise units), ``predictions`` (candidate: Hz, or displacement ratios of a shape
+    row).  A force level is one new
     state: its row sums the expected difference over the modes measured today.  The difference is in
     units of the total uncertainty of ``me`` (the model error blurs a new measurement as it does the
-    old ones).  Sorted best first, ``top`` rows.
+    old ones).  Sorted best first, ``top`` rows, plus the best accelerometer position (kind ``shape``)
+    when none of them is one.
     """
     rows = _further_modes(diag, fits, names)
     forces = _force_levels(diag, fits, names)
@@ -211,9 +217,14 @@ def next_measurements(diag, fits: dict, names: list[str], top: int = 3,
                     "expected_delta_chi2": g["expected_delta_chi2"],
                     "predictions": "; ".join(f"{n} {np.mean([p[n] for p in g['parts']]):.1f} Hz (mean)"
                                              for n in names)})
+    out += accelerometer_rows(diag, fits, names)  # states measured without shapes (jointid.diagnosis.shape_proposal)
     cols = ["measurement", "kind", "state", "em_force_N", "expected_delta_chi2", "predictions"]
-    df = pd.DataFrame(out, columns=cols)
-    return df.sort_values("expected_delta_chi2", ascending=False, kind="stable").head(top).reset_index(drop=True)
+    df = pd.DataFrame(out, columns=cols).sort_values("expected_delta_chi2", ascending=False, kind="stable")
+    best = df.head(top)
+    shape = df[df["kind"] == "shape"].head(1)  # the accelerometer position is always among the proposals
+    if len(shape) and not (best["kind"] == "shape").any():
+        best = pd.concat([best, shape])
+    return best.reset_index(drop=True)
 
 
 def absorption_notes(diag: Diagnoser, current: Fit, rows: list, ranking: pd.DataFrame,

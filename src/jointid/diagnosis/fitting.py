@@ -23,6 +23,7 @@ Numerics
   ``identify.frequency_uncertainty_pct``); log residuals make the sensitivities of one model identical
   in every state, so between-state contrasts of a state-independent model vanish exactly.
 * Refits by bounded least squares (trust region) with several starts.
+* Where shapes are measured, shape rows follow the frequency rows (:mod:`jointid.diagnosis.shape_residuals`).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from scipy.optimize import least_squares, linear_sum_assignment
 
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis.results import Evaluation, Fit
+from jointid.diagnosis.shape_residuals import ShapeTerms
 from jointid.diagnosis.terms import System, term_component
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
@@ -72,6 +74,7 @@ class Diagnoser:
         self._backend = s.get("backend", "auto")
         self.start_basis = start_basis  # a basis kept from an earlier run (jointid.fe.warmstart)
         self.memo = memo  # fits remembered from an earlier run (jointid.diagnosis.memo.FitMemo)
+        self.shapes = ShapeTerms(cfg, data)  # shape rows where shapes are measured (diagnosis.shape_residuals)
         self._context = None
 
     # ------------------------------------------------------------ engine
@@ -108,7 +111,7 @@ class Diagnoser:
     def pair(self, sols: list[Solution]) -> list[correlate.Pairing]:
         """Pair measured and model modes per state: by MAC where shapes are measured; frequency-only
         states with equal mode counts are paired jointly with one mode identity across states."""
-        freq_only = [k for k, d in enumerate(self.data) if d.shapes is None]
+        freq_only = [k for k, d in enumerate(self.data) if d.pairing_shapes is None]
         out: list = [None] * len(self.data)
         if len(freq_only) >= 2 and len({len(self.data[k].f_meas) for k in freq_only}) == 1:
             ref = sols[freq_only[0]]
@@ -129,15 +132,15 @@ class Diagnoser:
             for k, p in zip(freq_only, pairs):
                 out[k] = p
         for k, (d, s) in enumerate(zip(self.data, sols)):
-            if out[k] is None and d.shapes is None and d.rule is not None:
+            if out[k] is None and d.pairing_shapes is None and d.rule is not None:
                 cand = np.flatnonzero(s.freqs_Hz >= self.min_freq)
                 if len(cand) >= len(d.f_meas):
                     index = d.rule.pair_by_frequency(d.f_meas, s.freqs_Hz, self._vis(d, s), cand)
                     out[k] = correlate.Pairing(model_index=np.asarray(index, int), mac=np.full(len(index), np.nan),
                                                method="frequency", unpaired_measured=[], unpaired_model=[])
             if out[k] is None:
-                out[k] = correlate.pair_modes(d.f_meas, s.freqs_Hz, d.shapes,
-                                              s.shapes if d.shapes is not None else None,
+                out[k] = correlate.pair_modes(d.f_meas, s.freqs_Hz, d.pairing_shapes,
+                                              s.shapes if d.pairing_shapes is not None else None,
                                               threshold=self.mac_threshold, min_freq_Hz=self.min_freq)
         return out
 
@@ -226,7 +229,8 @@ class Diagnoser:
                 Jb[at, j] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
             J.append(Jb)
             rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad] + [(si, 0)] * len(cols)
-        return Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis)
+        ev = Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis)
+        return self.shapes.extend(ev, self.solver, [variant.dcoefficients(x, d.info) for d in self.data])
 
     def _follow(self, sol: Solution, ref_Y: np.ndarray, idx: np.ndarray) -> np.ndarray:
         r = self.solver.V.shape[1]

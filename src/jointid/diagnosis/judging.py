@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointid.diagnosis.results import Fit
+from jointid.diagnosis.results import Fit, chi2_at, frequency_rows
 from jointid.identification.model_error import ModelError, akaike_weights, estimate, qaicc, support_text
 
 __all__ = ["SUPPORTED", "fit_label", "judge_fits", "model_error_of", "qaicc_of", "supported"]
@@ -36,13 +36,13 @@ def model_error_of(fits: dict, data) -> ModelError:
     """The model error of the diagnosis, from its fit of least chi-square per degree of freedom."""
     label = min(fits, key=lambda k: (fits[k].chi2 / fits[k].dof, k))
     f = fits[label]
-    return estimate(f.ev.r, f.row_sigma(data), f.k, reference=fit_label(label))
+    return estimate(f.ev.r[frequency_rows(f.ev)], f.row_sigma(data), f.k, reference=fit_label(label))
 
 
 def qaicc_of(f: Fit, data, me: ModelError, n_params: int | None = None) -> float:
     """QAICc of fit ``f`` at the total uncertainty of ``me`` (``n_params`` counts parameters profiled
     outside ``f.x`` too; default ``f.k``)."""
-    return qaicc(me.chi2_total(f.ev.r, f.row_sigma(data)), f.n, f.k if n_params is None else n_params)
+    return qaicc(chi2_at(f.ev, data, me), f.n, f.k if n_params is None else n_params)
 
 
 def judge_fits(current: Fit, fits: dict, rows: list[dict], combos: list[dict], data, me: ModelError) -> float:

@@ -145,7 +145,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     verdict, explained_by = verdict_text(findings, diag.data)
     ladder_rows += suggested_ladder(diag, fits, explained_by, ranking)
     drift_tab = drift_table(diag, current, log, skip=not drift)
-    notes += model_notes(current, data) + absorbed
+    notes += model_notes(current, data) + diag.shapes.note() + absorbed
     return Diagnosis(ranking=ranking, ladder=pd.DataFrame(ladder_rows), compare=compare_tab,
                      compare_summary=correlate.error_summary(compare_tab), current=current_table,
                      drift=drift_tab, shape_residuals=shape_res,

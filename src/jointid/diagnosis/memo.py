@@ -105,6 +105,7 @@ class FitMemo:
         h = hashlib.sha256(code_digest().encode())
         _feed(h, {k: v for k, v in cfg.items() if k not in ("diagnosis", "dataset", "effects")})
         _feed(h, list(data))
+        _feed(h, bool((cfg.get("diagnosis") or {}).get("shape_residuals", True)))  # shape rows in the fits
         _feed(h, [int(n_modes), float(tol), float(mac_threshold)])
         return h.hexdigest()
 

@@ -17,7 +17,7 @@ import numpy as np
 from jointid.diagnosis.statistics import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
 
-__all__ = ["Evaluation", "Fit", "refit_row", "row_sigma"]
+__all__ = ["Evaluation", "Fit", "chi2_at", "frequency_rows", "refit_row", "row_sigma", "row_weights"]
 
 
 @dataclass
@@ -32,11 +32,38 @@ class Evaluation:
     rows: list  # per residual: (state number, measured mode number)
     f_model: list  # per state: model frequency per measured mode (NaN unpaired)
     misfits: list = None  # per state: (model modes, nearest measured Hz, model Hz) of the unpaired visible modes
+    n_scales: int = 0  # best scales of the shape rows (one per measured shape: nuisance parameters)
+
+
+def frequency_rows(ev: Evaluation) -> np.ndarray:
+    """Which residual rows are frequency rows (shape rows, :mod:`jointid.diagnosis.shape_residuals`,
+    carry a negative mode number): the model error weights these only."""
+    return np.array([mode >= 0 for _, mode in ev.rows], bool)
 
 
 def row_sigma(ev: Evaluation, data: list[StateData]) -> np.ndarray:
-    """Stated relative frequency uncertainty of every residual row of an evaluation."""
-    return np.array([data[si].sigma_rel for si, _ in ev.rows], float)
+    """Stated relative frequency uncertainty of every frequency row of an evaluation (the rows of
+    :func:`frequency_rows`; all rows without shape rows)."""
+    return np.array([data[si].sigma_rel for si, mode in ev.rows if mode >= 0], float)
+
+
+def chi2_at(ev: Evaluation, data: list[StateData], me) -> float:
+    """Chi-square at the total uncertainty of :class:`ModelError` ``me``: the frequency rows at their
+    stated noise plus the model error, the shape rows at their stated (or estimated) shape noise."""
+    f = frequency_rows(ev)
+    if f.all():
+        return me.chi2_total(ev.r, row_sigma(ev, data))
+    rs = ev.r[~f]
+    return me.chi2_total(ev.r[f], row_sigma(ev, data)) + float(rs @ rs)
+
+
+def row_weights(ev: Evaluation, data: list[StateData], me) -> np.ndarray:
+    """Per residual row, the weight of its chi-square contribution at the total uncertainty of ``me``
+    (:meth:`ModelError.row_weights` for the frequency rows, 1 for the shape rows)."""
+    f = frequency_rows(ev)
+    w = np.ones(len(ev.r))
+    w[f] = me.row_weights(row_sigma(ev, data))
+    return w
 
 
 @dataclass
@@ -60,8 +87,8 @@ class Fit:
 
     @property
     def n(self) -> int:
-        """Number of residuals."""
-        return len(self.ev.r)
+        """Number of residuals, less the best scales of the shape rows (each takes one row's freedom)."""
+        return len(self.ev.r) - self.ev.n_scales
 
     @property
     def k(self) -> int:

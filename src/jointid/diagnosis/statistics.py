@@ -66,6 +66,9 @@ def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -
             dlam = diag.solver.sensitivity(sub, *dc[j])
             Jb[at, k] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
         out.append(Jb)
+    if diag.shapes.active:  # the shape rows follow every frequency row (jointid.diagnosis.shape_residuals)
+        dirs = [[dc[j] for j in cols] for dc in (variant.dcoefficients(x, d.info) for d in diag.data)]
+        out.append(diag.shapes.block(diag.solver, ev.solutions, ev.index, dirs).arrays()[1])
     return np.vstack(out)
 
 

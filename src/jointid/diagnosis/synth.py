@@ -24,8 +24,9 @@ Truth file (all keys optional except ``states``)::
     measurement: {band_Hz: [100, 3500], max_modes: 12, shapes: true, directions: [x, y, z],
                   frf: false, drive_point: T05, drive_direction: y, n_freq: 400}
     noise: {seed: 1, frequency_pct: 0.2, shape_pct: 2.0, damping_ratio: 0.02,
-            stated_frequency_pct: 0.1}      # what the dataset states (default: frequency_pct);
+            stated_frequency_pct: 0.1,      # what the dataset states (default: frequency_pct);
                                             # set it below frequency_pct to understate the noise
+            stated_shape_pct: 2.0}          # shape_uncertainty_pct stated (default: shape_pct)
     joint_loss_factors: {k_normal_N_per_m3: 0.08}   # hidden joint damping per joint parameter
     zeta0: 0.004                                     # hidden structural damping ratio
 
@@ -200,16 +201,18 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
                                         noise["damping_ratio"] if zeta_all is None else zeta_all)
             cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
         conds[sname] = cond
-    conditions = _conditions(noise, conds, None if truncated else [lo, hi], bool(truth_damping))
+    conditions = _conditions(noise, conds, None if truncated else [lo, hi], bool(truth_damping), bool(meas["shapes"]))
     return {"modes": pd.DataFrame(modes_rows),
             "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
             "frf": pd.DataFrame(frf_rows) if frf_rows else None,
             "conditions": conditions, "truth_freqs_Hz": clean, "points": pts, "truth_damping": truth_damping}
 
 
-def _conditions(noise: dict, states: dict, band_Hz, damped: bool) -> dict:
+def _conditions(noise: dict, states: dict, band_Hz, damped: bool, shapes: bool = False) -> dict:
     """conditions.yaml of the synthetic dataset: source, stated uncertainties, the states and, when every
-    mode in the band was measured (``band_Hz`` not None), the test's band."""
+    mode in the band was measured (``band_Hz`` not None), the test's band.  With shapes, the stated
+    ``shape_uncertainty_pct`` is ``noise.stated_shape_pct`` (default ``shape_pct``: the noise added is
+    exactly that fraction of each mode's noise-free RMS over the measured directions)."""
     conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
                   "frequency_uncertainty_pct": float(noise.get("stated_frequency_pct") or noise["frequency_pct"]),
                   "states": states}
@@ -218,6 +221,9 @@ def _conditions(noise: dict, states: dict, band_Hz, damped: bool) -> dict:
     stated = float(noise.get("stated_damping_pct") or noise.get("damping_pct") or 0.0)
     if damped and stated > 0:
         conditions["damping_uncertainty_pct"] = stated
+    stated_shape = float(noise.get("stated_shape_pct") or noise.get("shape_pct") or 0.0)
+    if shapes and stated_shape > 0:
+        conditions["shape_uncertainty_pct"] = stated_shape
     return conditions
 
 

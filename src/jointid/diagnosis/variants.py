@@ -21,6 +21,10 @@ from jointid.errors import DataError
 from jointid.identification.visibility import dataset_rule
 
 
+MIN_PAIRING_DOFS = 6
+"""Fewest measured DOFs of a shape for the modes to be paired by MAC (two triaxial points)."""
+
+
 @dataclass
 class StateData:
     """Measured data of one state: frequencies (Hz), optional shapes at the probe labels."""
@@ -31,6 +35,15 @@ class StateData:
     shapes: np.ndarray | None
     sigma_rel: float
     rule: object = None  # VisibilityRule of the test (None: unpaired model modes are skipped free)
+    shape_sigma_rel: float | None = None  # stated shape uncertainty (shape_uncertainty_pct / 100); None: estimated
+
+    @property
+    def pairing_shapes(self) -> np.ndarray | None:
+        """The shapes that pair the modes by MAC: None (pair by frequency) without shapes or when no mode
+        has a shape at :data:`MIN_PAIRING_DOFS` DOFs (a MAC of two DOFs cannot tell modes apart)."""
+        if self.shapes is None or np.isfinite(self.shapes).sum(axis=0).max(initial=0) < MIN_PAIRING_DOFS:
+            return None
+        return self.shapes
 
 
 def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = None) -> list[StateData]:
@@ -38,7 +51,8 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
 
     The motor force comes from the dataset's ``conditions.yaml`` (the measured input), else from
     ``cfg['states']``.  The frequency uncertainty is the dataset's ``frequency_uncertainty_pct``,
-    else ``identify.frequency_uncertainty_pct``.  Each state carries the observability rule of its
+    else ``identify.frequency_uncertainty_pct``; the shape uncertainty is the dataset's
+    ``shape_uncertainty_pct`` (None when not stated: the diagnosis estimates it).  Each state carries the observability rule of its
     test (:func:`state_rule`) unless ``identify.visible_threshold`` is null.
     """
     names = list(states or ds.states)
@@ -48,6 +62,8 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
                          f"{', '.join(ds.states)}" for s in missing])
     sigma = float(ds.conditions.get("frequency_uncertainty_pct",
                                     cfg.get("identify", {}).get("frequency_uncertainty_pct", 1.0))) / 100
+    shape_pct = ds.conditions.get("shape_uncertainty_pct")
+    shape_sigma = None if shape_pct is None else float(shape_pct) / 100
     low = correlate.below_band(ds.name, {s: ds.freqs(s) for s in names},
                                float(cfg.get("solver", {}).get("min_freq_Hz", 0.0)))
     if low:
@@ -60,7 +76,7 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
         if ds.shapes is not None and s in set(ds.shapes["state"]):
             shapes = ds.shape_matrix(s, system.labels)
         out.append(StateData(s, StateInfo(s, float(force)), ds.freqs(s), shapes, sigma,
-                             state_rule(ds, s, system, cfg, shapes)))
+                             state_rule(ds, s, system, cfg, shapes), shape_sigma))
     return out
 
 

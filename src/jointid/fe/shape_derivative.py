@@ -1,0 +1,83 @@
+"""Exact mode-shape derivatives of a reduced (Rayleigh-Ritz) eigen-solution (Nelson's method, bordered form).
+
+The reduced solver (:class:`jointid.fe.reduced.ReducedSolver`) solves ``K_r(c) y = lambda M_r(c) y`` on its
+subspace ``V`` (``K_r = V^T K V``, mass-normalised ``y^T M_r y = 1``).  For a coefficient direction
+``(dK, dM)`` of a simple eigenvalue, differentiating the eigen-equation and the normalisation gives
+
+    (K_r - lambda M_r) dy = -(dK_r - lambda dM_r - dlambda M_r) y,     (M_r y)^T dy = -y^T dM_r y / 2,
+
+with ``dlambda = y^T (dK_r - lambda dM_r) y``.  The matrix is singular along ``y``; bordering it with the
+normalisation row (Nelson 1976, in the bordered form of Lee, Jung and Lee 1999) makes it regular and the
+solution is the exact derivative of the Ritz vector, hence of the probe shapes ``P V y``.  It is exact for
+the reduced model, which is the full model's answer to the solver tolerance where the subspace holds the
+first-order responses ``A^-1 (dK - lambda dM) phi`` (it is seeded with them per parameter direction).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from jointid.fe.reduced import Solution, pad_to_basis
+
+__all__ = ["reduced_pencil", "probe_shape_derivatives"]
+
+
+def _combine(red: dict, coeffs: dict, base: str | None) -> np.ndarray:
+    """``red[base] + sum c_a red[a]`` (``base`` None: the sum alone; an empty direction is zero)."""
+    out = red[base].copy() if base is not None else None
+    for name, c in coeffs.items():
+        if c != 0.0:
+            out = c * red[name] if out is None else out + c * red[name]
+    if out is None:
+        r = next(iter(red.values())).shape[0]
+        return np.zeros((r, r))
+    return out
+
+
+def reduced_pencil(solver, kc: dict, mc: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Reduced stiffness and mass ``(K_r, M_r)`` of ``solver`` at coefficients ``(kc, mc)``."""
+    return _combine(solver.Kr, kc, "K0"), _combine(solver.Mr, mc, "M0")
+
+
+def probe_shape_derivatives(solver, sol: Solution, modes, directions: list[tuple[dict, dict]]) -> np.ndarray:
+    """Derivatives of the probe shapes of ``modes`` of ``sol`` along coefficient ``directions``.
+
+    Parameters
+    ----------
+    solver : ReducedSolver
+        The solver that produced ``sol`` (its current basis holds ``sol``'s).
+    sol : Solution
+    modes : sequence of int
+        Mode indices of ``sol``.
+    directions : list of (dkc, dmc)
+        Coefficient derivatives per parameter (as :meth:`Variant.dcoefficients` gives them).
+
+    Returns
+    -------
+    ndarray, shape (n_labels, len(modes), len(directions))
+        ``d(P V y_i) / dx_j`` of the mass-normalised modes.
+    """
+    K, M = reduced_pencil(solver, sol.kc, sol.mc)
+    r = K.shape[0]
+    dK = [_combine(solver.Kr, dkc, None) for dkc, _ in directions]
+    dM = [_combine(solver.Mr, dmc, None) for _, dmc in directions]
+    Y = pad_to_basis(sol.Y, r)
+    out = np.zeros((solver.PV.shape[0], len(modes), len(directions)))
+    B = np.zeros((r + 1, r + 1))
+    for k, i in enumerate(modes):
+        y, lam = Y[:, i], float(sol.lam[i])
+        My = M @ y
+        B[:r, :r] = K - lam * M
+        B[:r, r] = My
+        B[r, :r] = My
+        B[r, r] = 0.0
+        rhs = np.zeros((r + 1, len(directions)))
+        for j, (a, b) in enumerate(zip(dK, dM)):
+            g = a @ y - lam * (b @ y)
+            dlam = float(y @ g)
+            rhs[:r, j] = -(g - dlam * My)
+            rhs[r, j] = -0.5 * float(y @ (b @ y))
+        dy = sla.lu_solve(sla.lu_factor(B, check_finite=False), rhs, check_finite=False)[:r]
+        out[:, k, :] = solver.PV @ dy
+    return out
