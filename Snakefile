@@ -386,7 +386,6 @@ rule verify:
         params=rules.identify.output.params,
         surface=SURFACE,
         matrices=rules.mesh.output.matrices,
-        edges=EDGE_MODELS,
     output:
         table=f"{R}/identify/{{state}}/verify.csv",
         unpaired=f"{R}/identify/{{state}}/unpaired_visible.csv",
@@ -400,7 +399,7 @@ rule verify:
     priority: PRIORITY_TABLES
     threads: 1
     resources:
-        mem_mb=4000,  # 3.8 GB measured with mesh.extrapolate_edges
+        mem_mb=3000,  # one solve and its Sturm count (the edge factors come from identify)
         runtime=10,
     script:
         "workflow/scripts/verify.py"

@@ -13,6 +13,7 @@ import time
 
 from . import BENCHMARKS
 from .common import OUT, format_table, load_result, write_result
+from .performance import write_performance
 
 MODULES = {"a": "bench_a_solve", "b": "bench_b_rom", "c": "bench_c_workflow", "d": "bench_d_scaling",
            "e": "bench_e_convergence", "f": "bench_f_param_mesh",
@@ -27,6 +28,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="coarse mesh and small sizes (smoke test)")
     ap.add_argument("--report", action="store_true",
                     help="print the table from the saved results in benchmarks/out (run nothing)")
+    ap.add_argument("--compare", metavar="COMMIT",
+                    help="(c) also run the workflow of COMMIT (its own code) and give the ratio old / new")
     ap.add_argument("--blas-threads", type=int, default=1,
                     help="OPENBLAS/OMP threads per worker process (0 = library default; default 1)")
     a = ap.parse_args(argv)
@@ -40,7 +43,8 @@ def main(argv: list[str] | None = None) -> int:
         t0 = time.perf_counter()
         print(f"[benchmarks] running ({name}) ...", file=sys.stderr, flush=True)
         mod = importlib.import_module(f".{MODULES[name]}", __package__)
-        res = mod.run(quick=a.quick, blas_threads=a.blas_threads or None)
+        kw = {"compare": a.compare} if name == "c" and a.compare else {}
+        res = mod.run(quick=a.quick, blas_threads=a.blas_threads or None, **kw)
         res.data["benchmark_wall_s"] = time.perf_counter() - t0
         write_result(res, a.quick)
         results.append(res)
@@ -52,6 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / f"summary{'_quick' if a.quick else ''}{'_' + ''.join(names) if a.names else ''}.md").write_text(
         header + table + "\n")
+    if not a.quick:
+        write_performance(results)
     return 0
 
 

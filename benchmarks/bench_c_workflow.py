@@ -17,23 +17,33 @@ import sys
 import time
 from pathlib import Path
 
-from .common import OUT, PYTHON, Result, TreeMemorySampler, copy_project, fmt_mb, worker_env
+from .common import (OUT, PYTHON, Result, TreeMemorySampler, copy_commit, copy_project, fmt_mb, head_commit,
+                     worker_env)
 
 ROM_CONFIG = "solver:\n  method: rom\n"  # merged last (Snakemake's --config cannot set a nested key by dots)
 
 
-def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, rom: bool | None = None) -> Result:
+def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, rom: bool | None = None,
+        compare: str | None = None) -> Result:
+    """``compare``: a git commit whose workflow runs the same way right after (its own code, from
+    ``git archive``), for the ratio old / new of the wall times."""
     res = Result("c")
     if rom is None:
         rom = os.environ.get("JOINTID_BENCH_C_ROM", "") not in ("", "0")
     out = _run_workflow(quick, blas_threads, keep, "full")
     ok, wall = out["exit"] == 0, out["wall_s"]
     res.add(f"snakemake -j2 from clean ({out['n_jobs']} jobs{', coarse config' if quick else ''})",
-            f"{wall:.1f} s" + ("" if ok else f" (FAILED, exit {out['exit']})"), "<= 120 s", ok and wall <= 120.0)
+            f"{wall:.1f} s" + ("" if ok else f" (FAILED, exit {out['exit']})"), "<= 120 s" if quick else "",
+            (ok and wall <= 120.0) if quick else None)
+    if compare:
+        _compare(res, out, quick, blas_threads, keep, compare)
     res.add("peak memory, all processes together (sampled /proc: sum of PSS)", fmt_mb(out["peak_tree_MB"]),
             "<= 4 GB", ok and out["peak_tree_MB"] <= 4096)
     res.add("  the same as a sum of RSS (shared pages counted once per process)", fmt_mb(out["peak_tree_rss_MB"]))
-    res.add("peak RSS of the largest single process (time -v)", fmt_mb(out["max_single_MB"]))
+    res.add("peak RSS of the largest single process (time -v)", fmt_mb(out["max_single_MB"]),
+            "" if quick else "<= 3 GiB", None if quick else out["max_single_MB"] <= 3072)
+    res.add("results/ on disk after the run", fmt_mb(out["results_MB"]), "" if quick else "<= 500 MB",
+            None if quick else out["results_MB"] <= 500)
     _notes(res, out, blas_threads, "")
     res.data = out
     if rom:
@@ -55,6 +65,22 @@ def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, r
     return res
 
 
+def _compare(res: Result, new: dict, quick: bool, blas_threads, keep: bool, commit: str) -> None:
+    """Rows of the same run at ``commit`` (old) and the ratio old / new of the wall times."""
+    old = _run_workflow(quick, blas_threads, keep, "full", commit=commit)
+    short = old["commit"][:10]
+    ok = old["exit"] == 0 and new["exit"] == 0
+    res.add(f"the same at commit {short} (old: its own code and config)",
+            f"{old['wall_s']:.1f} s ({old['n_jobs']} jobs)" + ("" if old["exit"] == 0 else
+                                                              f" (FAILED, exit {old['exit']})"))
+    ratio = old["wall_s"] / new["wall_s"]
+    res.add(f"ratio old / new of the wall times (old {short})", f"{ratio:.2f}x", ">= 3x", ok and ratio >= 3.0)
+    res.add("  old: largest single process, results/ on disk",
+            f"{fmt_mb(old['max_single_MB'])}, {fmt_mb(old['results_MB'])}")
+    _notes(res, old, blas_threads, f"old {short}: ")
+    res.data["compare"] = old
+
+
 def _notes(res: Result, out: dict, blas_threads, prefix: str) -> None:
     per_rule = out["per_rule"]
     if per_rule:
@@ -65,8 +91,13 @@ def _notes(res: Result, out: dict, blas_threads, prefix: str) -> None:
                      f"BLAS threads per job: {blas_threads or 'default'}")
 
 
-def _run_workflow(quick: bool, blas_threads: int | None, keep: bool, method: str) -> dict:
-    tmp, configs = copy_project(f"jointid-bench-c-{'rom-' if method == 'rom' else ''}", quick)
+def _run_workflow(quick: bool, blas_threads: int | None, keep: bool, method: str, commit: str | None = None) -> dict:
+    env = worker_env(blas_threads)
+    if commit:  # that commit's files, and its package ahead of the installed one
+        tmp, configs, commit = copy_commit(commit, "jointid-bench-c-old-", quick)
+        env["PYTHONPATH"] = os.pathsep.join([str(tmp / "src"), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    else:
+        tmp, configs = copy_project(f"jointid-bench-c-{'rom-' if method == 'rom' else ''}", quick)
     if method == "rom":
         (tmp / "rom_config.yaml").write_text(ROM_CONFIG)
         configs.append("rom_config.yaml")
@@ -78,7 +109,7 @@ def _run_workflow(quick: bool, blas_threads: int | None, keep: bool, method: str
     log = tmp / "snakemake.out"
     t0 = time.perf_counter()
     with open(log, "w") as fh:
-        proc = subprocess.Popen(cmd, cwd=tmp, env=worker_env(blas_threads), stdout=fh, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=fh, stderr=subprocess.STDOUT)
         with TreeMemorySampler(proc.pid) as mem:
             rc = proc.wait()
     wall = time.perf_counter() - t0
@@ -87,13 +118,14 @@ def _run_workflow(quick: bool, blas_threads: int | None, keep: bool, method: str
     max_single = int(m.group(1)) / 1024.0 if m else float("nan")
     steps = re.findall(r"(\d+) of (\d+) steps \(100%\) done", text)
     n_jobs = int(steps[-1][1]) if steps else None
-    per_rule = _rule_times(tmp, quick, "_rom" if method == "rom" else "")
+    per_rule = _rule_times(tmp, quick, "_old" if commit else ("_rom" if method == "rom" else ""))
     summary = tmp / "results" / "rom" / "rom.json"
+    results_MB = sum(f.stat().st_size for f in (tmp / "results").rglob("*") if f.is_file()) / 2 ** 20
     ok = rc == 0
     out = {"wall_s": wall, "exit": rc, "peak_tree_MB": mem.peak_MB, "peak_tree_rss_MB": mem.peak_rss_MB,
            "pss_available": mem.has_pss, "max_single_MB": max_single,
            "n_jobs": n_jobs, "per_rule": per_rule, "log_tail": text[-4000:], "tmp": str(tmp),
-           "kept": keep or not ok, "method": method}
+           "kept": keep or not ok, "method": method, "commit": commit or head_commit(), "results_MB": results_MB}
     if summary.exists():
         out["rom_summary"] = {k: v for k, v in json.loads(summary.read_text()).items() if k != "coeff_range"}
     if ok and not keep:
@@ -130,7 +162,8 @@ if __name__ == "__main__":  # python -m benchmarks.bench_c_workflow [--quick] [-
     from .common import format_table, write_result
 
     quick = "--quick" in sys.argv[1:]
-    result = run(quick=quick, rom="--rom" in sys.argv[1:], keep="--keep" in sys.argv[1:])
+    old_commit = sys.argv[sys.argv.index("--compare") + 1] if "--compare" in sys.argv[1:] else None
+    result = run(quick=quick, rom="--rom" in sys.argv[1:], keep="--keep" in sys.argv[1:], compare=old_commit)
     if result.data.get("kept"):
         print(f"workflow copy kept in {result.data['tmp']}")
     write_result(result, quick)

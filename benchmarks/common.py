@@ -228,3 +228,38 @@ def copy_project(prefix: str, quick: bool) -> tuple[Path, list[str]]:
         shutil.copy2(ROOT / "tests" / "coarse_config.yaml", tmp / "tests" / "coarse_config.yaml")
         configs.append("tests/coarse_config.yaml")
     return tmp, configs
+
+
+def head_commit() -> str:
+    """The checked-out commit, with ``+changes`` when the working tree differs from it."""
+    out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True)
+    dirty = subprocess.run(["git", "-C", str(ROOT), "diff", "--quiet", "HEAD", "--", "src", "Snakefile",
+                            "workflow", "config.yaml"]).returncode
+    return out.stdout.strip() + ("+changes" if dirty else "")
+
+
+def copy_commit(commit: str, prefix: str, quick: bool) -> tuple[Path, list[str], str]:
+    """The files of ``commit`` (``git archive``) in a temporary folder, its package under ``src/``;
+    returns the folder, the config files to pass (as :func:`copy_project`) and the full commit."""
+    import tempfile
+
+    full = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", f"{commit}^{{commit}}"],
+                          capture_output=True, text=True)
+    if full.returncode != 0:
+        raise SystemExit(f"--compare {commit}: not a commit of this repository ({full.stderr.strip()})")
+    tmp = Path(tempfile.mkdtemp(prefix=prefix))
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", full.stdout.strip()],
+                             capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive, check=True)
+    configs = ["config.yaml"] + (["tests/coarse_config.yaml"] if quick else [])
+    return tmp, configs, full.stdout.strip()
+
+
+def machine() -> str:
+    """One line: CPU model, cores, memory, OS."""
+    import platform
+
+    cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                if ln.startswith("model name")), platform.processor() or "?") if Path("/proc/cpuinfo").exists() else "?"
+    mem = _proc_kB("/proc/meminfo", "MemTotal:") / 1024 ** 2
+    return f"{cpu}, {os.cpu_count()} cores, {mem:.0f} GiB, {platform.system()} {platform.release()}"

@@ -440,6 +440,7 @@ def test_node_estimate_matches_hand_count(default):
     rail = 3 * 5 * 51           # 0.023 x 0.022 x 1.00
     carriage = 5 * 5 * 7        # 0.048 x 0.036 x 0.084
     table = 17 * 5 * 17         # 0.32 x 0.035 x 0.32
+    default = modified(default, lambda c: c["mesh"].update(max_cell_size_m=0.04))
     assert estimate_node_count(default) == base + 2 * rail + 4 * carriage + table
     hex1 = modified(default, lambda c: c["mesh"].update(element="hex1"))
     assert estimate_node_count(hex1) == 13 * 5 * 29 + 2 * 2 * 3 * 26 + 4 * 3 * 3 * 4 + 9 * 3 * 9

@@ -190,6 +190,13 @@ def test_synthetic_frf_matches_the_model_at_the_truth_and_not_off_it(synthetic):
     page = frf_section_html(tab, stiff, figs)
     assert page.count("<img") == 1 and "FRAC" in page and "Table 1 model (N/mm)" in page
     assert max(len(t.split("<th>")) - 1 for t in page.split("<table")[1:]) <= 8
+    # the report reads them beside the harmonic results and gives them a section of their own
+    from jointid.reporting.page import _frf_measured_html
+    from jointid.stages.report import _frf_measured
+
+    loaded = _frf_measured({"frf": [str(synthetic["tmp"] / "truth" / "frf.csv")]})
+    assert loaded is not None and "FRAC" in _frf_measured_html({"frf_measured": loaded})
+    assert _frf_measured({"frf": []}) is None
 
 
 def test_without_frf_csv_nothing_is_written_and_stale_outputs_go(tmp_path):

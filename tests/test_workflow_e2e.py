@@ -166,7 +166,16 @@ def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
         ok = tab.dropna()
         # nested meshes: no frequency can rise (min-max principle), and each paired mode follows by MAC;
         # with mesh.extrapolate_edges (the default) the meshes' own frequencies stand beside the limits
-        assert doc["extrapolated_over_edge_levels"] is cfg["mesh"]["extrapolate_edges"]
+        assert doc["extrapolated_over_edge_levels"] is (cfg["mesh"]["extrapolate_edges"]
+                                                        and cfg["mesh_check"].get("edge_levels", False))
+        # the budget: each paired mode's change against a third of sqrt(noise^2 + model error^2)
+        b = doc["budget"]
+        me = par["model_error"]
+        assert b["uncertainty_pct"] == pytest.approx(np.hypot(par["frequency_uncertainty_pct"], me["sigma_model_pct"]))
+        assert b["budget_pct"] == pytest.approx(b["uncertainty_pct"] * cfg["mesh_check"]["budget_fraction"])
+        assert b["within"] is (b["max_error_pct"] <= b["budget_pct"])
+        paired = tab[tab.measured_mode > 0].sort_values("measured_mode")
+        np.testing.assert_allclose(b["error_pct"], paired.change_pct.abs(), rtol=1e-6)
         own = ("default_mesh_Hz", "refined_mesh_Hz") if doc["extrapolated_over_edge_levels"] else ("default_Hz", "refined_Hz")
         assert (ok[own[1]] <= ok[own[0]] * (1 + 1e-8)).all()
         assert (ok.mac >= 0.8).all()

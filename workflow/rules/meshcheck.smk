@@ -1,4 +1,4 @@
-# Mesh check (opt-in, mesh_check.enabled): each state's identified parameters re-solved on a nested
+# Mesh check (mesh_check.enabled, on by default): each state's identified parameters re-solved on a nested
 # refinement of the mesh; the first-order change a re-identification there would give.
 #   results/mesh_check/{state}.json (parameters: value, refined value, change %, 95 % interval)
 #   results/mesh_check/{state}.csv  (every mode: default and refined frequency, change %, MAC)
@@ -7,7 +7,8 @@ from jointid.stages import meshcheck as meshcheck_stage
 
 CFG_MESH_CHECK = sections(config, *meshcheck_stage.CONFIG)
 
-if config["mesh_check"]["enabled"]:
+# a mesh file (model.kind mesh) is solved as it is: no refinement, so no mesh check (refine the file and compare)
+if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "rig") != "mesh":
 
     rule mesh_check:
         input:

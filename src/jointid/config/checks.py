@@ -272,5 +272,3 @@ def check_model(c: Checks) -> None:
     if (c.cfg.get("mesh") or {}).get("extrapolate_edges"):
         c.add("mesh.extrapolate_edges", "true refines the parametric rig's edges; a mesh file is solved as it is — "
               "set mesh.extrapolate_edges: false (refine in the tool that made the mesh)")
-    if (c.cfg.get("mesh_check") or {}).get("enabled"):
-        c.add("mesh_check.enabled", "true refines the parametric rig; a mesh file is solved as it is — set it false")

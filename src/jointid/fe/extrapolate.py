@@ -176,6 +176,19 @@ class FrequencyCorrection:
     def from_limit(cls, lim: EdgeLimit, theta_ref=None) -> "FrequencyCorrection":
         return cls(lim.shapes, lim.factor, *((lim.slope, theta_ref) if lim.slope is not None else (None, None)))
 
+    def record(self) -> dict:
+        """JSON form (``ref_shapes`` at the measuring points, ``factor``, ``slope`` per log10 unit of
+        each parameter, ``theta_ref`` in N/m^3); :meth:`from_record` reads it back."""
+        return {"ref_shapes": self.ref_shapes.tolist(), "factor": self.factor.tolist(),
+                "slope": None if self.slope is None else self.slope.tolist(),
+                "theta_ref": None if self.y_ref is None else (10 ** self.y_ref).tolist()}
+
+    @classmethod
+    def from_record(cls, rec: dict) -> "FrequencyCorrection":
+        slope, theta = rec.get("slope"), rec.get("theta_ref")
+        return cls(np.asarray(rec["ref_shapes"], float), np.asarray(rec["factor"], float),
+                   None if slope is None else np.asarray(slope, float), None if theta is None else np.asarray(theta))
+
     def factors(self, shapes: np.ndarray, theta=None) -> tuple[np.ndarray, np.ndarray | None]:
         """Factor of each mode (columns of ``shapes``) at ``theta``, and its ``d ln / d log10 theta``
         (rows; ``None`` without a slope)."""

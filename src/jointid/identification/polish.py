@@ -219,7 +219,8 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
     if odd:
         say("kept the finest mesh's frequency (no geometric sequence): " + ", ".join(odd))
     record = {"theta_base_mesh": theta_mesh, "n_dofs": lim.n_dofs, "passes": passes,
-              "modes": lim.table().to_dict(orient="list"), "not_extrapolated": odd}
+              "modes": lim.table().to_dict(orient="list"), "not_extrapolated": odd,
+              "correction": FrequencyCorrection.from_limit(lim, at).record()}
     return record, polish
 
 

@@ -151,7 +151,8 @@ def frf_section_html(table: pd.DataFrame, stiffness: dict[str, dict], figures: d
            render(table, fm, _HEADERS, text_cols=text)]
     if stiffness:
         heads = {"drive": "drive point", "measured_N_per_mm": "measured K_min (N/mm)",
-                 "measured_at_Hz": "at (Hz)", "table1_N_per_mm": "Table 1 model (N/mm)", "table1_at_Hz": "at (Hz)",
+                 "measured_at_Hz": "measured at (Hz)", "table1_N_per_mm": "Table 1 model (N/mm)",
+                 "table1_at_Hz": "model at (Hz)",
                  "difference_pct": "measured − model (%)"}
         sfm = {"measured_N_per_mm": ",.0f", "measured_at_Hz": ".1f", "table1_N_per_mm": ",.0f",
                "table1_at_Hz": ".1f", "difference_pct": "+.1f"}

@@ -279,6 +279,12 @@ def _table1_section(data: dict) -> str:
               "apart, as not identified, beside the lowest resonance peak of a paired mode.</p>")
 
 
+def _frf_measured_html(data: dict) -> str:
+    from jointid.reporting.frf_section import frf_section_html
+
+    return frf_section_html(*data["frf_measured"], html_table=html_table)
+
+
 def _sections(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> list[tuple[str, str, str]]:
     """The sections below the summary card: (anchor, title, HTML)."""
     return [
@@ -292,6 +298,8 @@ def _sections(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> list
          + _params_html(data) + _rigidity_html(data, figs) + _mesh_check_html(data)),
         ("frf", "Frequency response, power-off vs power-on",
          _img(figs["frf"], "FRF overlay") + _harmonic_notes(data)),
+        *([("frf_measured", "Measured FRFs against the model's", _frf_measured_html(data))]
+          if data.get("frf_measured") else []),
         ("shapes", "Mode shapes of the paired modes", _img(figs["mode_shapes"], "mode shapes")
          + "<p class='note'>FE modes paired with the measured modes (verify stage), drawn at the 36 measuring "
            "points: table 3×6 grid on top, base lines below. The scale is arbitrary.</p>"),

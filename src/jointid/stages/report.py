@@ -42,7 +42,19 @@ def load_inputs(inputs: dict) -> dict:
         "table1_problems": check_table1(inputs["table1"]),
         "hypotheses": _hypotheses(inputs),
         "diagnosis": _diagnosis(inputs),
+        "frf_measured": _frf_measured(inputs),
     }
+
+
+def _frf_measured(inputs: dict):
+    """Measured against model FRFs (:func:`jointid.reporting.frf_section.load_frf_section`), read beside
+    each state's harmonic results; None when the dataset has no ``frf.csv``."""
+    from jointid.reporting.frf_section import load_frf_section
+
+    paths = [Path(p) for p in _as_list(inputs.get("frf") or [])]
+    if not paths:
+        return None
+    return load_frf_section(paths[0].parent.parent, [p.parent.name for p in paths])
 
 
 def _csv_or_none(path: Path):

@@ -14,8 +14,8 @@ from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
 
 CONFIG = ("materials", "rig", "model", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
-"""Config keys of rule ``verify`` (``mesh.extrapolate_edges``: it also solves on the meshes with one
-and two more edge levels)."""
+"""Config keys of rule ``verify`` (``mesh.extrapolate_edges``: its frequencies are scaled by the
+identification's mesh-extrapolation factors)."""
 
 
 def visibility_rule(par: dict, labels: list[str]):
@@ -71,6 +71,37 @@ def tied_pairings(par: dict, doc: dict, shapes) -> "pd.DataFrame":
     return pd.DataFrame(rows, columns=["alternative", "order", "fe_mode"])
 
 
+def _recorded_limit(rec: dict, theta: dict, names: list[str], freqs, shapes):
+    """The base mesh's modes scaled by a recorded :class:`jointid.fe.extrapolate.FrequencyCorrection`,
+    as an object with the :class:`jointid.fe.extrapolate.EdgeLimit` fields verify reads (``limit_Hz``,
+    ``factor``, ``ratio``, ``status``)."""
+    from types import SimpleNamespace
+
+    from jointid.fe.extrapolate import FrequencyCorrection
+
+    c, _ = FrequencyCorrection.from_record(rec).factors(shapes, np.array([theta[n] for n in names]))
+    n = len(freqs)
+    return SimpleNamespace(limit_Hz=np.asarray(freqs) * c, factor=c, ratio=np.full(n, np.nan),
+                           status=["recorded" if abs(x - 1) > 0 else "no partner" for x in c])
+
+
+def _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices):
+    """The mesh-extrapolated modes at ``theta`` (see :func:`run_verify`), or None without extrapolation."""
+    from jointid.fe.model import load_model
+    from jointid.identification.polish import edge_limit_at, model_sizes
+
+    correction = (par.get("edge_extrapolation") or {}).get("correction")
+    if correction:  # the identification's last factors, carried to these parameters to first order
+        log(f"verify[{state}]: mesh extrapolation: the identification's factors (taken at its previous "
+            "optimum, to first order), not re-solved on the edge levels")
+        return _recorded_limit(correction, theta, list(par["parameters"]), freqs, shapes)
+    if edge_matrices:
+        return edge_limit_at(cfg, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
+                             log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes),
+                             sizes=[model.n_dofs, *model_sizes(edge_matrices)])
+    return None
+
+
 def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
                edge_matrices: list[str] | None = None, unpaired_csv: str | None = None,
                tied_csv: str | None = None) -> None:
@@ -82,14 +113,16 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     ``tied_csv``: the FE partners of the measured modes in every pairing that fits exactly as well as
     the chosen one (:func:`tied_pairings`).
 
-    With ``edge_matrices`` (``mesh.extrapolate_edges``) the simulated frequencies are the
-    mesh-extrapolated ones at these parameters (:mod:`jointid.fe.extrapolate`, solved afresh here), and
-    ``simulation_mesh_Hz`` keeps the base mesh's; the surfaces are compared with the base mesh.
+    With ``mesh.extrapolate_edges`` the simulated frequencies are the mesh-extrapolated ones at these
+    parameters (:mod:`jointid.fe.extrapolate`): the base mesh's, scaled by the factors the
+    identification recorded (``params.json``, ``edge_extrapolation.correction``, carried to these
+    parameters to first order; its last pass bounds their drift), or, for a record without them,
+    solved afresh on ``edge_matrices``.  ``simulation_mesh_Hz`` keeps the base mesh's; the surfaces are compared with the base mesh.
     """
     import pandas as pd
 
     from jointid.fe.model import load_model
-    from jointid.identification.polish import edge_limit_at, model_sizes, solve_point
+    from jointid.identification.polish import solve_point
 
     par = io.read_json(params_json)
     doc = io.read_json(surface_json)
@@ -98,12 +131,9 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     freqs, shapes, desc, modes = solve_point(cfg, model, theta, certify=True)
     log(f"verify[{state}]: {modes.sturm.describe() if modes.sturm else 'no Sturm check (one mode)'}")
     f_meas = np.asarray(par["f_meas_Hz"])
-    f_all, lim = freqs, None
-    if edge_matrices:
-        lim = edge_limit_at(cfg, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
-                            log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes),
-                            sizes=[model.n_dofs, *model_sizes(edge_matrices)])
-        f_all = lim.limit_Hz
+    correction = (par.get("edge_extrapolation") or {}).get("correction")
+    lim = _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices)
+    f_all = freqs if lim is None else lim.limit_Hz
     from jointid.geometry.points import dof_labels
     from jointid.identification.visibility import misfit_table
 
@@ -143,8 +173,10 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
                 + f" (the choice between them: {(par.get('tie_rule') or {}).get('rule', 'not recorded')})")
     log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
-    if edge_matrices and par.get("fe_polish"):
-        # the identification's last polish scaled by factors taken at its previous optimum; here they are fresh
+    if lim is not None and par.get("fe_polish"):
+        # with the recorded factors: the full solve against the polish's reduced solver; re-solved: fresh factors
         drift = 100 * (sim / np.asarray(par["fe_polish"]["f_fe_Hz"]) - 1)
+        why = ("the same factors: full solve vs the polish's reduced basis" if correction else
+               "its factors come from its previous optimum, to first order")
         log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
-            f"{np.nanmax(np.abs(drift)):.3f} % (its factors come from its previous optimum, to first order)")
+            f"{np.nanmax(np.abs(drift)):.2e} % ({why})")
