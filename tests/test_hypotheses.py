@@ -183,7 +183,8 @@ def _fit_all(setup, folder, names):
     return recs
 
 
-@pytest.mark.parametrize("truth", ["base_elastic", "motors_6kg", "table_steel"])
+@pytest.mark.parametrize("truth", ["base_elastic", pytest.param("motors_6kg", marks=pytest.mark.extended),
+                                   pytest.param("table_steel", marks=pytest.mark.extended)])
 def test_a_known_non_default_hypothesis_is_ranked_first(truth, setup, tmp_path):
     _synthesise(setup, truth, tmp_path / "ds")
     recs = _fit_all(setup, tmp_path / "ds", list(HYPOTHESES))

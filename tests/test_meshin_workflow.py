@@ -16,7 +16,7 @@ from conftest import coarse_config_dict, copy_workflow, run_snakemake, write_con
 from jointid.config.load import load_config
 from jointid.fe.meshexport import export_rig
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.extended]
 
 SAME_RUN = "mesh: {extrapolate_edges: false}\nmesh_check: {enabled: false}\n"
 TARGETS = ("results/identify/power_off/params.json", "results/identify/power_on/params.json")

@@ -74,6 +74,7 @@ def test_a_understated_noise_alone_names_no_effect(rig, tmp_path):
     assert 0.15 < 100 * me.sigma_model_rel < 0.6
 
 
+@pytest.mark.extended
 def test_b_understated_noise_with_a_hidden_effect_ranks_it_first(rig, tmp_path):
     res = run(rig, truth(seed=32, pct=0.4, stated=0.2, effects={"added_mass_table": {"mass_kg": 4.0}}),
               tmp_path / "ds")
@@ -86,6 +87,7 @@ def test_b_understated_noise_with_a_hidden_effect_ranks_it_first(rig, tmp_path):
     assert res.model_error.c_hat > 1.5
 
 
+@pytest.mark.extended
 def test_d_library_effect_plus_decoy_is_found_and_the_rest_called_model_error(rig, tmp_path):
     t = truth(seed=33, effects={"added_mass_table": {"mass_kg": 4.0}},
               perturbations=[{"kind": "carriage_joint_scale", "carriage": 0, "factor": 0.7}])
@@ -98,6 +100,7 @@ def test_d_library_effect_plus_decoy_is_found_and_the_rest_called_model_error(ri
         assert "A model error of about" in res.verdict, res.verdict
 
 
+@pytest.mark.extended
 def test_c_a_lighter_moving_mass_is_covered_by_the_reconstruction_range(rig, tmp_path):
     """The truth's moving mass (table and motors) is 30 % lighter than the analysis model's.  The
     analysis brackets the mass by hypotheses at 100, 80, 60 and 40 % (coefficient changes of one
