@@ -122,6 +122,9 @@ def test_identification_fits_mesh_extrapolated_frequencies(coarse_run):
         assert (ver.simulation_Hz <= ver.simulation_mesh_Hz * (1 + 1e-8)).all()
         np.testing.assert_allclose(ver.simulation_Hz / ver.simulation_mesh_Hz, ver.edge_factor, rtol=1e-8)
         np.testing.assert_allclose(pd.read_csv(wd / table).simulation_Hz, ver.simulation_Hz, rtol=1e-8)
+        # verify scales its full solve by the identification's recorded factors: the same frequencies as
+        # the identification's last polish (on its certified reduced basis, 1e-6 in each eigenvalue)
+        np.testing.assert_allclose(ver.simulation_Hz, par["fe_polish"]["f_fe_Hz"], rtol=1e-5)
 
 
 def test_zoomed_surfaces_are_more_accurate_and_carry_the_identification(coarse_run):

@@ -178,7 +178,8 @@ class FrequencyCorrection:
 
     def record(self) -> dict:
         """JSON form (``ref_shapes`` at the measuring points, ``factor``, ``slope`` per log10 unit of
-        each parameter, ``theta_ref`` in N/m^3); :meth:`from_record` reads it back."""
+        each parameter, ``theta_ref`` in N/m^3, in the parameters' order, which the caller records
+        beside it: JSON objects do not keep an order); :meth:`from_record` reads it back."""
         return {"ref_shapes": self.ref_shapes.tolist(), "factor": self.factor.tolist(),
                 "slope": None if self.slope is None else self.slope.tolist(),
                 "theta_ref": None if self.y_ref is None else (10 ** self.y_ref).tolist()}

@@ -173,9 +173,25 @@ def polish_optimum(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_r
     measured modes; the rest as in :func:`polish_on_model`.
     """
     ref = np.asarray(doc["ref_shapes"])[:, pairing]
-    model = load_rom(rom) if rom else load_model(matrices)
+    model = load_rom(rom) if rom else _session_model(matrices)
     return polish_on_model(cfg, model, doc["names"], theta0, f_meas, ref, lower, upper,
                            weights=weights, sigma_rel=sigma_rel, repair=repair, correction=correction, rule=rule)
+
+
+_SESSION: dict = {}
+"""The model file last polished on, its model and its reduced solver (:func:`_session_model`)."""
+
+
+def _session_model(matrices):
+    """The model of ``matrices``, the same object for every polish of this process on that file, so
+    that the polish on extrapolated frequencies reuses the reduced solver of the first polish (its
+    basis already spans the neighbourhood; every answer is still certified by its full-space
+    residual) instead of factorising and seeding a new one."""
+    key = str(matrices)
+    if _SESSION.get("path") != key:
+        _SESSION.clear()
+        _SESSION.update(path=key, model=load_model(matrices))
+    return _SESSION["model"]
 
 
 def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas, weights, sigma_rel,
@@ -220,7 +236,7 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
         say("kept the finest mesh's frequency (no geometric sequence): " + ", ".join(odd))
     record = {"theta_base_mesh": theta_mesh, "n_dofs": lim.n_dofs, "passes": passes,
               "modes": lim.table().to_dict(orient="list"), "not_extrapolated": odd,
-              "correction": FrequencyCorrection.from_limit(lim, at).record()}
+              "correction": {**FrequencyCorrection.from_limit(lim, at).record(), "names": list(doc["names"])}}
     return record, polish
 
 
@@ -252,9 +268,7 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
             freqs, shapes, y = model.solve_theta(dict(zip(names, theta)), n_modes, return_coords=True)
             return freqs, shapes, y, reduced_terms
     else:
-        kc0, mc0 = base_coefficients(cfg, model, dict(zip(names, theta0)))
-        rs = ReducedSolver(model, kc0, mc0, n_modes, [(t, {}) for t in terms], shift_Hz=cfg["solver"]["shift_Hz"],
-                           backend=cfg["solver"]["backend"])
+        rs = _reduced_solver(cfg, model, names, theta0, terms, n_modes)
 
         def solve(theta):
             sol = rs.solve(*base_coefficients(cfg, model, dict(zip(names, theta))), n_modes)
@@ -265,6 +279,20 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
     return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
                      sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
                      repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None, rule=rule)
+
+
+def _reduced_solver(cfg, model, names, theta0, terms, n_modes):
+    """A :class:`ReducedSolver` of ``model`` started at ``theta0``; the one built before for the same
+    model object and parameters when there is one (see :func:`_session_model`)."""
+    key = (id(model), tuple(names), n_modes)
+    if _SESSION.get("model") is model and _SESSION.get("solver_key") == key:
+        return _SESSION["solver"]
+    kc0, mc0 = base_coefficients(cfg, model, dict(zip(names, theta0)))
+    rs = ReducedSolver(model, kc0, mc0, n_modes, [(t, {}) for t in terms], shift_Hz=cfg["solver"]["shift_Hz"],
+                       backend=cfg["solver"]["backend"])
+    if _SESSION.get("model") is model:
+        _SESSION.update(solver_key=key, solver=rs)
+    return rs
 
 
 def corrected(solve, correction):

@@ -94,7 +94,7 @@ def _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices):
     if correction:  # the identification's last factors, carried to these parameters to first order
         log(f"verify[{state}]: mesh extrapolation: the identification's factors (taken at its previous "
             "optimum, to first order), not re-solved on the edge levels")
-        return _recorded_limit(correction, theta, list(par["parameters"]), freqs, shapes)
+        return _recorded_limit(correction, theta, correction["names"], freqs, shapes)
     if edge_matrices:
         return edge_limit_at(cfg, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
                              log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes),
