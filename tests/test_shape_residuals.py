@@ -68,8 +68,9 @@ def lead(res) -> float:
 
 def test_shape_jacobian_matches_finite_differences(rig, tmp_path):
     data = states(rig, synth.synthesise(truth(SHAPE_PCT), rig["cfg"], model=rig["model"]), tmp_path / "ds")
-    diag = Diagnoser(rig["system"], rig["cfg"], data, log=lambda m: None)
-    base = Variant(rig["system"], rig["cfg"], [])
+    cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), "shape_residuals": True}}
+    diag = Diagnoser(rig["system"], cfg, data, log=lambda m: None)
+    base = Variant(rig["system"], cfg, [])
     x = np.log([8.0e11, 6.0e11])
     index = [p.model_index for p in diag.pair(diag.solve_states(base, x))]
     diag.evaluate(base, x, index)  # the subspace refined at x; then all three on that subspace
