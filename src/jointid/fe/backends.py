@@ -11,6 +11,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from jointid.errors import ModelError
+from jointid.threads import import_pypardiso
 
 
 class _PardisoFactor:
@@ -23,8 +24,7 @@ class _PardisoFactor:
 
     def __init__(self, A: sp.csr_matrix, upper: bool = False, ordering: np.ndarray | None = None,
                  analyse_only: bool = False, indefinite: bool = False):
-        import pypardiso
-
+        pypardiso = import_pypardiso()
         self.A = A if upper else sp.triu(A, format="csr")
         self.A.sort_indices()
         n = self.A.shape[0]

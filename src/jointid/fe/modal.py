@@ -18,6 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from jointid.errors import ModelError, NumericalWarning
+from jointid.threads import import_pypardiso
 from jointid.fe.backends import _PardisoFactor, _SuperLUFactor
 from jointid.fe.blocklanczos import (BLOCK, MIN_DOFS, RESIDUAL_TOL, block_shift_invert, true_residual,
                                      wanted_basis)
@@ -33,8 +34,7 @@ def available_backend(name: str = "auto") -> str:
         raise ModelError(f"solver.backend: '{name}' is unknown — use auto, pardiso or scipy")
     if name in ("auto", "pardiso"):
         try:
-            import pypardiso  # noqa: F401
-
+            import_pypardiso()
             return "pardiso"
         except Exception:
             if name == "pardiso":
