@@ -390,6 +390,7 @@ rule verify:
         table=f"{R}/identify/{{state}}/verify.csv",
         unpaired=f"{R}/identify/{{state}}/unpaired_visible.csv",
         tied=f"{R}/identify/{{state}}/tied_pairings.csv",
+        certificate=f"{R}/identify/{{state}}/certificate.json",  # residual + Sturm count of the full solve
     params:
         cfg=CFG_VERIFY,
     log:

@@ -127,6 +127,31 @@ def test_identification_fits_mesh_extrapolated_frequencies(coarse_run):
         np.testing.assert_allclose(ver.simulation_Hz, par["fe_polish"]["f_fe_Hz"], rtol=1e-5)
 
 
+def test_each_reported_optimum_carries_its_certificate(coarse_run):
+    """identify's params.json holds the residual check of the polish's returned modes (reduced
+    solver); verify's certificate.json the full solve's residual and Sturm count, with its sidecar."""
+    import hashlib
+
+    from jointid.reporting.provenance import provenance_path
+
+    wd = coarse_run
+    for state in STATES:
+        par = json.loads((wd / "results" / "identify" / state / "params.json").read_text())
+        polish = par["fe_polish"]["certificate"]
+        assert polish["method"] in ("reduced", "full") and polish["passed"], (state, polish)
+        assert polish["max_relative_residual"] <= polish["residual_tol"]
+        assert (polish["method"] == "full") == (polish["fallback"] is not None)
+        path = wd / "results" / "identify" / state / "certificate.json"
+        doc = json.loads(path.read_text())
+        assert doc["state"] == state and doc["identify"] == polish
+        assert doc["parameters"] == pytest.approx({n: p["value"] for n, p in par["parameters"].items()}, rel=1e-11)
+        ver = doc["verify"]
+        assert ver["method"] == "full" and ver["passed"] and ver["complete"], (state, ver)
+        assert ver["sturm_count"] == ver["n_modes_below_shift"] > 0 and ver["max_relative_residual"] <= 1e-6
+        side = json.loads(provenance_path(path).read_text())
+        assert side["table"] == path.name and side["table_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+
+
 def test_zoomed_surfaces_are_more_accurate_and_carry_the_identification(coarse_run):
     """The second DOE sits in the box around the first-stage optima of both states; its surfaces
     agree with the FE model at its own fresh verification points better than the first ones do at

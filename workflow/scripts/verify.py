@@ -5,4 +5,4 @@ from jointid.stages import verify
 run_script(snakemake, lambda cfg, inp, out: verify.run_verify(
     cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table,
     edge_matrices=list(inp.get("edges") or []), unpaired_csv=out.unpaired,
-    tied_csv=out.tied), provenance=True)
+    tied_csv=out.tied, certificate_json=out.certificate), provenance=True)

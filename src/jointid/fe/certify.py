@@ -10,7 +10,8 @@ solver's factorisation ``A = K - sigma M`` (one sparse solve for all pairs).
 every residual.  Where the state count of a diagnosis is two, that is one pass over the basis and
 one solve per pair of states instead of two.  :func:`refine` runs the enrichment loop of a point
 that failed its check (Davidson steps, a new preconditioner at a distant point, exact modes when
-progress stalls).
+progress stalls); should the check still fail after :data:`MAX_ROUNDS`, :func:`full_solve` answers
+(the fallback, logged and kept in ``ReducedSolver.fallbacks``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ if TYPE_CHECKING:
     from jointid.fe.reduced import ReducedSolver
 
 MAX_ROUNDS = 12
-"""Most enrichment rounds of one point before its solution is returned unconverged (error > tol)."""
+"""Most enrichment rounds of one point before the full solve answers instead (:func:`full_solve`)."""
 
 
 @dataclass
@@ -82,8 +83,8 @@ def refine(rs: ReducedSolver, kc: dict, mc: dict, n: int, first: Check | None = 
 
     ``first``: this point's check on the current basis, when already done (:func:`check_points`).
     Returns ``(lam, Y, worst)``: all Ritz values and vectors on the final basis and the largest
-    estimated relative eigenvalue error of the lowest ``n`` (above ``rs.tol`` when
-    :data:`MAX_ROUNDS` did not suffice).
+    estimated relative eigenvalue error of the lowest ``n``.  When :data:`MAX_ROUNDS` do not suffice,
+    the full solve's modes join the basis (:func:`full_solve`) and the Ritz values are theirs.
     """
     rs.n_checks += 1
     last = np.inf
@@ -115,9 +116,25 @@ def refine(rs: ReducedSolver, kc: dict, mc: dict, n: int, first: Check | None = 
             rs._append(D[:, err > rs.tol])
         last = worst
         chk = None
-    else:
-        lam, Y = rs._ritz(kc, mc, n)
+    else:  # the check still fails: the full solve answers (its modes join the basis)
+        full_solve(rs, kc, mc, n, f"residual check failed after {MAX_ROUNDS} enrichment rounds (estimated "
+                   f"relative eigenvalue error {worst:.1e} > tol {rs.tol:.0e})")
+        chk = check_points(rs, [(kc, mc)], n)[0]
+        lam, Y, worst = chk.lam, chk.Y, chk.worst
     return lam, Y, worst
+
+
+def full_solve(rs: ReducedSolver, kc: dict, mc: dict, n: int, why: str) -> np.ndarray:
+    """The fallback of a failed certificate: a full Lanczos solve at ``(kc, mc)`` (factorised there),
+    whose modes join the basis, so that the Ritz values there are the full solve's.  The reason is
+    logged and kept in ``rs.fallbacks`` (by :meth:`ReducedSolver.point_key`).  Returns the lowest
+    ``n`` full-solve frequencies (Hz)."""
+    rs._say(f"certificate failed ({why}): full Lanczos solve")
+    rs.fallbacks[rs.point_key(kc, mc)] = why
+    rs._refactor(kc, mc)
+    phi, f_full = rs._lanczos(kc, mc, n + 2)
+    rs._append(phi)
+    return f_full[:n]
 
 
 def verify(rs: ReducedSolver, kc: dict, mc: dict, n: int) -> float:
@@ -142,11 +159,7 @@ def verify(rs: ReducedSolver, kc: dict, mc: dict, n: int) -> float:
             return 0.5 * red.error  # relative frequency error = half the eigenvalue error
     why = (f"Sturm count {count} for {n} Ritz values" if count is not None
            else "no gap above the last Ritz value, or the residual check did not converge")
-    rs._say(f"certificate failed ({why}): full Lanczos solve")
-    rs._refactor(kc, mc)
-    phi, f_full = rs._lanczos(kc, mc, n + 2)
-    f_full = f_full[:n]
-    rs._append(phi)
+    f_full = full_solve(rs, kc, mc, n, why)
     return float(np.max(np.abs(red.freqs_Hz - f_full) / np.maximum(f_full, 1.0)))
 
 

@@ -166,6 +166,7 @@ class Modes:
     freqs_Hz: np.ndarray
     phi: np.ndarray
     sturm: "SturmCheck | None" = None  # completeness check of the solve (solve_model(certify=True))
+    residual: float | None = None  # largest relative residual of the modes (solve_model(certify=True))
 
     @property
     def omega2(self) -> np.ndarray:
@@ -175,11 +176,13 @@ class Modes:
 @dataclass(frozen=True)
 class SturmCheck:
     """Completeness of a modal solve: the model has ``count`` eigenvalues below ``freq_Hz`` (Sturm
-    count, :func:`count_modes_below`; ``None``: not available) and the solve found ``found``."""
+    count, :func:`count_modes_below`; ``None``: not available) and the solve found ``found``;
+    ``recovered``: modes a first Lanczos run missed, found by a second solve (:func:`solve_model`)."""
 
     freq_Hz: float
     count: int | None
     found: int
+    recovered: int = 0
 
     @property
     def complete(self) -> bool | None:
@@ -242,7 +245,8 @@ def solve_model(model, kc: dict, mc: dict, n_modes: int, *, shift_Hz: float = -1
     ``certify``: count the model's modes below a frequency between the two highest solved ones
     (:func:`count_modes_below`, one more factorisation) and compare with the solve
     (``Modes.sturm``).  Modes the Lanczos run missed are recovered by one more solve for that many
-    more modes from a random start; if the counts still differ, a :class:`NumericalWarning`.
+    more modes from a random start; if the counts still differ, a :class:`NumericalWarning`.  Also
+    the modes' largest relative residual (:func:`jointid.fe.blocklanczos.true_residual`, ``Modes.residual``).
     """
     free = free_dofs(model.n_dofs, model.fixed)
     Kf, Mf = restrict(model.K(kc), free), restrict(model.M(mc), free)
@@ -250,17 +254,19 @@ def solve_model(model, kc: dict, mc: dict, n_modes: int, *, shift_Hz: float = -1
     ordering = getattr(model, "ordering", None)
     modes = _solve_free(Kf, Mf, free, model.n_dofs, n_modes, shift_Hz, backend, 0.0, None, ordering)
     fc = check_frequency(modes.freqs_Hz) if certify else None
-    if fc is None:
-        return modes
-    check = sturm_check(Kf, Mf, modes.freqs_Hz, fc, backend, ordering)
-    if check.count is not None and check.count > check.found:
-        more = _solve_free(Kf, Mf, free, model.n_dofs, n_modes + check.count - check.found, shift_Hz,
-                           backend, 0.0, None, ordering, v0_seed=0)
-        modes = Modes(more.freqs_Hz[:n_modes], more.phi[:, :n_modes])
-        check = SturmCheck(fc, check.count, int(np.count_nonzero(more.freqs_Hz < fc)))
-    if check.complete is False:
-        warnings.warn(check.describe() + ": the modal solve is not complete", NumericalWarning)
-    modes.sturm = check
+    if fc is not None:
+        check = sturm_check(Kf, Mf, modes.freqs_Hz, fc, backend, ordering)
+        if check.count is not None and check.count > check.found:
+            missed = check.count - check.found
+            more = _solve_free(Kf, Mf, free, model.n_dofs, n_modes + missed, shift_Hz, backend, 0.0, None,
+                               ordering, v0_seed=0)
+            modes = Modes(more.freqs_Hz[:n_modes], more.phi[:, :n_modes])
+            check = SturmCheck(fc, check.count, int(np.count_nonzero(more.freqs_Hz < fc)), missed)
+        if check.complete is False:
+            warnings.warn(check.describe() + ": the modal solve is not complete", NumericalWarning)
+        modes.sturm = check
+    if certify:
+        modes.residual = true_residual(Kf, Mf, modes.omega2, modes.phi[free])
     return modes
 
 

@@ -107,6 +107,7 @@ class ReducedSolver:
         self._certified: dict = {}  # (coefficients, n, generation) -> (basis size, error) of a passed check
         self.n_checks = self.n_checks_skipped = 0
         self.sturm_counts: dict = {}  # point_key -> [(frequency Hz, full-model modes below it)]
+        self.fallbacks: dict = {}  # point_key -> why a full solve answered there (certify.full_solve)
         self.log = None  # progress lines (certificates), e.g. print
         self.mc_ref = dict(mc)
         self._refactor(kc, mc)

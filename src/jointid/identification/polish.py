@@ -27,6 +27,7 @@ import numpy as np
 from jointid.correlate.mac import mac
 from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
 from jointid.errors import DataError
+from jointid.fe.certificate import reduced_certificate
 from jointid.fe.describe import describe_modes
 from jointid.fe.extrapolate import FrequencyCorrection, edge_limit
 from jointid.fe.modal import solve_model
@@ -256,7 +257,8 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
     instead.  ``correction`` (:class:`jointid.fe.extrapolate.FrequencyCorrection`) scales each mode's
     frequency by the mesh-extrapolation factor of the mode it continues.  ``rule``
     (:class:`jointid.identification.visibility.VisibilityRule`): modes the test would clearly have
-    seen count as misfits when no measured mode takes them.
+    seen count as misfits when no measured mode takes them.  On the full model the result carries
+    ``certificate`` (:func:`jointid.fe.certificate.reduced_certificate` at the returned optimum).
     """
     jt = joint_terms(cfg["joints"], cfg.get("model"))
     terms = [{t: 1.0 for t in jt[n]} for n in names]
@@ -269,6 +271,7 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
             return freqs, shapes, y, reduced_terms
     else:
         rs = _reduced_solver(cfg, model, names, theta0, terms, n_modes)
+        rs.log = log or _log  # a failed certificate's fallback to the full solve is logged
 
         def solve(theta):
             sol = rs.solve(*base_coefficients(cfg, model, dict(zip(names, theta))), n_modes)
@@ -276,9 +279,13 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
 
     if correction is not None:
         solve = corrected(solve, correction)
-    return fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
-                     sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
-                     repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None, rule=rule)
+    out = fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
+                    sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
+                    repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None, rule=rule)
+    if not isinstance(model, ROM):  # the residual check of the returned modes (the ROM's: rule rom)
+        kc, mc = base_coefficients(cfg, model, dict(zip(names, out["theta"])))
+        out["certificate"] = reduced_certificate(rs, kc, mc, n_modes)
+    return out
 
 
 def _reduced_solver(cfg, model, names, theta0, terms, n_modes):

@@ -233,6 +233,8 @@ def _polish_step(cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairi
         edge, polish = extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas,
                                            weights, sigma_pct / 100, b_lo, b_hi, repair=repair, rom=rom,
                                            rule=vis_rule)
+    if polish.get("certificate"):
+        log(f"identify[{state}]: optimum's {polish['certificate'].describe()}")
     theta = polish["theta"]
     polish["interval_scale"] = float(max(1.0, np.sqrt(polish["chi2"] / polish["dof"])))
     sd = polish["interval_scale"] * np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
@@ -255,7 +257,8 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
                 "unpaired_visible": polish["unpaired_visible"],
                 "chi2": polish["chi2"], "dof": polish["dof"], "interval_scale": polish["interval_scale"],
                 "iterations": polish["iterations"], "cost_history": polish["cost_history"],
-                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"]},
+                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"],
+                "certificate": polish["certificate"].to_record() if polish.get("certificate") else None},
             "edge_extrapolation": edge,
             "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
                 doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,

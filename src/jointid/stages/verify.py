@@ -102,16 +102,32 @@ def _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices):
     return None
 
 
+def write_certificate(state: str, par: dict, modes, out_json: str | None) -> dict:
+    """Log the certificate of the full solve at the identified parameters (its residual and Sturm
+    count, :func:`jointid.fe.certificate.full_certificate`) and write it to ``out_json`` beside the
+    identification's (``params.json``: ``fe_polish.certificate``, the reduced solver's)."""
+    from jointid.fe.certificate import full_certificate
+
+    cert = full_certificate(modes)
+    log(f"verify[{state}]: {cert.describe()}")
+    rec = {"state": state, "parameters": {n: v["value"] for n, v in par["parameters"].items()},
+           "verify": cert.to_record(), "identify": (par.get("fe_polish") or {}).get("certificate")}
+    if out_json:
+        io.write_json(out_json, rec)
+    return rec
+
+
 def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
                edge_matrices: list[str] | None = None, unpaired_csv: str | None = None,
-               tied_csv: str | None = None) -> None:
+               tied_csv: str | None = None, certificate_json: str | None = None) -> None:
     """Full FE re-solve at the identified parameters: the tables' simulated frequencies.
 
     ``unpaired_csv``: the model modes the test would clearly have seen that no measured mode is paired
     with (:mod:`jointid.identification.visibility`; columns ``model_mode, freq_Hz,
     target_Hz, misfit_pct, visibility_rel, description``), the misfits of the tables.
     ``tied_csv``: the FE partners of the measured modes in every pairing that fits exactly as well as
-    the chosen one (:func:`tied_pairings`).
+    the chosen one (:func:`tied_pairings`).  ``certificate_json``: the full solve's certificate
+    (:func:`write_certificate`).
 
     With ``mesh.extrapolate_edges`` the simulated frequencies are the mesh-extrapolated ones at these
     parameters (:mod:`jointid.fe.extrapolate`): the base mesh's, scaled by the factors the
@@ -129,7 +145,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     theta = {n: v["value"] for n, v in par["parameters"].items()}
     model = load_model(matrices)
     freqs, shapes, desc, modes = solve_point(cfg, model, theta, certify=True)
-    log(f"verify[{state}]: {modes.sturm.describe() if modes.sturm else 'no Sturm check (one mode)'}")
+    write_certificate(state, par, modes, certificate_json)
     f_meas = np.asarray(par["f_meas_Hz"])
     correction = (par.get("edge_extrapolation") or {}).get("correction")
     lim = _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices)
