@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 LAYERS = ["errors", "io", "yamlio", "threads", "correlate", "data", "config", "geometry", "fe",
-          "identification", "response", "diagnosis", "reporting", "stages", "cli"]
+          "identification", "response", "diagnosis", "reporting", "stages", "api", "cli"]
 
 
 def module_name(path: Path, root: Path) -> str:

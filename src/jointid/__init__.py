@@ -1,5 +1,29 @@
 """jointid: joint-surface stiffness and damping identification by FE model updating.
 
+Python API
+----------
+``from jointid import Study``; runnable examples in ``docs/examples/`` (docs/architecture.md, "Python API").
+
+Study
+    One validated configuration and the engineer's procedure on it:
+
+    * ``Study.from_config(["config.yaml", ...], overrides=None)`` - load, merge and validate;
+    * ``.model()`` - the FE model of the rig (built once);
+    * ``.modes(theta, n, state)`` - natural frequencies (Hz) and shapes at the measuring points
+      at joint parameters ``theta`` (N/m^3) -> :class:`ModalResult`;
+    * ``.compare(dataset, theta, state)`` - measured vs model Hz, error %, MAC (pandas table);
+    * ``.identify(dataset, state)`` - the joint parameters fitted to one state's modes (the
+      workflow's FE polish, a local search) -> :class:`Identification`;
+    * ``.diagnose(dataset)`` - which physical effect the model lacks -> :class:`DiagnosisResult`;
+    * ``.dataset(path)`` - a measured dataset folder or UFF file; ``.synthetic_dataset(truth, folder)``.
+ModalResult, Identification, DiagnosisResult
+    The typed (frozen) results.
+load_dataset
+    A measured dataset for a study.
+
+The whole workflow (DOE, response surfaces, identification, verification, report) runs with
+``snakemake -j2``; see README.md and docs/workflow.md.
+
 Conventions (used throughout the package)
 -----------------------------------------
 * SI units inside the code: N, m, kg, s, Hz.  Column names and config keys carry the unit.
@@ -10,4 +34,30 @@ Conventions (used throughout the package)
   ``(ux, uy, uz)`` per node, i.e. dof = 3 * node + component.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
 __version__ = "0.1.0"
+
+__all__ = ["DiagnosisResult", "Identification", "ModalResult", "Study", "__version__", "load_dataset"]
+
+_API = ("DiagnosisResult", "Identification", "ModalResult", "Study", "load_dataset")
+
+if TYPE_CHECKING:
+    from jointid.api import DiagnosisResult, Identification, ModalResult, Study, load_dataset  # noqa: F401
+
+
+def __getattr__(name: str):
+    """The API names, imported on first use (PEP 562): ``import jointid.<module>`` in a workflow job
+    stays as light as before, and the package's modules do not import the API through it."""
+    if name in _API:
+        value = getattr(importlib.import_module("jointid.api"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'jointid' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_API})
