@@ -94,6 +94,7 @@ def test_partial_data_finds_the_hidden_effect(rig, tmp_path):
                                    ladder=ladder_text(res.ladder))
 
 
+@pytest.mark.extended  # make test: the frequency-only tie of tests/test_shape_residuals.py
 def test_near_collinear_effects_are_named_together_and_a_measurement_decides(rig, tmp_path):
     """An elastic foundation and a compliant rail fixing load the same path: with four frequencies (shape
     rows off: with them the shapes decide, tests/test_shape_residuals.py) both refits reach the noise; the

@@ -38,7 +38,8 @@ def _true_effect(truth: dict):
     return next(iter(eff), None)
 
 
-DEFAULT_CASES = ("added_mass_table", "decoy_carriage")  # the rest: make test-all (marker extended)
+DEFAULT_CASES = ("added_mass_table",)  # the rest, the decoy among them: make test-all (marker extended);
+# make test checks "nothing explains" on test_model_error_cases (a)
 
 
 @pytest.mark.parametrize("case", [pytest.param(c, id=c.stem, marks=() if c.stem in DEFAULT_CASES

@@ -183,6 +183,7 @@ def _fit_all(setup, folder, names):
     return recs
 
 
+@pytest.mark.extended  # make test: the ranking rules on recorded fits, and the hypotheses stage of the coarse run
 @pytest.mark.parametrize("truth", ["base_elastic", pytest.param("motors_6kg", marks=pytest.mark.extended),
                                    pytest.param("table_steel", marks=pytest.mark.extended)])
 def test_a_known_non_default_hypothesis_is_ranked_first(truth, setup, tmp_path):

@@ -143,6 +143,7 @@ def test_c_a_lighter_moving_mass_is_covered_by_the_reconstruction_range(rig, tmp
         assert r["value_min"] <= true <= r["value_max"], (par, r)
 
 
+@pytest.mark.extended
 def test_e_truth_on_a_finer_mesh_the_effect_interval_covers_it(rig, tmp_path):
     """The truth solved on a mesh refined once (the analysis's mesh is stiffer), right noise: the
     mesh's discretisation error is a model error the fit shows, and the hidden effect's 95 % interval,

@@ -120,6 +120,7 @@ def test_a_tie_is_broken_by_shapes(rig, tmp_path):
     assert lead(shapes) > 4
 
 
+@pytest.mark.extended
 def test_the_next_measurement_names_an_accelerometer_pair_that_decides(rig, tmp_path):
     """The frequency-only variant: the proposals include an accelerometer position; the shapes measured
     there (noise 5 % of the pair's RMS, as proposed) raise the truth's lead."""
