@@ -199,17 +199,26 @@ def test_synthetic_frf_matches_the_model_at_the_truth_and_not_off_it(synthetic):
     assert _frf_measured({"frf": []}) is None
 
 
-def test_without_frf_csv_nothing_is_written_and_stale_outputs_go(tmp_path):
-    """data/paper is frequency-only: no comparison, no file (and those an earlier run left are removed)."""
-    from jointid.stages.frf_compare import OUTPUTS, write_frf_comparison
+def test_without_frf_csv_the_declared_outputs_say_so(tmp_path):
+    """data/paper is frequency-only: no comparison, and the three declared outputs of rule harmonic say "no
+    measured FRF" (stale files of an earlier run with FRFs are overwritten); the report leaves the state out."""
+    from jointid.reporting.frf_section import load_frf_section
+    from jointid.stages.frf_compare import NO_FRF, OUTPUTS, write_frf_comparison
 
+    d = tmp_path / "power_off"
+    d.mkdir()
     for name in OUTPUTS:
-        (tmp_path / name).write_text("stale")
-    (tmp_path / "dynamic_stiffness.json").write_text("{}")
+        (d / name).write_text("stale")
+    (d / "dynamic_stiffness.json").write_text("{}")
     cfg = {"measurements": {"dataset": str(REPO / "data" / "paper")}, "states": {"power_off": {}}}
-    assert write_frf_comparison(cfg, "power_off", None, None, None, {}, {}, tmp_path / "dynamic_stiffness.json",
+    assert write_frf_comparison(cfg, "power_off", None, None, None, {}, {}, d / "dynamic_stiffness.json",
                                 progress=lambda m: None) is None
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["dynamic_stiffness.json"]
+    assert sorted(p.name for p in d.iterdir()) == sorted(["dynamic_stiffness.json", *OUTPUTS])
+    tab = pd.read_csv(d / OUTPUTS[0])
+    assert tab.empty and list(tab.columns) == COMPARE_COLUMNS
+    assert json.loads((d / OUTPUTS[1]).read_text()) == {"state": "power_off", "available": False, "note": NO_FRF}
+    assert (d / OUTPUTS[2]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert load_frf_section(tmp_path, ["power_off"]) is None
 
 
 # ------------------------------------------------------------------ UFF 58

@@ -1,6 +1,10 @@
 # Report stage: harmonic response per state -> Table 1 -> one self-contained HTML page.
 #   results/harmonic/{state}/{frf.csv, dynamic_stiffness.json, modes.npz, drive_points.npz}
+#   results/harmonic/{state}/{frf_compare.csv, frf_measured_stiffness.json, frf_overlay_measured.png}: measured
+#     FRFs against the model's (jointid.stages.frf_compare); without frf.csv they say "no measured FRF"
 #   results/tables/table1_dynamic_stiffness.{csv,md}, table1_ranges.csv, table1_cases.csv, table1_pairings.csv
+#   results/tables/joint_damping_states.json: the identified joint damping of the states compared
+#     (jointid.stages.damping_states); {"available": false, ...} on frequency-only data
 #   results/report/index.html (+ figures/*.png, wrapped for `snakemake --report report.html`)
 # Captions of the figures: workflow/report/*.rst (paths relative to this file).
 
@@ -18,8 +22,10 @@ def cfg_harmonic(state):
 
 
 CFG_TABLE1_CHAIN = merged(CFG_TABLES_CHAIN, *map(cfg_harmonic, STATES))
+# rule joint_damping_states reads the params.json of the states: nothing of its own, for the provenance
+CFG_DAMPING_STATES = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT_SURFACE, *map(cfg_identify, STATES))
 
-localrules: table1
+localrules: table1, joint_damping_states
 
 
 rule harmonic:
@@ -36,6 +42,10 @@ rule harmonic:
         points=f"{R}/harmonic/{{state}}/drive_points.npz",
         modes_vtu=f"{R}/model/modes_{{state}}.vtu",  # ParaView: Warp By Vector
         modes_uff=f"{R}/model/modes_{{state}}.uff",  # test software: UFF 164 + 15 + 55
+        # measured FRFs against the model's; written, saying so, when the dataset has no frf.csv
+        frf_compare=f"{R}/harmonic/{{state}}/frf_compare.csv",
+        frf_measured_stiffness=f"{R}/harmonic/{{state}}/frf_measured_stiffness.json",
+        frf_overlay=f"{R}/harmonic/{{state}}/frf_overlay_measured.png",
     params:
         cfg=lambda wc: cfg_harmonic(wc.state),
     log:
@@ -76,6 +86,23 @@ rule table1:
         "../scripts/table1.py"
 
 
+rule joint_damping_states:
+    input:
+        params=expand(f"{R}/identify/{{state}}/params.json", state=STATES),
+    output:
+        json=f"{R}/tables/joint_damping_states.json",
+    params:
+        cfg=CFG_DAMPING_STATES,  # nothing of its own: for the provenance
+    log:
+        "logs/joint_damping_states.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
+    script:
+        "../scripts/damping_states.py"
+
+
 rule report:
     input:
         table1=rules.table1.output.csv,
@@ -88,6 +115,8 @@ rule report:
         rigidity=(expand(f"{R}/identify/{{state}}/carriage_rigidity.json", state=STATES)
                   if config["model"]["kind"] == "rig" else []),  # the rig's carriage on its rail
         frf=expand(f"{R}/harmonic/{{state}}/frf.csv", state=STATES),
+        frf_compare=expand(f"{R}/harmonic/{{state}}/frf_compare.csv", state=STATES),  # read beside frf.csv
+        damping_states=rules.joint_damping_states.output.json,
         stiffness=expand(f"{R}/harmonic/{{state}}/dynamic_stiffness.json", state=STATES),
         modes=expand(f"{R}/harmonic/{{state}}/modes.npz", state=STATES),
         diagnostics=SURFACE_DIAGNOSTICS,  # the surfaces that carried the identification
@@ -128,5 +157,6 @@ EXTRA_TARGETS += [
     f"{R}/tables/table1_dynamic_stiffness.csv",
     f"{R}/tables/table1_dynamic_stiffness.md",
     f"{R}/tables/table1_ranges.csv",
+    f"{R}/tables/joint_damping_states.json",
     f"{R}/report/index.html",
 ]

@@ -1,6 +1,7 @@
 """The report's section on measured FRFs against the model's (issue 40, item 3).
 
-Reads what rule ``harmonic`` writes when a dataset has ``frf.csv`` (:mod:`jointid.stages.frf_compare`):
+Reads what rule ``harmonic`` writes (:mod:`jointid.stages.frf_compare`; without ``frf.csv`` the files say
+"no measured FRF" and the states are left out):
 ``results/harmonic/<state>/frf_compare.csv``, ``frf_measured_stiffness.json`` and
 ``frf_overlay_measured.png``.  :func:`load_frf_section` gathers them; :func:`frf_section_html` renders the
 fragment (the per-FRF correlation table, the measured drive-point dynamic stiffness beside Table 1's
@@ -19,7 +20,7 @@ import pandas as pd
 
 from jointid.reporting.figures import STATE_COLOURS, _plt
 
-__all__ = ["MAX_PANELS", "frf_section_html", "load_frf_section", "measured_overlay_figure"]
+__all__ = ["MAX_PANELS", "frf_section_html", "load_frf_section", "measured_overlay_figure", "no_frf_figure"]
 
 MAX_PANELS = 6
 """FRFs drawn per state (the drive point first, then in the order of ``frf.csv``)."""
@@ -70,16 +71,29 @@ def measured_overlay_figure(curves: list[dict], table: pd.DataFrame, state: str)
     return fig
 
 
+def no_frf_figure(state: str, note: str):
+    """The figure rule ``harmonic`` writes in place of the overlay when the dataset has no measured FRF: one
+    panel with ``note``."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 1.2))
+    ax.axis("off")
+    ax.text(0.5, 0.5, f"{state.replace('_', '-')}: {note}", ha="center", va="center", fontsize=9)
+    return fig
+
+
 def load_frf_section(harmonic_dir, states) -> tuple[pd.DataFrame, dict[str, dict], dict[str, bytes]] | None:
     """The files of :mod:`jointid.stages.frf_compare` under ``harmonic_dir/<state>/`` (``results/harmonic``):
     ``(table, stiffness, figures)`` as :func:`frf_section_html` takes them, for the states that have them;
-    None when no state has them (the dataset has no ``frf.csv``)."""
+    None when no state has any (the dataset has no ``frf.csv``)."""
     tables, stiffness, figures = [], {}, {}
     for s in states:
         d = Path(harmonic_dir) / str(s)
         if not (d / "frf_compare.csv").is_file():
             continue
-        tables.append(pd.read_csv(d / "frf_compare.csv"))
+        tab = pd.read_csv(d / "frf_compare.csv")
+        if tab.empty:  # written all the same, saying "no measured FRF" (jointid.stages.frf_compare)
+            continue
+        tables.append(tab)
         if (d / "frf_measured_stiffness.json").is_file():
             stiffness[str(s)] = json.loads((d / "frf_measured_stiffness.json").read_text())
         if (d / "frf_overlay_measured.png").is_file():

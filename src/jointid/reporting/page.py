@@ -20,6 +20,7 @@ from markupsafe import Markup
 from jointid.reporting.htmltable import esc as _esc
 from jointid.reporting.htmltable import html_table, notes, reset_ids
 from jointid.reporting.summary import card_items, key_numbers
+from jointid.reporting.damping_section import damping_section_html, shown as damping_shown
 from jointid.reporting.table_sections import freq_tables_html, table1_html
 
 __all__ = ["build_html", "html_table", "report_figures"]
@@ -272,8 +273,10 @@ def _table1_section(data: dict) -> str:
             + f"<p class='note'>Drive point {d0['drive_point']} ({pt['part']} top at x = {pt['x_m']:.3f} m, "
               f"z = {pt['z_m']:.3f} m). Force and response in {d0['direction'].upper()}, spread and averaged over a "
               f"{1e3 * d0.get('patch_diameter_m', 0.0):g} mm hammer-tip patch. The minimum of |F/X| over the "
-              "band sits at a resonance, K_min ≈ 2 ζ_r k_r. So its absolute value follows the assumed damping ratio "
-              "(the paper gives none) and which modes the drive point excites: the absolute numbers are not "
+              "band sits at a resonance, K_min ≈ 2 ζ_r k_r. So its absolute value follows the "
+              + ("damping ratio (its source in the notes above) " if "damping_source" in data["table1"] else
+                 "assumed damping ratio (the paper gives none) ")
+              + "and which modes the drive point excites: the absolute numbers are not "
               "expected to match the paper's ANSYS model. A state is <i>identified</i> only when the mode that sets "
               "the minimum is paired with a measured mode (verify stage). Otherwise the model's minimum is shown "
               "apart, as not identified, beside the lowest resonance peak of a paired mode.</p>")
@@ -296,6 +299,8 @@ def _sections(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> list
         ("params", "Identified joint parameters",
          "<p class='note'>The figure of the summary shows these values and intervals.</p>"
          + _params_html(data) + _rigidity_html(data, figs) + _mesh_check_html(data)),
+        *([("damping", "Identified joint damping", damping_section_html(data["joint_damping_states"]))]
+          if damping_shown(data.get("joint_damping_states")) else []),
         ("frf", "Frequency response, power-off vs power-on",
          _img(figs["frf"], "FRF overlay") + _harmonic_notes(data)),
         *([("frf_measured", "Measured FRFs against the model's", _frf_measured_html(data))]

@@ -50,6 +50,8 @@ def key_numbers(data: dict) -> dict:
                             f"(paper {t.paper_relative_error_pct.abs().max():.1f} %)"
                             for s, t in data["tables"].items()),
         "damping": ", ".join(f"{k} = {v}" for k, v in d0["damping"]["config"].items()),
+        "damping_note": ("(the paper publishes no damping)" if d0["damping"].get("source", "assumed") == "assumed" else
+                         f"({d0['damping']['source']} damping used instead: see Table 1's notes)"),
         "problems": data.get("table1_problems", []),
         "model_error": model_error_text(data),
     }

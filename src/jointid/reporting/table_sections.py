@@ -22,8 +22,8 @@ def _mode_text(mode, desc, freq, order) -> str:
 
 
 def table1_notes(t: pd.DataFrame) -> list[str]:
-    """Per state: the status in full, the governing mode, the lowest paired peak's mode, and the tie
-    the status rests on (when it does)."""
+    """Per state: the status in full, the governing mode, the lowest paired peak's mode, the tie
+    the status rests on (when it does) and, when the data carry damping ratios, the damping's source."""
     out = []
     for _, r in t.iterrows():
         paired = ("–" if pd.isna(r.paired_governing_mode) else
@@ -34,6 +34,8 @@ def table1_notes(t: pd.DataFrame) -> list[str]:
                 f" Lowest peak of a paired mode: {paired}.")
         if bool(r.get("status_rests_on_tie", False)):
             line += f" The status rests on a tie: {r.tie_note}."
+        if "damping_source" in t:  # the data carry damping ratios
+            line += f" Damping ({r.damping_source}): {r.damping_note}."
         out.append(line)
     return out
 

@@ -12,6 +12,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from jointid.identification.damping_law import ASSUMED, IDENTIFIED as IDENTIFIED_DAMPING
+
 __all__ = ["REFERENCE_STATE", "TABLE1_COLUMNS", "TABLE_TITLES", "damping_range_cells", "frequency_table",
            "markdown_table", "reference_state", "table1_frame", "table1_markdown", "table1_pairings_frame"]
 
@@ -117,7 +119,10 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
         ``paired_k_dyn_low_N_per_mm, paired_k_dyn_high_N_per_mm``, ``governing_modes_over_damping_range``,
         then ``increase_low_pct, increase_high_pct`` and ``paired_increase_low_pct,
         paired_increase_high_pct`` (taken at the same damping ratio in both states; the former only
-        where both states are identified).
+        where both states are identified).  When a state's data carry damping ratios, two more:
+        ``damping_source`` (``assumed``, ``measured`` or ``identified``: then every mode has the identified
+        law's ratio and the range is over its 95 % intervals, :mod:`jointid.stages.harmonic_damping`) and
+        ``damping_note`` (what it is, with the identified values).
     """
     p = paper.set_index("state") if len(paper) else pd.DataFrame()
     df = pd.DataFrame([_table1_row(d, p) for d in stiffness])
@@ -140,6 +145,10 @@ def table1_frame(stiffness: list[dict], paper: pd.DataFrame) -> pd.DataFrame:
         lo, hi = _increase_range(grids, reference_state(list(df["state"])), key, name)
         df[f"{col}_low_pct"] = [v if (both or name) else math.nan for v in map(lo.get, df["state"])]
         df[f"{col}_high_pct"] = [v if (both or name) else math.nan for v in map(hi.get, df["state"])]
+    source = [d["damping"].get("source", ASSUMED) for d in stiffness]
+    if any(v != ASSUMED for v in source):  # the data carry damping ratios (frequency-only data: as before)
+        df["damping_source"] = source
+        df["damping_note"] = [d["damping"].get("text", "") for d in stiffness]
     return df
 
 
@@ -282,7 +291,13 @@ def _table1_cells(r) -> dict:
             "static stiffness (N/mm)": static}
 
 
+def _identified(r) -> bool:
+    return getattr(r, "damping_source", ASSUMED) == IDENTIFIED_DAMPING
+
+
 def _zeta_header(r) -> str:
+    if _identified(r):
+        return "band minimum over the identified damping's 95 % intervals (N/mm)"
     return f"band minimum at ζ {_num(r.damping_ratio_low, 'g')}–{_num(r.damping_ratio_high, 'g')} (N/mm)"
 
 
@@ -328,6 +343,15 @@ def ranges_markdown(ranges: pd.DataFrame) -> list[str]:
             "damping ratio; they differ only in how the damping changes between the states.", ""]
 
 
+def damping_markdown(df: pd.DataFrame, z: str) -> str:
+    """Table 1's note on the damping when the data carry damping ratios: each state's source (``z``: the
+    governing modes' ratios)."""
+    return ("Damping per state — " + "; ".join(f"{r.state}: {r.damping_note}" for r in df.itertuples())
+            + f". Damping ratio of the governing mode: {z}. K_min ≈ 2 ζ_r k_r scales about linearly with it; the "
+            "range beside each value is over the identified damping's 95 % intervals where it is identified, over "
+            "harmonic.damping.damping_ratio_range (assumed) elsewhere.")
+
+
 def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None, pairings: pd.DataFrame | None = None) -> str:
     """Markdown rendering of :func:`table1_frame` (and of the ranges, and of Table 1 under every
     admissible pairing, :func:`table1_pairings_frame`) with the increases and a note on the damping."""
@@ -349,11 +373,15 @@ def table1_markdown(df: pd.DataFrame, ranges: pd.DataFrame | None = None, pairin
             lines.append(f"**{r.state}: the status rests on a tie.** {r.tie_note[:1].upper() + r.tie_note[1:]}.")
     for _, r in df[df.state != ref].iterrows():
         if "increase_low_pct" in df and not pd.isna(r.paired_increase_low_pct):
-            lines.append(f"Over ζ {_num(r.damping_ratio_low, 'g')}–{_num(r.damping_ratio_high, 'g')} (the same ratio in "
-                         f"both states): increase {_num(r.increase_low_pct, '+.1f')} … {_num(r.increase_high_pct, '+.1f')} %, "
+            over = ("Over the identified damping's 95 % intervals (both states at the same end)" if _identified(r) else
+                    f"Over ζ {_num(r.damping_ratio_low, 'g')}–{_num(r.damping_ratio_high, 'g')} (the same ratio in both "
+                    "states)")
+            lines.append(f"{over}: increase {_num(r.increase_low_pct, '+.1f')} … {_num(r.increase_high_pct, '+.1f')} %, "
                          f"lowest paired peaks {_num(r.paired_increase_low_pct, '+.1f')} … "
                          f"{_num(r.paired_increase_high_pct, '+.1f')} %.")
     z = ", ".join(f"{r.state} {r.damping_ratio_governing:.3g}" for _, r in df.iterrows())
+    if "damping_source" in df:
+        return "\n".join(lines + ["", damping_markdown(df, z), ""] + pairings_markdown(pairings) + ranges_markdown(ranges))
     lines += ["", f"Damping model: `{df.damping_model.iloc[0]}`; damping ratio of the governing mode: {z}. "
               "The minimum dynamic stiffness sits at a resonance, K_min ≈ 2 ζ_r k_r, so its absolute value scales "
               "with the assumed damping (the paper publishes none) and depends on the drive point and on which mode "

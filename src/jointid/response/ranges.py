@@ -34,8 +34,8 @@ import pandas as pd
 from jointid.errors import ConfigError
 from jointid.response import harmonic as hm
 
-__all__ = ["LAWS", "band_minimum", "calibrate", "case_table", "damping_ratio_range", "law_damping", "modal_frf",
-           "range_table"]
+__all__ = ["LAWS", "band_minimum", "calibrate", "case_table", "damping_ratio_range", "damping_vectors_range",
+           "law_damping", "modal_frf", "range_table"]
 
 LAWS = ("modal", "joint_dashpot", "joint_hysteretic")
 """The damping laws of the ranges (module docstring)."""
@@ -272,12 +272,21 @@ def damping_ratio_range(band_Hz, freqs_Hz, zeta, pphi, residual: float, ratio_ra
     keep = np.zeros(fr.size, bool) if fixed is None else np.asarray(fixed, bool)
     vary = (fr >= hm.RIGID_HZ) & ~keep
     grid = np.linspace(lo, hi, int(n_grid)) if hi > lo else np.array([lo])
+    out = {"damping_ratio_low": lo, "damping_ratio_high": hi, "damping_ratio_grid": grid.tolist()}
+    zetas = [np.where(vary, z, np.asarray(zeta, dtype=float)) for z in grid]
+    return out | damping_vectors_range(band_Hz, fr, zetas, pphi, residual, paired=paired, n_freq=n_freq)
+
+
+def damping_vectors_range(band_Hz, freqs_Hz, zetas, pphi, residual: float, *, paired: dict | None = None,
+                          n_freq: int = 1601) -> dict:
+    """``K_min`` of the drive point under each of several damping-ratio vectors ``zetas`` (a list of
+    ``(n_modes,)`` arrays: the grid of :func:`damping_ratio_range`, or an identified law at its interval
+    ends); the other arguments and the keys ``k_min_N_per_m`` ... ``paired`` as there."""
+    fr = np.asarray(freqs_Hz, dtype=float)
     paired = paired or {}
-    out = {"damping_ratio_low": lo, "damping_ratio_high": hi, "damping_ratio_grid": grid.tolist(),
-           "k_min_N_per_m": [], "governing_fe_mode": [],
+    out = {"k_min_N_per_m": [], "governing_fe_mode": [],
            "paired": {name: {"k_paired_N_per_m": [], "paired_fe_mode": []} for name in paired}}
-    for z in grid:
-        zz = np.where(vary, z, np.asarray(zeta, dtype=float))
+    for zz in zetas:
         m = band_minimum(band_Hz, fr, zz, np.zeros(fr.size), pphi, residual, n_freq=n_freq)
         out["k_min_N_per_m"].append(m["k_min_N_per_m"])
         out["governing_fe_mode"].append(m["mode"] + 1)

@@ -16,8 +16,9 @@ and drive-point residual flexibility) when the measured drive point is a table p
 ``harmonic.direction``, else a point load; a response at the drive point in the drive direction is the
 same patch (so that FRF is Table 1's), any other response is the displacement at the point
 (``model.probe``) without residual flexibility (the static share of the modes above 2.5 x the band top
-is left out of transfer FRFs).  Without ``frf.csv`` nothing is written (and these three files, if an
-earlier run left them, are removed).
+is left out of transfer FRFs).  Without ``frf.csv`` the three files are written all the same (they are
+declared outputs of the rule) and say so: the table has its columns and no row, the JSON is
+``{"state", "available": false, "note"}``, the figure a panel with that note.
 """
 
 from __future__ import annotations
@@ -25,10 +26,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from jointid import io
 from jointid.config.datasets import dataset_folder
-from jointid.correlate.frf import compare_table
+from jointid.correlate.frf import COMPARE_COLUMNS, compare_table
 from jointid.errors import JointidError
 from jointid.response.drive_point import drive_vector
 from jointid.response.harmonic import frf_modal, resonance_grid
@@ -37,7 +39,9 @@ from jointid.response.measured import measured_dynamic_stiffness
 __all__ = ["OUTPUTS", "model_curves", "write_frf_comparison"]
 
 OUTPUTS = ("frf_compare.csv", "frf_measured_stiffness.json", "frf_overlay_measured.png")
-"""Files written into the state's ``results/harmonic/<state>/`` folder."""
+"""Files written into the state's ``results/harmonic/<state>/`` folder (declared outputs of rule ``harmonic``)."""
+NO_FRF = "no measured FRF: the dataset has no frf.csv for this state"
+"""What the three files say without measured FRFs."""
 
 
 def _measured(cfg: dict, state: str, progress):
@@ -112,7 +116,7 @@ def model_curves(model, modes, res, pts: dict, ds, state: str, drive: str, direc
 def _stiffness_doc(curves: list, band: list[float], table1: dict, drive: str, direction: str, note: str) -> dict:
     """``frf_measured_stiffness.json``: the measured drive-point dynamic stiffness over Table 1's band,
     the model's FRF read the same way on the measured lines, and Table 1's model value."""
-    doc = {"state": table1["state"], "drive_point": drive, "direction": direction, "excitation": note,
+    doc = {"state": table1["state"], "available": True, "drive_point": drive, "direction": direction, "excitation": note,
            "table1_drive_point": table1["drive_point"], "table1_direction": table1["direction"],
            "model_table1": {"dynamic_stiffness_N_per_m": table1["dynamic_stiffness_N_per_m"],
                             "dynamic_stiffness_N_per_mm": table1["dynamic_stiffness_N_per_mm"],
@@ -159,14 +163,19 @@ def write_frf_comparison(cfg: dict, state: str, model, modes, res, pts: dict, ta
     Returns
     -------
     dict or None
-        ``{"table": DataFrame, "stiffness": dict}``, or None (nothing written) when the dataset has no
-        FRF of ``state``.
+        ``{"table": DataFrame, "stiffness": dict}``, or None (the files say "no measured FRF") when the
+        dataset has no FRF of ``state``.
     """
+    from jointid.reporting.frf_section import measured_overlay_figure, no_frf_figure
+    from jointid.reporting.figures import png_bytes
+
     out_dir = Path(stiffness_json).parent
     measured = _measured(cfg, state, progress)
-    if measured is None:
-        for name in OUTPUTS:  # left by an earlier run on a dataset with FRFs
-            (out_dir / name).unlink(missing_ok=True)
+    if measured is None:  # the declared outputs, saying so
+        io.write_csv(pd.DataFrame(columns=COMPARE_COLUMNS), str(out_dir / OUTPUTS[0]))
+        io.write_json(str(out_dir / OUTPUTS[1]), {"state": state, "available": False, "note": NO_FRF})
+        with io.atomic_path(str(out_dir / OUTPUTS[2])) as tmp:
+            Path(tmp).write_bytes(png_bytes(no_frf_figure(state, NO_FRF)))
         return None
     ds, drive, direction = measured
     curves, note = model_curves(model, modes, res, pts, ds, state, drive, direction)
@@ -174,9 +183,6 @@ def write_frf_comparison(cfg: dict, state: str, model, modes, res, pts: dict, ta
     doc = _stiffness_doc(curves, [float(b) for b in cfg["harmonic"]["band_Hz"]], table1, drive, direction, note)
     io.write_csv(table, str(out_dir / OUTPUTS[0]))
     io.write_json(str(out_dir / OUTPUTS[1]), doc)
-    from jointid.reporting.frf_section import measured_overlay_figure
-    from jointid.reporting.figures import png_bytes
-
     with io.atomic_path(str(out_dir / OUTPUTS[2])) as tmp:
         Path(tmp).write_bytes(png_bytes(measured_overlay_figure(curves, table, state)))
     worst = table.loc[table["frac"].idxmin()]

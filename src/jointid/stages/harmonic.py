@@ -14,34 +14,13 @@ import pandas as pd
 
 from jointid import io
 from jointid.geometry.points import dof_labels
-from jointid.config.datasets import dataset_folder
 from jointid.data.uff_export import write_modes_uff
 from jointid.stages.frf_compare import write_frf_comparison
+from jointid.stages.harmonic_damping import damping_range, state_damping, why_text
 from jointid.fe.vtk import write_mesh_vtu
-from jointid.response.drive_point import (MODE_FACTOR, drive_vector, harmonic_response, joint_stiffness,
-                                          modal_damping_ratios, solve_band_modes)
+from jointid.response.drive_point import MODE_FACTOR, drive_vector, harmonic_response, solve_band_modes
 from jointid.response.harmonic import RIGID_HZ, static_residual
-from jointid.response.ranges import band_minimum, damping_ratio_range
-
-DAMPING_WHY = {  # why each damping model, for dynamic_stiffness.json
-    "modal": ("constant modal damping ratio: the paper publishes no damping, so one ratio typical of bolted/"
-              "guided machine structures is assumed for every mode; K_min = 2 zeta k_r then scales as the "
-              "modal stiffness k_r, i.e. as (f_on/f_off)^2 for a mode whose modal mass at the drive point is "
-              "unchanged"),
-    "rayleigh": "Rayleigh damping C = alpha M + beta K with the configured coefficients",
-    "joint": ("joint dashpots proportional to the joint springs (c = eta k_joint): zeta_r = eta w_r e_r / 2 with "
-              "e_r the share of the mode's strain energy in the joints, so K_min scales as k_r w_r e_r — as "
-              "(f_on/f_off)^3 only when e_r is about 1 in both states and the modal mass is unchanged"),
-    "measured": "measured modal damping ratios of the dataset (mean measured ratio for unpaired modes)",
-}
-
-
-DAMPING_RATIO_RANGE = (0.02, 0.05)
-"""The default of ``harmonic.damping.damping_ratio_range`` (schema.yaml)."""
-DAMPING_RANGE_WHY = ("harmonic.damping.damping_ratio_range, assumed (the paper publishes no damping): the modal "
-                     "damping ratio of bolted, rolling-guide machine structures; every mode without a measured "
-                     "ratio at one constant ratio over the range")
-
+from jointid.response.ranges import band_minimum
 
 def config_keys(state: str) -> tuple[str, ...]:
     """Config keys of rule ``harmonic``: the shared sections and this state's settings only."""
@@ -54,28 +33,6 @@ def frf_frame(res) -> pd.DataFrame:
     return pd.DataFrame({"freq_Hz": res.f_Hz, "H_real_m_per_N": res.H.real, "H_imag_m_per_N": res.H.imag,
                          "H_abs_m_per_N": np.abs(res.H), "phase_deg": np.degrees(np.angle(res.H)),
                          "dynamic_stiffness_N_per_m": 1.0 / np.abs(res.H)})
-
-
-def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
-    """Measured damping ratios by 0-based FE mode index (paired via verify.csv), and a note."""
-    from jointid.data.dataset import read_dataset
-
-    if verify_csv is None:
-        return {}, "no verify table: measured damping not used"
-    folder = dataset_folder(cfg, state)
-    try:
-        ds = read_dataset(folder)
-    except Exception as exc:  # the identify stage has validated the dataset already
-        return {}, f"dataset {folder} not readable here ({str(exc).splitlines()[0]}): measured damping not used"
-    zm = ds.damping(state) if state in ds.states else None
-    if zm is None:
-        return {}, f"dataset {folder} has no damping ratios for {state}"
-    ver = pd.read_csv(verify_csv)
-    out = {}
-    for order, fe_mode in zip(ver["order"], ver["fe_mode"]):
-        if int(fe_mode) >= 1 and 1 <= int(order) <= len(zm):
-            out[int(fe_mode) - 1] = float(zm[int(order) - 1])
-    return out, f"measured damping ratios of {len(out)} paired modes from {folder}"
 
 
 def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv: str, out_json: str,
@@ -93,7 +50,8 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     ----------
     cfg : dict
         Sections ``rig, joints, solver, harmonic`` (+ ``states, measurements, datasets`` for measured
-        damping).
+        damping).  The damping: the identified joint damping of ``params.json`` when the data carry
+        damping ratios, else the configured one (:func:`jointid.stages.harmonic_damping.state_damping`).
     state : str
         Operating state (names the dataset's damping ratios).
     params_json, matrices : str
@@ -124,13 +82,13 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     band = [float(b) for b in h["band_Hz"]]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res, modes, desc, dcfg, mnote, pts = _response(cfg, state, model, kc, mc, band, verify_csv, progress)
+        res, modes, desc, damping, pts = _response(cfg, state, par, model, kc, mc, band, verify_csv, progress)
     notes = [str(w.message) for w in caught]
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     io.write_csv(frf_frame(res), out_csv)
     order = _measured_order(verify_csv, res.governing)
-    out = _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order)
+    out = _summary(cfg, state, res, desc, damping, band, theta, notes, order)
     out.update(_paired_summary(res, desc, pts["measured_order"], band))
     out["tie"] = tie_note(tied_csv, res.governing, order, float(res.freqs_Hz[res.governing]), par)
     if out["tie"]["rests_on_tie"]:
@@ -138,7 +96,7 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     orders = pairing_orders(pts["measured_order"], tied_csv)
     out["pairings"] = [{"pairing": name, "governing_measured_order": int(o[res.governing]) or None,
                         **_paired_summary(res, desc, o, band)} for name, o in orders.items()]
-    out["damping_range"] = _damping_range(h, band, res, orders)
+    out["damping_range"] = damping_range(h, band, res, orders, damping)
     for p in out["pairings"]:
         progress(f"harmonic[{state}]: under the {p['pairing']} pairing: {p['status']}")
     io.write_json(out_json, out)
@@ -152,19 +110,6 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
              f"{out['f_at_min_Hz']:.1f} Hz (FE mode {g + 1}, {desc['description'][g]}), static "
              f"{'n/a' if static is None else format(static, '.5g')} N/mm; {out['status']}")
     return out
-
-
-def _damping_range(h: dict, band: list[float], res, orders: dict) -> dict:
-    """``dynamic_stiffness.json``'s ``damping_range``: the band minimum and the paired peaks over
-    ``harmonic.damping.damping_ratio_range`` (:func:`jointid.response.ranges.damping_ratio_range`) under
-    each pairing of ``orders`` (:func:`pairing_orders`), the measured ratios kept, with its ``source``."""
-    rng = damping_ratio_range(
-        band, res.freqs_Hz, res.zeta, res.participation, res.residual_flexibility_m_per_N or 0.0,
-        (h.get("damping") or {}).get("damping_ratio_range", DAMPING_RATIO_RANGE),
-        fixed=np.asarray(res.damping_source) == "measured", paired={n: o > 0 for n, o in orders.items()},
-        n_freq=int(h["n_freq"]))
-    rng["source"] = DAMPING_RANGE_WHY
-    return rng
 
 
 def _write_mode_files(model, state: str, res, modes, desc: pd.DataFrame, out_vtu: str | None,
@@ -288,7 +233,7 @@ def _measured_order(verify_csv: str | None, g: int) -> int | None:
     return int(ver.loc[hit[0], "order"]) if len(hit) else None
 
 
-def _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order) -> dict:
+def _summary(cfg, state, res, desc, damping, band, theta, notes, order) -> dict:
     """The content of ``dynamic_stiffness.json``."""
     h = cfg["harmonic"]
     g = res.governing
@@ -311,10 +256,10 @@ def _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order) -> d
             "modal_stiffness_N_per_m": float(k_r),
             "two_zeta_k_N_per_m": float(2 * res.zeta[g] * k_r),
             "strain_joints": float(desc["strain_joints"][g])},
-        "damping": {"config": dcfg, "measured": mnote,
+        "damping": {"config": damping["config"], "measured": damping["measured"],
                     "per_mode": [{"fe_mode": i + 1, "freq_Hz": float(f), "damping_ratio": float(z), "source": src}
                                  for i, (f, z, src) in enumerate(zip(res.freqs_Hz, res.zeta, res.damping_source))],
-                    "why": DAMPING_WHY.get(dcfg.get("model", "modal"), "")},
+                    "why": why_text(damping), "source": damping["kind"], "text": damping["text"]},
         "modes": {"n_modes": int(res.freqs_Hz.size), "highest_Hz": float(res.freqs_Hz[-1]),
                   "target_Hz": MODE_FACTOR * band[1]},
         "residual": {"used": R is not None, "flexibility_m_per_N": R, "static_receptance_m_per_N": H0,
@@ -325,7 +270,7 @@ def _summary(cfg, state, res, desc, dcfg, mnote, band, theta, notes, order) -> d
     }
 
 
-def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
+def _response(cfg, state, par, model, kc, mc, band, verify_csv, progress):
     """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`), and
     the modal data of every table point (:func:`point_data`)."""
     from jointid.fe.describe import describe_modes
@@ -349,16 +294,15 @@ def _response(cfg, state, model, kc, mc, band, verify_csv, progress):
     R, H0, note = resid[k0]
     desc = describe_modes(model, modes.phi, kc, mc)
     progress(f"harmonic[{state}]: {note}")
-    dcfg = dict(h.get("damping") or {"model": "modal", "damping_ratio": 0.03})
-    dcfg.pop("damping_ratio_range", None)  # the model's own fields; the range is Table 1's (run_harmonic)
-    measured, mnote = measured_damping(cfg, state, verify_csv)
     share = np.where(modes.freqs_Hz >= RIGID_HZ, desc["strain_joints"].to_numpy(float), 0.0)
-    zeta, source = modal_damping_ratios(dcfg, modes.freqs_Hz, joint_share=share, measured=measured)
+    damping = state_damping(cfg, state, par, model, modes, kc, share, verify_csv)
+    zeta = damping["zeta"]
+    progress(f"harmonic[{state}]: damping {damping['text']}")
     res = harmonic_response(modes, p, zeta, band, n_freq=int(h["n_freq"]), residual=R, static_receptance=H0)
-    res.damping_source, res.residual_note = source, note
+    res.damping_source, res.residual_note = damping["source"], note
     pts = point_data(names, P @ modes.phi, resid, modes.freqs_Hz, share, _measured_orders(verify_csv, modes.freqs_Hz.size),
                      desc, zeta, direction, float(h.get("patch_diameter_m", 0.0)))
-    return res, modes, desc, dcfg, mnote, pts
+    return res, modes, desc, damping, pts
 
 
 def drive_patches(model, drive_point: str, direction: str, diameter_m: float):

@@ -43,6 +43,7 @@ def load_inputs(inputs: dict) -> dict:
         "hypotheses": _hypotheses(inputs),
         "diagnosis": _diagnosis(inputs),
         "frf_measured": _frf_measured(inputs),
+        "joint_damping_states": io.read_json(inputs["damping_states"]) if inputs.get("damping_states") else None,
     }
 
 
@@ -108,7 +109,9 @@ def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
         ``verify, params, frf, stiffness, modes`` (one per state; the state is the parent folder name)
         and optionally ``mesh_check`` (one JSON per state, from the rule mesh_check), ``rigidity``
         (one JSON per state, from the rule carriage_rigidity) and ``diagnosis`` (one ranking.csv per
-        diagnosed dataset, rule diagnose; its verdict.json is read beside it).
+        diagnosed dataset, rule diagnose; its verdict.json is read beside it) and ``damping_states``
+        (``joint_damping_states.json``, rule joint_damping_states: a section when a state's joint damping is
+        identified).
     outputs : dict
         ``html`` and one PNG path per figure (``frf, errors, parameters, surface, doe, mode_shapes``);
         figures without a path are only embedded.

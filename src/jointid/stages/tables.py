@@ -94,7 +94,8 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
             f"{r.not_identified_dynamic_stiffness_N_per_mm:,.0f}), lowest paired peak "
             f"{r.paired_dynamic_stiffness_N_per_mm:,.0f} N/mm{pinc}"
             + _paper_note(r.paper_dynamic_stiffness_N_per_mm, ",.0f") + inc
-            + f"; at damping ratio {r.damping_ratio_low:g}-{r.damping_ratio_high:g}: band minimum "
+            + ("; over the identified damping's 95 % intervals, governing mode at" if getattr(r, "damping_source", "")
+               == "identified" else "; at damping ratio") + f" {r.damping_ratio_low:g}-{r.damping_ratio_high:g}: band minimum "
               f"{r.k_dyn_min_low_N_per_mm:,.0f}-{r.k_dyn_min_high_N_per_mm:,.0f} N/mm"
             + (f"; tied pairings chosen by {r.tie_rule}" if r.tie_rule and r.tie_rule != "least cost (no tie)" else ""))
     for r in pairings[pairings.pairing != "chosen"].itertuples():
