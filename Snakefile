@@ -36,7 +36,7 @@ CFG_MESH = sections(config, *model.config_keys(config))
 CFG_DOE = sections(config, *doe.CONFIG)
 CFG_FIT_SURFACE = sections(config, *surface.CONFIG)
 CFG_VERIFY = sections(config, *verify.CONFIG)
-# mesh.extrapolate_edges: identify and verify also solve on the meshes with one and two more edge levels
+# mesh.extrapolate_edges: identify (and the mesh check) also solve on the meshes with one and two more edge levels
 EDGE_MODELS = ([f"{R}/model/edge_plus{k}/matrices.npz" for k in (1, 2)]
                if config["mesh"]["extrapolate_edges"] else [])
 
@@ -106,6 +106,8 @@ rule mesh:
 # mesh.extrapolate_edges: the same mesh with one and two more edge-refinement levels
 rule mesh_edges:
     output:
+        # kept (324 + 539 MB on the default mesh): as temp() files, a rerun of one state's identify
+        # rebuilt them and so reran the other state's chain too
         matrices=f"{R}/model/edge_plus{{extra}}/matrices.npz",
     wildcard_constraints:
         extra="[12]",

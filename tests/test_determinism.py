@@ -1,4 +1,5 @@
-"""Determinism: two runs give byte-identical results (the second one interrupted and resumed);
+"""Determinism: two runs give byte-identical results (the second one interrupted during the DOE and
+resumed up to the first response surface; under ``make test-all`` also a second whole run);
 provenance is the only wall-clock field."""
 
 from __future__ import annotations
@@ -149,34 +150,48 @@ def _sha(path: Path) -> str:
 TABLE2 = "results/tables/table2_power_off.csv"
 
 
+CHAIN = {"results/model/matrices.npz", "results/doe/points.csv", "results/modal/all.npz",
+         "results/surface/model.json", "results/surface/diagnostics.csv", "results/model/edge_plus2/matrices.npz"}
+WHOLE = CHAIN | {"results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv",
+                 "results/tables/table1_dynamic_stiffness.csv", "results/identify/power_off/params.json",
+                 "results/identify/power_on/params.json", "results/surface/zoom/model.json",
+                 "results/doe/zoom/points.csv", "results/mesh_check/power_on.json",
+                 "results/report/index.html", "results/diagnosis/paper/ranking.csv"}
+
+
+def _assert_same_results(first: Path, second: Path, required: set) -> None:
+    """Every result file of ``second`` (a run from a clean folder) has the bytes of ``first``'s; the
+    files in ``required`` are among them.  The diagnosis' run records (history.csv, verdict.json, its
+    index.html) carry the run's time stamp and timings: they must agree once those are removed.
+    Provenance sidecars agree except for time stamp and git state."""
+    a = {k: v for k, v in file_hashes(first, BYTE_IDENTICAL).items() if not k.endswith(".provenance.json")}
+    b = {k: v for k, v in file_hashes(second, BYTE_IDENTICAL).items() if not k.endswith(".provenance.json")}
+    assert required <= set(b), f"missing from the second run: {sorted(required - set(b))}"
+    assert set(b) <= set(a), f"only in the second run: {sorted(set(b) - set(a))}"
+    differ = sorted(k for k in b if a[k] != b[k] and not is_wall_clock(k))
+    assert not differ, f"not byte-identical between the two runs: {differ}"
+    differ = [k for k in b if is_wall_clock(k) and normalised(first / k) != normalised(second / k)]
+    assert not differ, f"differ beyond their time stamps: {differ}"
+    sidecars = sorted(second.glob("results/**/*.provenance.json"))
+    assert sidecars
+    for p in sidecars:
+        assert _reproducible_part(p) == _reproducible_part(first / p.relative_to(second)), p.name
+
+
 @pytest.mark.slow
 def test_a_second_run_killed_and_resumed_is_byte_identical(coarse_run, resumed_run):
     """Two runs from clean folders give the same bytes.  The second one is ``resumed_run``: killed
-    during the DOE fan-out and resumed, so this also proves that resuming changes nothing.  All but
-    the DOE points written before the kill are computed by the resumed run's own fresh jobs."""
-    first, second = coarse_run, resumed_run.workdir
+    during the DOE fan-out and resumed up to the first response surface, so this also proves that
+    resuming changes nothing.  All but the DOE points written before the kill are computed by its own
+    fresh jobs."""
+    _assert_same_results(coarse_run, resumed_run.workdir, CHAIN)
 
-    a, b = file_hashes(first, BYTE_IDENTICAL), file_hashes(second, BYTE_IDENTICAL)
-    a = {k: v for k, v in a.items() if not k.endswith(".provenance.json")}
-    b = {k: v for k, v in b.items() if not k.endswith(".provenance.json")}
-    assert set(a) == set(b)
-    assert {"results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv",
-            "results/tables/table1_dynamic_stiffness.csv", "results/report/index.html",
-            "results/identify/power_off/params.json", "results/identify/power_on/params.json",
-            "results/surface/model.json", "results/surface/diagnostics.csv",
-            "results/surface/zoom/model.json", "results/doe/zoom/points.csv",
-            "results/modal/all.npz", "results/model/matrices.npz",
-            "results/diagnosis/paper/ranking.csv"} <= set(a)
-    # byte for byte, except the diagnosis' run records (history.csv, verdict.json, its index.html),
-    # which carry the run's time stamp and timings: those must agree once the times are removed
-    differ = sorted(k for k in a if a[k] != b[k] and not is_wall_clock(k))
-    assert not differ, f"not byte-identical between the two runs: {differ}"
-    wall = sorted(k for k in a if is_wall_clock(k))
-    assert wall, "the diagnosis ran"
-    differ = [k for k in wall if normalised(first / k) != normalised(second / k)]
-    assert not differ, f"differ beyond their time stamps: {differ}"
-    # provenance sidecars agree except for time stamp and git state
-    sidecars = sorted(first.glob("results/**/*.provenance.json"))
-    assert len(sidecars) >= len(WITH_PROVENANCE)
-    for p in sidecars:
-        assert _reproducible_part(p) == _reproducible_part(second / p.relative_to(first)), p.name
+
+@pytest.mark.slow
+@pytest.mark.extended
+def test_a_second_whole_run_is_byte_identical(coarse_run, second_run):
+    """The whole workflow (hypotheses, diagnosis with its run records, report) run twice from clean
+    folders gives the same bytes."""
+    _assert_same_results(coarse_run, second_run, WHOLE)
+    assert any(is_wall_clock(k) for k in file_hashes(second_run, BYTE_IDENTICAL)), "the diagnosis ran"
+    assert set(file_hashes(second_run, BYTE_IDENTICAL)) == set(file_hashes(coarse_run, BYTE_IDENTICAL))
