@@ -217,6 +217,10 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
     assert f"{tab.dynamic_stiffness_N_per_mm.iloc[0]:,.0f} N/mm (paper 104,547 N/mm)" in card
     assert max(table_widths(page)) <= 8, table_widths(page)  # no table wider than eight columns on screen
     assert "HGH25CA" in page
+    # the paper's data carry frequencies only: the page says what shapes, damping ratios and FRFs would add
+    for key in ("What more of the test would add", "<b>Mode shapes</b>", "<b>Damping ratios</b>",
+                "<b>Measured FRFs</b>"):
+        assert key in page, key
     assert not re.search(r"""(src|href)=['"](?!data:|#)""", page), "the page must not link external files"
     cfg = load_config(REPO / "config.yaml", overrides=__import__("yaml").safe_load(
         (REPO / "tests" / "coarse_config.yaml").read_text()))

@@ -19,6 +19,7 @@ from markupsafe import Markup
 
 from jointid.reporting.htmltable import esc as _esc
 from jointid.reporting.htmltable import html_table, notes, reset_ids
+from jointid.reporting.more_data import more_data_html
 from jointid.reporting.summary import card_items, key_numbers
 from jointid.reporting.damping_section import damping_section_html, shown as damping_shown
 from jointid.reporting.table_sections import freq_tables_html, table1_html
@@ -305,6 +306,8 @@ def _sections(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> list
          _img(figs["frf"], "FRF overlay") + _harmonic_notes(data)),
         *([("frf_measured", "Measured FRFs against the model's", _frf_measured_html(data))]
           if data.get("frf_measured") else []),
+        *([("more_data", "What more of the test would add", more_data_html(data))]
+          if more_data_html(data) else []),
         ("shapes", "Mode shapes of the paired modes", _img(figs["mode_shapes"], "mode shapes")
          + "<p class='note'>FE modes paired with the measured modes (verify stage), drawn at the 36 measuring "
            "points: table 3×6 grid on top, base lines below. The scale is arbitrary.</p>"),
