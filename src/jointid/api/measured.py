@@ -77,18 +77,18 @@ def identification(state: str, names: list[str], theta0: dict, f_meas, polish: d
                    cfg: dict) -> Identification:
     """The :class:`Identification` of a polish record (:func:`jointid.identification.polish.fe_polish`).
 
-    The 95 % intervals are the polish's Gauss-Newton covariance in log10, widened by
-    ``max(1, sqrt(chi2 / dof))`` when the fit is worse than the stated noise (the rule of
-    ``params.json``, :func:`jointid.stages.identify.run_identify`).
+    The 95 % intervals are those of ``params.json``
+    (:func:`jointid.identification.polish.polish_intervals`).
     """
+    from jointid.identification.polish import polish_intervals
+
     theta = np.asarray(polish["theta"], float)
-    widen = max(1.0, float(np.sqrt(polish["chi2"] / polish["dof"])))
-    half = 1.96 * widen * np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0.0, None))
+    _, lo, hi = polish_intervals(polish)
     fixed = {k: float(v) for k, v in (cfg["joints"].get("fixed") or {}).items()}
     return Identification(
         state=state, theta=dict(zip(names, map(float, theta))),
-        ci95_low=dict(zip(names, map(float, theta / 10 ** half))),
-        ci95_high=dict(zip(names, map(float, theta * 10 ** half))),
+        ci95_low=dict(zip(names, map(float, lo))),
+        ci95_high=dict(zip(names, map(float, hi))),
         theta0={k: float(theta0[k]) for k in names}, f_meas_Hz=np.asarray(f_meas, float),
         f_model_Hz=np.asarray(polish["f_fe"], float), tracking_mac=np.asarray(polish["mac"], float),
         paired_by=paired_by,

@@ -143,6 +143,16 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
             "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}
 
 
+def polish_intervals(polish: dict) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(scale, ci95_low, ci95_high)`` of a polish record (:func:`fe_polish`): the Gauss-Newton covariance
+    in log10, widened by ``scale = max(1, sqrt(chi2 / dof))``: when the fit is worse than the stated
+    frequency uncertainty, a model error, not the noise, sets the scatter."""
+    theta = np.asarray(polish["theta"], float)
+    scale = float(max(1.0, np.sqrt(polish["chi2"] / polish["dof"])))
+    sd = scale * np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
+    return scale, theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
+
+
 def _log(msg: str) -> None:
     print(stamp(msg), flush=True)
 

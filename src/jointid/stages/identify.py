@@ -218,11 +218,10 @@ def _polish_step(cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairi
                  edge_matrices, vis_rule=None):
     """The FE polish of the surface optimum ``res`` (and its repeats on mesh-extrapolated frequencies).
 
-    The 95 % intervals are scaled by ``max(1, sqrt(chi2 / dof))``: when the fit is worse than the
-    stated frequency uncertainty, a model error, not the noise, sets the scatter.
+    The 95 % intervals: :func:`jointid.identification.polish.polish_intervals`.
     Returns ``(theta, ci95_low, ci95_high, frequencies fitted, polish, edge record, notes)``.
     """
-    from jointid.identification.polish import extrapolated_polish, polish_optimum
+    from jointid.identification.polish import extrapolated_polish, polish_intervals, polish_optimum
 
     surface_theta = np.asarray(res.theta, float)
     b_lo, b_hi = parameter_bounds(cfg)
@@ -236,10 +235,8 @@ def _polish_step(cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairi
     if polish.get("certificate"):
         log(f"identify[{state}]: optimum's {polish['certificate'].describe()}")
     theta = polish["theta"]
-    polish["interval_scale"] = float(max(1.0, np.sqrt(polish["chi2"] / polish["dof"])))
-    sd = polish["interval_scale"] * np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
-    return (theta, theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd), polish["f_fe"], polish, edge,
-            _polish_notes(polish, shapes))
+    polish["interval_scale"], ci_lo, ci_hi = polish_intervals(polish)
+    return theta, ci_lo, ci_hi, polish["f_fe"], polish, edge, _polish_notes(polish, shapes)
 
 
 def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
