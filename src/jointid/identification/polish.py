@@ -37,11 +37,19 @@ from jointid.identification.rom import ROM, load_rom
 from jointid.identification.visibility import misfit_table
 from jointid.progress import Work, stamp
 
-__all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "corrected", "edge_limit_at", "extrapolated_polish",
+__all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "corrected", "settled_below", "edge_limit_at", "extrapolated_polish",
            "fe_polish", "log_jacobian", "model_sizes", "polish_on_model", "polish_optimum", "solve_point"]
 
 EXTRAPOLATION_PASSES = 3  # polishes on extrapolated frequencies, each with factors taken at the last optimum
-EXTRAPOLATION_SETTLED = 2e-3  # the factors have settled once their first-order change over a polish is below this
+EXTRAPOLATION_SETTLED = 2e-3  # the smallest threshold of settled_below (relative)
+
+
+def settled_below(sigma_rel) -> float:
+    """The first-order change of the mesh factors over a polish below which they count as settled:
+    a third of the smallest stated frequency uncertainty ``sigma_rel`` (relative; the mesh's share of
+    the error budget), and never less than :data:`EXTRAPOLATION_SETTLED`.  The change left after a
+    pass is of second order, so the factors' error stays well below that."""
+    return max(EXTRAPOLATION_SETTLED, float(np.min(sigma_rel)) / 3)
 
 
 def log_jacobian(stiffness: dict, phi: np.ndarray, lam: np.ndarray, terms: list[dict[str, float]],
@@ -211,7 +219,7 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
 
     The factors are taken at the current optimum (first the base mesh's), with their first-order
     dependence on the parameters, and the polish is repeated with them.  Should they change by more
-    than ``EXTRAPOLATION_SETTLED`` (relative, to first order) over the polish's step, where their
+    than :func:`settled_below` (relative, to first order) over the polish's step, where their
     second-order change might matter, they are taken again at the new optimum (at most
     ``EXTRAPOLATION_PASSES`` passes).  Returns ``(record for params.json, the last polish)``.
     """
@@ -220,7 +228,7 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
     models = [partial(load_model, p) for p in (matrices, *edge_matrices)]
     sizes = model_sizes([matrices, *edge_matrices])
     theta_mesh = dict(zip(doc["names"], map(float, polish["theta"])))
-    passes = []
+    passes, settled = [], settled_below(sigma_rel)
     for k in range(EXTRAPOLATION_PASSES):
         at = np.asarray(polish["theta"], float)
         say(f"mesh extrapolation over the edge levels at {'the base-mesh optimum' if k == 0 else 'the new optimum'}")
@@ -234,10 +242,10 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
         moved = float(np.max(np.abs(polish["theta"] / at - 1)))
         drift = float(np.max(np.abs(lim.slope[shown] @ np.log10(polish["theta"] / at))))
         passes.append({"factors_at": dict(zip(doc["names"], map(float, at))), "max_parameter_change": moved,
-                       "max_factor_change_first_order": drift})
+                       "max_factor_change_first_order": drift, "settled_below": settled})
         say(f"pass {k + 1}: the polish moved the parameters by at most {100 * moved:.2f} %, the factors by "
             f"{100 * drift:.3f} % (first order)")
-        if drift < EXTRAPOLATION_SETTLED:
+        if drift < settled:
             break
     else:
         say(f"warning: the factors did not settle in {EXTRAPOLATION_PASSES} passes (last change {100 * drift:.3f} %)")
