@@ -14,6 +14,7 @@ import numpy as np
 
 from .bench_e_convergence import _references
 from .common import ROOT, Result
+from jointid.config.typed import ModelSpec
 
 LIMIT_PCT = 2.0
 
@@ -21,14 +22,14 @@ LIMIT_PCT = 2.0
 def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     from jointid.config import load_config
     from jointid.fe.model import build_model
-    from jointid.identification.polish import polish_on_model
+    from jointid.identification.polish import PolishFit, polish_on_model
 
     res = Result("f")
     base = {"mesh": {"element": "hex2", "max_cell_size_m": 0.12, "height_cell_fraction": 1.0,
                      "joint_cell_fraction": 1.0}} if quick else {}
     label, over = _references(base)[0]
     cfg = load_config(ROOT / "config.yaml", overrides=over)
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     names = list(cfg["joints"]["parameters"])
     lo = np.array([cfg["joints"]["parameters"][n]["lower"] for n in names])
     hi = np.array([cfg["joints"]["parameters"][n]["upper"] for n in names])
@@ -42,8 +43,8 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
         theta0 = np.array([doc["parameters"][n]["value"] for n in names])
         f_meas = np.asarray(doc["f_meas_Hz"], float)
         n_lab = model.probe.shape[0]
-        out = polish_on_model(cfg, model, names, theta0, f_meas, np.zeros((n_lab, len(f_meas))), lo, hi,
-                              repair=True, max_iter=3,
+        out = polish_on_model(ModelSpec.from_config(cfg), model, names, theta0,
+                              PolishFit(f_meas, np.zeros((n_lab, len(f_meas))), lo, hi, repair=True), max_iter=3,
                               log=lambda m, state=state: print(f"[f] {state}: {m.strip()}", flush=True))
         err_default = float(np.abs(doc["residual_pct"]).max())
         err_refined = float(np.abs(100 * (out["f_fe"] - f_meas) / f_meas).max())

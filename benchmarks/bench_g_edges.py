@@ -23,6 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from .common import COARSE, ROOT, Result
+from jointid.config.typed import ModelSpec
 
 OFFSET_M = 0.003
 
@@ -74,10 +75,10 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
     theta = {n: theta[n] for n in names}
     n_modes = 14
     rig = build_rig(cfg["rig"])
-    ref = build_model(cfg, rig=rig)
-    f0, s0, _, modes0 = solve_point(cfg, ref, theta, n_modes=n_modes, describe=False)
+    ref = build_model(ModelSpec.from_config(cfg), rig=rig)
+    f0, s0, _, modes0 = solve_point(ModelSpec.from_config(cfg), ref, theta, n_modes=n_modes, describe=False)
     n0 = ref.n_dofs
-    jt = joint_terms(cfg["joints"])
+    jt = joint_terms(ModelSpec.from_config(cfg).joints)
     J = log_jacobian(ref.stiffness, modes0.phi, modes0.omega2, [{t: 1.0 for t in jt[n]} for n in names],
                      np.array([theta[n] for n in names]))  # d ln f / d log10 theta on the default mesh
     del ref, modes0
@@ -85,8 +86,8 @@ def run(quick: bool = False, blas_threads: int | None = 1) -> Result:
             "sets": {}}
     track = f0 > cfg["solver"]["min_freq_Hz"]
     for label, coords in edge_sets(rig).items():
-        model = build_model(cfg, rig=with_lines(rig, coords, OFFSET_M))
-        f, s, _, _ = solve_point(cfg, model, theta, n_modes=n_modes, describe=False)
+        model = build_model(ModelSpec.from_config(cfg), rig=with_lines(rig, coords, OFFSET_M))
+        f, s, _, _ = solve_point(ModelSpec.from_config(cfg), model, theta, n_modes=n_modes, describe=False)
         index, macs, ok, change, order = _change(f0, s0, track, f, s)
         top2, rest = order[:2], order[2:]
         res.add(f"{label}: +{model.n_dofs - n0:,} DOFs",
@@ -133,8 +134,8 @@ def _edge_levels(res: Result, cfg, theta, J, f0, s0, track, n0, data, quick):
     for levels in range(1, 3 if quick else 5):
         c = json.loads(json.dumps(cfg))
         c["mesh"]["edge_refine_levels"] = levels
-        model = build_model(c)
-        f, s, _, _ = solve_point(c, model, theta, n_modes=len(f0), describe=False)
+        model = build_model(ModelSpec.from_config(c))
+        f, s, _, _ = solve_point(ModelSpec.from_config(c), model, theta, n_modes=len(f0), describe=False)
         index, macs, ok, change, order = _change(f0, s0, track, f, s)
         text = ", ".join(f"{f0[i]:.0f} Hz {change[i]:+.2f} %" for i in order[:2])
         entry = {"n_dofs": model.n_dofs, "change_pct": change.tolist(), "mac": macs.tolist()}

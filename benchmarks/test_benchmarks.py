@@ -23,7 +23,8 @@ from jointid.identification.doe import to_physical  # noqa: E402
 from jointid.fe.modal import solve_model  # noqa: E402
 from jointid.fe.model import base_coefficients, build_model  # noqa: E402
 from jointid.identification.rom import frequency_error  # noqa: E402
-from jointid.identification.rom_build import build_rom  # noqa: E402
+from jointid.identification.rom_build import RomOptions, build_rom  # noqa: E402
+from jointid.config.typed import ModelSpec
 
 from .common import COARSE, ROOT  # noqa: E402
 
@@ -37,7 +38,7 @@ def cfg():
 
 @pytest.fixture(scope="module")
 def model(cfg):
-    return build_model(cfg)
+    return build_model(ModelSpec.from_config(cfg))
 
 
 def _random_points(cfg, n, seed):
@@ -55,7 +56,7 @@ def test_a_model_assembly(benchmark, cfg):
 
 
 def test_a_modal_solve(benchmark, cfg, model):
-    kc, mc = base_coefficients(cfg, model)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model)
     s = cfg["solver"]
     modes = benchmark.pedantic(solve_model, args=(model, kc, mc, N_MODES),
                                kwargs={"shift_Hz": s["shift_Hz"], "backend": s["backend"]}, rounds=3, iterations=1)
@@ -74,12 +75,12 @@ def test_a_idiomatic_scikit_fem_path(benchmark):
 
 @pytest.fixture(scope="module")
 def rom(cfg, model):
-    return build_rom(model, cfg, N_MODES, "corners", seed=0, keep_basis=False)
+    return build_rom(model, ModelSpec.from_config(cfg), "corners", RomOptions(N_MODES, seed=0, keep_basis=False))
 
 
 def test_b_rom_evaluation(benchmark, cfg, model, rom):
     theta = _random_points(cfg, 1, seed=1)[0]
-    kc, mc = base_coefficients(cfg, model, theta)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
     f_rom = benchmark(rom.frequencies, *rom.coefficients(theta), check=False)
     full = solve_model(model, kc, mc, N_MODES, shift_Hz=cfg["solver"]["shift_Hz"])
     err = np.nanmax(frequency_error(f_rom, full.freqs_Hz, cfg["solver"]["min_freq_Hz"]))

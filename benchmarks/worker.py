@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from jointid.config.typed import ModelSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,9 +43,9 @@ def task_solve(args: dict) -> dict:
     cfg = _cfg(args)
     n = int(args.get("n_modes", 12))
     t0 = time.perf_counter()
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     t1 = time.perf_counter()
-    kc, mc = base_coefficients(cfg, model, args.get("theta"))
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, args.get("theta"))
     modes = _full_solve(cfg, model, kc, mc, n, args.get("backend"))
     t2 = time.perf_counter()
     return {"n_dofs": model.n_dofs, "n_free": int(model.n_dofs - len(model.fixed)),
@@ -86,6 +87,7 @@ def task_idiomatic(args: dict) -> dict:
     from skfem.models.elasticity import linear_elasticity
 
     from jointid.fe import fem
+    from jointid.config.typed import MeshOptions
     from jointid.geometry.mesh import mesh_from_config
     from jointid.fe.model import base_coefficients, build_model
     from jointid.geometry.rig import build_rig
@@ -93,10 +95,10 @@ def task_idiomatic(args: dict) -> dict:
     cfg = _cfg(args)
     n = int(args.get("n_modes", 12))
     t0 = time.perf_counter()
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     t_build = time.perf_counter() - t0
     rig = build_rig(cfg["rig"])
-    rmesh = mesh_from_config(rig, cfg["mesh"])
+    rmesh = mesh_from_config(rig, MeshOptions.from_section(cfg["mesh"]))
     elem_cls, intorder = fem.ELEMENTS[cfg["mesh"]["element"]]
     lam, mu, rho = _material_groups(cfg, rmesh, rig)
     t0 = time.perf_counter()  # jointid's solid assembly alone (it is part of t_build)
@@ -127,7 +129,7 @@ def task_idiomatic(args: dict) -> dict:
     dK = abs(K0 - K0j).max() / abs(K0j).max()
     dM = abs(M0 - M0j).max() / abs(M0j).max()
 
-    kc, mc = base_coefficients(cfg, model, None)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, None)
     K = K0 + sum(c * model.stiffness[k] for k, c in kc.items() if c)
     M = M0 + sum(c * model.mass[k] for k, c in mc.items() if c)
     t0 = time.perf_counter()
@@ -148,14 +150,14 @@ def task_rom(args: dict) -> dict:
     from jointid.correlate.mac import mac
     from jointid.fe.model import base_coefficients, build_model
     from jointid.identification.rom import frequency_error
-    from jointid.identification.rom_build import build_rom
+    from jointid.identification.rom_build import RomOptions, build_rom
 
     cfg = _cfg(args)
     n = int(args.get("n_modes", 12))
     seed = int(args.get("seed", 0))
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     t0 = time.perf_counter()
-    rom = build_rom(model, cfg, n, "corners", seed=seed, keep_basis=False)
+    rom = build_rom(model, ModelSpec.from_config(cfg), "corners", RomOptions(n, seed=seed, keep_basis=False))
     t_build = time.perf_counter() - t0
     names = list(cfg["joints"]["parameters"])
     lo = [cfg["joints"]["parameters"][k]["lower"] for k in names]
@@ -165,7 +167,7 @@ def task_rom(args: dict) -> dict:
     checks = []
     for row in to_physical(rng.uniform(-1, 1, size=(int(args.get("n_check", 3)), len(names))), lo, hi):
         theta = dict(zip(names, row.tolist()))
-        kc, mc = base_coefficients(cfg, model, theta)
+        kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
         t0 = time.perf_counter()
         modes = _full_solve(cfg, model, kc, mc, n)
         t_full = time.perf_counter() - t0
@@ -200,8 +202,8 @@ def task_eigen(args: dict) -> dict:
 
     cfg = _cfg(args)
     s = cfg["solver"]
-    model = build_model(cfg)
-    kc, mc = base_coefficients(cfg, model, None)
+    model = build_model(ModelSpec.from_config(cfg))
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, None)
     free = fm.free_dofs(model.n_dofs, model.fixed)
     Kf, Mf = fm.restrict(model.K(kc), free), fm.restrict(model.M(mc), free)
     sigma = fm.shift_sigma(s["shift_Hz"])

@@ -45,6 +45,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from jointid.config.typed import ModelSpec
 
 REPO = Path(__file__).resolve().parents[1]
 COARSE_CONFIG = REPO / "tests" / "coarse_config.yaml"
@@ -120,7 +121,7 @@ def diagnosis_rig() -> dict:
         "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}}
     cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
     cfg = load_config(cfg)
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     return {"cfg": cfg, "model": model, "system": build_system(model, cfg), "solver": None}
 
 

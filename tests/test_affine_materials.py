@@ -15,6 +15,7 @@ from jointid.fe import fem
 from jointid.fe.modal import solve_modes
 from jointid.fe.model import base_coefficients, build_model, load_model, save_model, solid_coefficients
 from jointid.yamlio import deep_merge
+from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
 
 N_MODES = 14
@@ -32,12 +33,12 @@ def _freqs(model, kc, mc):
 @pytest.fixture(scope="module")
 def run():
     cfg = load_config(coarse_config_dict())
-    return cfg, build_model(cfg)
+    return cfg, build_model(ModelSpec.from_config(cfg))
 
 
 def test_default_frequencies_are_those_before_the_split(run):
     cfg, model = run
-    kc, mc = base_coefficients(cfg, model)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model)
     assert not any("_solid_" in k for k in (*kc, *mc))  # reference materials: no solid coefficient
     f = _freqs(model, kc, mc)
     # 1.5e-10 s: the frequencies printed to 12 significant digits
@@ -79,11 +80,11 @@ def test_part_terms_are_the_parts_elasticity_and_mass(run):
 def test_coefficients_equal_the_model_built_with_the_change(run, change):
     cfg, model = run
     cfg2 = load_config(deep_merge(coarse_config_dict(), change))
-    kc, mc = base_coefficients(cfg2, model)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg2), model)
     assert any("_solid_" in k for k in (*kc, *mc))
-    own = build_model(cfg2)
+    own = build_model(ModelSpec.from_config(cfg2))
     f_affine = _freqs(model, kc, mc)
-    f_own = _freqs(own, *base_coefficients(cfg2, own))
+    f_own = _freqs(own, *base_coefficients(ModelSpec.from_config(cfg2), own))
     np.testing.assert_allclose(f_affine, f_own, rtol=1e-9)
     assert np.abs(f_affine / np.array(BEFORE_SPLIT_HZ) - 1).max() > 1e-3  # the change is seen
 
@@ -92,7 +93,7 @@ def test_a_changed_poisson_ratio_is_no_coefficient(run):
     cfg, model = run
     steel_table = load_config(deep_merge(coarse_config_dict(), {"rig": {"table": {"material": "steel"}}}))
     with pytest.raises(ModelError, match="Poisson's ratio 0.3, the model was built with 0.33"):
-        solid_coefficients(steel_table, model)
+        solid_coefficients(ModelSpec.from_config(steel_table), model)
 
 
 def test_the_file_keeps_the_parts_but_the_largest(run, tmp_path):
@@ -102,7 +103,7 @@ def test_the_file_keeps_the_parts_but_the_largest(run, tmp_path):
     back = load_model(path)
     assert set(back.solids) == set(model.solids)
     cfg2 = load_config(deep_merge(coarse_config_dict(), {"materials": {"steel": {"density_kg_per_m3": 7000.0}}}))
-    kc, mc = base_coefficients(cfg2, back)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg2), back)
     assert set(mc) >= {"M_solid_base", "M_solid_rail", "M_solid_carriage"}
     assert abs(back.M(mc) - model.M(mc)).max() == 0.0
     assert abs(back.K(kc) - model.K(kc)).max() == 0.0
@@ -113,9 +114,9 @@ def test_coefficients_hold_on_a_mesh_with_hanging_nodes():
     raw = deep_merge(coarse_config_dict(), {"mesh": {"edge_refine_levels": 1}})
     change = {"materials": {"aluminium": {"youngs_modulus_Pa": 6.0e10, "density_kg_per_m3": 1350.0}},
               "rig": {"motors": {"mass_each_kg": 1.0}}}
-    model = build_model(load_config(raw))
+    model = build_model(ModelSpec.from_config(load_config(raw)))
     cfg2 = load_config(deep_merge(raw, change))
-    own = build_model(cfg2)
+    own = build_model(ModelSpec.from_config(cfg2))
     assert model.n_dofs == own.n_dofs and "K_solid_table" in model.solids
-    np.testing.assert_allclose(_freqs(model, *base_coefficients(cfg2, model)),
-                               _freqs(own, *base_coefficients(cfg2, own)), rtol=1e-9)
+    np.testing.assert_allclose(_freqs(model, *base_coefficients(ModelSpec.from_config(cfg2), model)),
+                               _freqs(own, *base_coefficients(ModelSpec.from_config(cfg2), own)), rtol=1e-9)

@@ -12,6 +12,7 @@ from jointid.response.carriage import block_rig, block_rigidity
 from jointid.stages.carriage import run_carriage_rigidity
 from jointid.config import load_config
 from jointid.errors import ModelError
+from jointid.config.typed import ModelSpec
 
 THETA = {"k_normal_N_per_m3": 3.0e11, "k_lateral_N_per_m3": 1.3e12, "k_feed_N_per_m3": 8.4e9}
 CELL_M = 0.008  # coarse: the tests check the mechanics, not the last digit
@@ -34,14 +35,14 @@ def test_with_rigid_parts_the_rigidity_is_that_of_the_springs(cfg):
     stiff = copy.deepcopy(cfg)
     for m in stiff["materials"].values():
         m["youngs_modulus_Pa"] *= 1e5
-    got = block_rigidity(stiff, THETA, CELL_M, parts=False).assembly_N_per_m
+    got = block_rigidity(ModelSpec.from_config(stiff), THETA, CELL_M, parts=False).assembly_N_per_m
     want = _spring_rigidity(cfg, THETA)
     for d in want:
         assert got[d] == pytest.approx(want[d], rel=2e-4), d
 
 
 def test_springs_and_parts_act_in_series(cfg):
-    res = block_rigidity(cfg, THETA, CELL_M)
+    res = block_rigidity(ModelSpec.from_config(cfg), THETA, CELL_M)
     springs = _spring_rigidity(cfg, THETA)
     for d, a in res.assembly_N_per_m.items():
         p = res.parts_N_per_m[d]
@@ -54,8 +55,8 @@ def test_springs_and_parts_act_in_series(cfg):
 
 
 def test_each_spring_moves_its_own_direction(cfg):
-    base = block_rigidity(cfg, THETA, CELL_M, parts=False).assembly_N_per_m
-    stiffer = block_rigidity(cfg, {**THETA, "k_lateral_N_per_m3": 2 * THETA["k_lateral_N_per_m3"]}, CELL_M,
+    base = block_rigidity(ModelSpec.from_config(cfg), THETA, CELL_M, parts=False).assembly_N_per_m
+    stiffer = block_rigidity(ModelSpec.from_config(cfg), {**THETA, "k_lateral_N_per_m3": 2 * THETA["k_lateral_N_per_m3"]}, CELL_M,
                              parts=False).assembly_N_per_m
     assert stiffer["lateral"] > 1.2 * base["lateral"]
     assert stiffer["normal"] == pytest.approx(base["normal"], rel=0.02)
@@ -63,8 +64,8 @@ def test_each_spring_moves_its_own_direction(cfg):
 
 
 def test_the_rigidity_converges_with_the_cell_size(cfg):
-    coarse = block_rigidity(cfg, THETA, 0.008).assembly_N_per_m
-    fine = block_rigidity(cfg, THETA, 0.006).assembly_N_per_m
+    coarse = block_rigidity(ModelSpec.from_config(cfg), THETA, 0.008).assembly_N_per_m
+    fine = block_rigidity(ModelSpec.from_config(cfg), THETA, 0.006).assembly_N_per_m
     for d in coarse:
         assert coarse[d] == pytest.approx(fine[d], rel=0.01), d
 

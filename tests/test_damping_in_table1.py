@@ -32,10 +32,11 @@ STATES = ("power_off", "power_on")
 def _write_state(folder, cfg, polish, state, ds, with_damping: bool) -> dict:
     """params.json (the identify stage's ``parameters`` and, with damping ratios, ``joint_damping``) and a
     verify table pairing the measured modes with the polish's FE modes; returns the paths."""
+    from jointid.config.datasets import dataset_folder
     from jointid.identification import joint_damping as jd
 
     folder.mkdir(parents=True)
-    entry = jd.params_entry(cfg, state, NAMES, polish, ds.freqs(state))
+    entry = jd.params_entry(dataset_folder(cfg, state), state, NAMES, polish, ds.freqs(state))
     assert bool(entry) == with_damping  # frequency-only data: nothing added to params.json
     params = {"parameters": {n: {"value": float(v)} for n, v in zip(NAMES, polish["theta"])}, **entry}
     (folder / "params.json").write_text(json.dumps(params))
@@ -72,7 +73,8 @@ def runs(tmp_path_factory):
     from jointid.diagnosis.synth import synthesise
     from jointid.fe.model import save_model
     from jointid.geometry.points import dof_labels
-    from jointid.identification.polish import polish_on_model
+    from jointid.config.typed import ModelSpec
+    from jointid.identification.polish import PolishFit, polish_on_model
 
     rig = diagnosis_rig()
     cfg, model = rig["cfg"], rig["model"]
@@ -94,8 +96,9 @@ def runs(tmp_path_factory):
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
     lower = [cfg["joints"]["parameters"][n]["lower"] for n in NAMES]
     upper = [cfg["joints"]["parameters"][n]["upper"] for n in NAMES]
-    polish = {s: polish_on_model(cfg, model, NAMES, np.array([1.3 * THETA[NAMES[0]], 0.8 * THETA[NAMES[1]]]),
-                                 ds.freqs(s), ds.shape_matrix(s, labels), lower, upper, sigma_rel=0.001,
+    spec = ModelSpec.from_config(cfg)
+    polish = {s: polish_on_model(spec, model, NAMES, np.array([1.3 * THETA[NAMES[0]], 0.8 * THETA[NAMES[1]]]),
+                                 PolishFit(ds.freqs(s), ds.shape_matrix(s, labels), lower, upper, sigma_rel=0.001),
                                  log=lambda m: None) for s in STATES}
     out = {}
     for name, (data, truth_damping) in sets.items():

@@ -20,6 +20,7 @@ from jointid.diagnosis.statistics import identifiability, score_test
 from jointid.diagnosis.variants import EffectSpec, Variant
 from jointid.fe.reduced import ReducedSolver
 from jointid.threads import limit_threads
+from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -153,7 +154,7 @@ def coarse():
     limit_threads(1)
     cfg = coarse_config_dict()
     cfg = load_config(cfg)
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     return cfg, T.build_system(model, cfg)
 
 

@@ -12,6 +12,7 @@ from jointid.response.emforce import carriage_loads_N
 from jointid.errors import ConfigError
 from jointid.fe.modal import solve_modes
 from jointid.fe.model import base_coefficients, build_model
+from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
 
 
@@ -22,7 +23,7 @@ def setup():
     limit_threads(1)
     cfg = coarse_config_dict()
     cfg = load_config(cfg)
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     return cfg, model, T.build_system(model, cfg)
 
 
@@ -48,7 +49,7 @@ def test_bonded_foundation_reproduces_the_clamped_base(setup):
     assert system.support == "clamped" and len(system.fixed) == 0
     kc, mc = T.baseline_coefficients(system, cfg, THETA)
     assert kc["K_foundation"] == E.BONDED_N_PER_M3
-    kc0, mc0 = base_coefficients(cfg, model, THETA)
+    kc0, mc0 = base_coefficients(ModelSpec.from_config(cfg), model, THETA)
     a = solve_modes(model.K(kc0), model.M(mc0), 8, fixed=model.fixed).freqs_Hz
     b = solve_modes(system.K(kc), system.M(mc), 8, fixed=system.fixed).freqs_Hz
     assert np.max(np.abs(b / a - 1)) < 1e-4

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jointid.fe.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit, level_config
+from jointid.fe.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit
 from jointid.identification.polish import corrected as _corrected
 from jointid.identification.polish import log_jacobian
 from test_localrefine import _cantilever_freqs
@@ -104,11 +104,18 @@ def test_correction_stays_with_its_mode_and_keeps_the_sensitivities():
     np.testing.assert_allclose(J_corr[:, 0], J_mesh[[0, 2, 1, 3], 0], rtol=1e-12)
 
 
-def test_level_config_adds_levels_to_the_configured_ones():
-    cfg = {"mesh": {"edge_refine_levels": 1, "element": "hex2"}}
-    assert level_config(cfg, 2)["mesh"]["edge_refine_levels"] == 3
-    assert cfg["mesh"]["edge_refine_levels"] == 1
-    assert level_config({"mesh": {}}, 1)["mesh"]["edge_refine_levels"] == 1
+def test_with_edge_levels_adds_levels_to_the_configured_ones():
+    from pathlib import Path
+
+    from jointid.config import load_config
+    from jointid.config.typed import ModelSpec
+
+    spec = ModelSpec.from_config(load_config(Path(__file__).resolve().parents[1] / "config.yaml",
+                                             overrides={"mesh": {"edge_refine_levels": 1}}))
+    assert spec.with_edge_levels(2).mesh.edge_refine_levels == 3
+    assert spec.mesh.edge_refine_levels == 1  # frozen: the spec itself is unchanged
+    assert spec.with_edge_levels(0) is spec
+    assert spec.with_edge_levels(2).joints is spec.joints
 
 
 def test_extrapolated_cantilever_is_closer_to_the_converged_frequency_than_the_finest_mesh():

@@ -9,6 +9,7 @@ from jointid.fe import fem
 from jointid.geometry.mesh import build_mesh
 from jointid.fe.modal import solve_modes
 from jointid.geometry.rig import Box, Rig
+from jointid.config.typed import ModelSpec
 
 
 def _rig(boxes, top=(), flank=()):
@@ -138,6 +139,7 @@ def test_vectorised_assembly_equals_scikit_fem_linear_elasticity():
 # ---------------------------------------------------------------- nested refinement (mesh check)
 def test_halved_grid_is_nested_and_halves_the_chosen_cells():
     from jointid.config import load_config
+    from jointid.config.typed import MeshOptions
     from jointid.geometry.mesh import mesh_from_config
     from jointid.geometry.rig import build_rig
 
@@ -145,10 +147,10 @@ def test_halved_grid_is_nested_and_halves_the_chosen_cells():
 
     cfg = load_config(REPO / "config.yaml")
     rig = build_rig(cfg["rig"])
-    base = mesh_from_config(rig, cfg["mesh"]).mesh
+    base = mesh_from_config(rig, MeshOptions.from_section(cfg["mesh"])).mesh
     lines = [np.unique(np.round(base.p[i], 9)) for i in range(3)]
     for halve, axes in ((("thickness",), (1,)), (("plan",), (0, 2)), (("joint_zone",), (0, 1, 2))):
-        fine = mesh_from_config(rig, cfg["mesh"], halve=halve).mesh
+        fine = mesh_from_config(rig, MeshOptions.from_section(cfg["mesh"]), halve=halve).mesh
         for i in range(3):
             fl = np.unique(np.round(fine.p[i], 9))
             assert np.isin(lines[i], fl).all(), (halve, i)  # every old grid line is kept
@@ -165,7 +167,7 @@ def test_halved_grid_is_nested_and_halves_the_chosen_cells():
                 if len(inner):
                     assert inner[0] == pytest.approx((a + b) / 2, abs=1e-9)
     with pytest.raises(ValueError, match="unknown cell classes"):
-        mesh_from_config(rig, cfg["mesh"], halve=("everything",))
+        mesh_from_config(rig, MeshOptions.from_section(cfg["mesh"]), halve=("everything",))
 
 
 def test_nested_refinement_lowers_every_frequency():
@@ -178,8 +180,8 @@ def test_nested_refinement_lowers_every_frequency():
     cfg = coarse_config_dict()
     out = []
     for halve in ((), ("thickness", "joint_zone")):
-        model = build_model(cfg, halve=halve)
-        kc, mc = base_coefficients(cfg, model)
+        model = build_model(ModelSpec.from_config(cfg), halve=halve)
+        kc, mc = base_coefficients(ModelSpec.from_config(cfg), model)
         modes = solve_modes(model.K(kc), model.M(mc), 10, shift_Hz=-10.0, fixed=model.fixed)
         out.append((modes.freqs_Hz, model.probe @ modes.phi))
     (fc, sc), (ff, sf) = out

@@ -16,6 +16,7 @@ from jointid.errors import ConfigError, DataError, NumericalWarning
 from jointid.fe.modal import Modes
 from jointid.fe.model import base_coefficients, build_model, save_model
 from jointid.stages import harmonic as harmonic_stage
+from jointid.config.typed import ModelSpec
 
 CONFIG = Path(__file__).resolve().parents[1] / "config.yaml"
 BAND = (300.0, 3500.0)
@@ -31,8 +32,8 @@ def small_cfg(support="clamped"):
 @pytest.fixture(scope="module")
 def rig():
     cfg = small_cfg()
-    model = build_model(cfg)
-    kc, mc = base_coefficients(cfg, model, THETA)
+    model = build_model(ModelSpec.from_config(cfg))
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, THETA)
     K, M = model.K(kc), model.M(mc)
     modes = frf.solve_band_modes(K, M, BAND[1], fixed=model.fixed, n_start=12)
     p = frf.drive_vector(model, "T05", "y")
@@ -129,8 +130,8 @@ def test_static_stiffness_is_exact(rig):
 
 def test_free_model_falls_back_to_no_residual():
     cfg = small_cfg("free")
-    model = build_model(cfg)
-    kc, mc = base_coefficients(cfg, model, THETA)
+    model = build_model(ModelSpec.from_config(cfg))
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, THETA)
     K, M = model.K(kc), model.M(mc)
     modes = frf.solve_band_modes(K, M, 1000.0, fixed=model.fixed, n_start=14, factor=2.0)
     assert np.sum(modes.freqs_Hz < frf.RIGID_HZ) == 6

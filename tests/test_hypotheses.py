@@ -22,6 +22,7 @@ from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
 from jointid.fe.model import build_model
 from jointid.threads import limit_threads
+from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
 
 HYPOTHESES = {
@@ -148,7 +149,7 @@ def _model(setup, name):
     hyp = HYPOTHESES[name]
     key = name if needs_own_model(hyp) else "run"
     if key not in setup["models"]:
-        setup["models"][key] = build_model(load_config(hypothesis_config(cfg, name, hyp)))
+        setup["models"][key] = build_model(ModelSpec.from_config(load_config(hypothesis_config(cfg, name, hyp))))
     return setup["models"][key]
 
 

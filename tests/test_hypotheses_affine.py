@@ -18,6 +18,7 @@ from jointid.diagnosis.terms import build_system
 from jointid.fe.model import build_model, save_model
 from jointid.stages.hypotheses import measured_states, run_hypothesis
 from jointid.threads import limit_threads
+from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
 
 # a lighter table (another aluminium: E and density changed, Poisson's ratio kept) and 1 kg motors
@@ -55,14 +56,14 @@ def test_which_overrides_need_a_model_of_their_own():
 def run_model():
     limit_threads(1)
     cfg = _cfg()
-    return cfg, build_model(cfg)
+    return cfg, build_model(ModelSpec.from_config(cfg))
 
 
 def test_a_coefficient_hypothesis_fits_as_on_its_own_model(run_model):
     cfg, model = run_model
     cfg_h = load_config(hypothesis_config(cfg, "light", LIGHT))
     fits = {}
-    for key, m in (("run", model), ("own", build_model(cfg_h))):
+    for key, m in (("run", model), ("own", build_model(ModelSpec.from_config(cfg_h)))):
         system = build_system(m, cfg_h)
         data = measured_states(cfg_h, system)
         fits[key] = (fit_hypothesis(system, cfg_h, data, log=lambda msg: None), system)

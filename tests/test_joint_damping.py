@@ -21,6 +21,8 @@ import scipy.sparse as sp
 from jointid.errors import DataError
 from jointid.identification import joint_damping as jd
 from jointid.response.damping import joint_energy_share
+from jointid.config.datasets import dataset_folder
+from jointid.config.typed import ModelSpec
 
 ETA = {"k_normal_N_per_m3": 0.08, "k_lateral_N_per_m3": 0.05}
 ZETA0 = 0.004
@@ -145,7 +147,7 @@ def test_frequency_only_data_get_no_record():
 
     cfg = {"measurements": {"dataset": str(Path(__file__).resolve().parents[1] / "data" / "paper")}}
     for state in ("power_off", "power_on"):
-        assert jd.stage_record(cfg, state, NAMES, {"unused": True}, [344.3]) is None
+        assert jd.stage_record(dataset_folder(cfg, state), state, NAMES, {"unused": True}, [344.3]) is None
 
 
 def test_conditions_check_the_damping_uncertainty(tmp_path):
@@ -182,7 +184,7 @@ def rig_polish(tmp_path_factory):
     from jointid.data.dataset import write_dataset
     from jointid.diagnosis.synth import synthesise
     from jointid.geometry.points import dof_labels
-    from jointid.identification.polish import polish_on_model
+    from jointid.identification.polish import PolishFit, polish_on_model
     import pandas as pd
 
     rig = diagnosis_rig()
@@ -197,9 +199,10 @@ def rig_polish(tmp_path_factory):
     polish = {}
     ds = read_dataset(folder)
     for state in ds.states:
-        polish[state] = polish_on_model(cfg, model, NAMES, np.array([1.3 * THETA[NAMES[0]], 0.8 * THETA[NAMES[1]]]),
-                                        ds.freqs(state), ds.shape_matrix(state, labels), lower, upper,
-                                        sigma_rel=0.001, log=lambda m: None)
+        fit = PolishFit(ds.freqs(state), ds.shape_matrix(state, labels), lower, upper, sigma_rel=0.001)
+        polish[state] = polish_on_model(ModelSpec.from_config(cfg), model, NAMES,
+                                        np.array([1.3 * THETA[NAMES[0]], 0.8 * THETA[NAMES[1]]]), fit,
+                                        log=lambda m: None)
     return {**rig, "folder": folder, "polish": polish, "labels": labels, "truth": out["truth_damping"]}
 
 
@@ -217,9 +220,9 @@ def identified_table1(rig, rec, theta, state_truth):
 
     cfg, model = rig["cfg"], rig["model"]
     h = cfg["harmonic"]
-    freqs, _, _, modes = solve_point(cfg, model, theta, n_modes=20, describe=False)
-    kc, _ = base_coefficients(cfg, model, theta)
-    shares = joint_shares(model, modes.phi, freqs, kc, joint_terms(cfg["joints"]), NAMES)
+    freqs, _, _, modes = solve_point(ModelSpec.from_config(cfg), model, theta, n_modes=20, describe=False)
+    kc, _ = base_coefficients(ModelSpec.from_config(cfg), model, theta)
+    shares = joint_shares(model, modes.phi, freqs, kc, joint_terms(ModelSpec.from_config(cfg).joints), NAMES)
     fit = jd.fit_joint_damping(rec["damping_ratio_meas"], np.column_stack(
         [rec["energy_share_normal"], rec["energy_share_lateral"]]), rec["f_model_Hz"], NAMES,
         sigma_rel=rec["sigma_noise_rel"])
@@ -246,7 +249,7 @@ def test_hidden_joint_damping_recovered_on_the_coarse_rig(rig_polish, capsys):
     cfg, truth = state_cfg(rig, rig["folder"]), rig["truth"]
     recs = {}
     for state, polish in rig["polish"].items():
-        rec = jd.stage_record(cfg, state, NAMES, polish, read_dataset(rig["folder"]).freqs(state))
+        rec = jd.stage_record(dataset_folder(cfg, state), state, NAMES, polish, read_dataset(rig["folder"]).freqs(state))
         recs[state] = rec
         theta = dict(zip(NAMES, map(float, polish["theta"])))
         ident, tr = identified_table1(rig, rec, theta, truth[state])
@@ -280,9 +283,9 @@ def test_energy_shares_from_the_polish_are_those_of_the_modes(rig_polish):
 
     rig, polish = rig_polish, rig_polish["polish"]["power_off"]
     theta = dict(zip(NAMES, map(float, polish["theta"])))
-    freqs, _, _, modes = solve_point(rig["cfg"], rig["model"], theta, describe=False)
-    kc, _ = base_coefficients(rig["cfg"], rig["model"], theta)
-    direct = joint_shares(rig["model"], modes.phi, freqs, kc, joint_terms(rig["cfg"]["joints"]), NAMES)
+    freqs, _, _, modes = solve_point(ModelSpec.from_config(rig["cfg"]), rig["model"], theta, describe=False)
+    kc, _ = base_coefficients(ModelSpec.from_config(rig["cfg"]), rig["model"], theta)
+    direct = joint_shares(rig["model"], modes.phi, freqs, kc, joint_terms(ModelSpec.from_config(rig["cfg"]).joints), NAMES)
     got = jd.shares_from_polish(polish, read_dataset(rig["folder"]).freqs("power_off"))
     assert np.allclose(got, direct[polish["index"]], rtol=1e-3, atol=1e-5)
 
@@ -298,7 +301,7 @@ def test_misstated_noise_inflates_the_intervals(rig_polish, tmp_path, capsys):
     assert ds.conditions["damping_uncertainty_pct"] == 2.0
     polish = rig["polish"]["power_off"]  # same frequencies and shapes (the damping noise has its own stream)
     assert np.allclose(ds.freqs("power_off"), read_dataset(rig["folder"]).freqs("power_off"), rtol=0, atol=0)
-    rec = jd.stage_record(state_cfg(rig, folder), "power_off", NAMES, polish, ds.freqs("power_off"))
+    rec = jd.stage_record(str(folder), "power_off", NAMES, polish, ds.freqs("power_off"))
     stated = jd.fit_joint_damping(rec["damping_ratio_meas"], np.column_stack(
         [rec["energy_share_normal"], rec["energy_share_lateral"]]), rec["f_model_Hz"], NAMES, sigma_rel=0.02)
     cov_stated = _stated_covariance(stated, 0.02)

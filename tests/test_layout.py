@@ -1,4 +1,5 @@
-"""The package's layout (docs/architecture.md): imports point down the layers, no cycles, small modules."""
+"""The package's layout (docs/architecture.md): imports point down the layers, no cycles, small modules,
+no whole configuration in the domain layers and no more than 8 parameters without a reason."""
 import importlib.util
 import subprocess
 import sys
@@ -38,3 +39,29 @@ def test_layer_check_flags_an_upward_import_and_a_cycle(tmp_path):
     assert proc.returncode == 1
     assert "upward import: jointid.fe.a -> jointid.stages.b" in proc.stdout
     assert "cycle: jointid.fe.a <-> jointid.stages.b" in proc.stdout
+
+
+def test_parameter_check_flags_cfg_in_a_domain_layer_and_many_parameters_without_a_reason(tmp_path):
+    src = tmp_path / "mod.py"
+    src.write_text("def solve(cfg, model):\n    return model\n\n\n"
+                   "def wide(a, b, c, d, e, f, g, h, i, *args, **kwargs):\n    return a\n\n\n"
+                   "def reasoned(self, a, b, c, d, e, f, g, h, *, i=0):\n"
+                   "    # many parameters: one per file of a workflow rule\n    return a\n\n\n"
+                   "def eight(a, b, c, d, e, f, g, *, h=0, **kwargs):\n    return a\n")
+    domain = layout.parameter_findings(src, config_free=True)
+    assert len(domain) == 2
+    assert "solve takes 'cfg'" in domain[0] and "wide takes 9 parameters" in domain[1]
+    assert layout.parameter_findings(src) == [domain[1]]  # outside fe/identification/response/correlate cfg is fine
+
+
+def test_parameter_check_finds_config_in_the_domain_layers_of_a_package(tmp_path):
+    pkg = tmp_path / "jointid"
+    for layer in ("fe", "stages"):
+        (pkg / layer).mkdir(parents=True)
+        (pkg / layer / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "fe" / "a.py").write_text("def build(config):\n    return config\n")
+    (pkg / "stages" / "b.py").write_text("def run(config):\n    return config\n")
+    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "layout.py"), str(pkg)], capture_output=True, text=True)
+    assert proc.returncode == 1
+    assert "a.py:1: build takes 'config'" in proc.stdout and "b.py" not in proc.stdout

@@ -8,6 +8,7 @@ from skfem import Basis, ElementHex1, ElementHex2
 from jointid.fe import fem
 from jointid.geometry import localrefine
 from jointid.fe.modal import solve_modes
+from jointid.config.typed import ModelSpec
 
 
 def _boxes_with_hanging_nodes():
@@ -134,9 +135,9 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
     from conftest import coarse_config_dict
 
     cfg = coarse_config_dict()
-    ref = build_model(cfg)
+    ref = build_model(ModelSpec.from_config(cfg))
     cfg["mesh"]["edge_refine_levels"] = 1
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     assert model.n_dofs > ref.n_dofs
     # the same contact faces and the same solid mass: areas and rigid-body mass are mesh-independent
     for face in ("top", "flank"):
@@ -155,7 +156,7 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
     # nested space: no frequency rises
     freqs = []
     for m in (ref, model):
-        kc, mc = base_coefficients(cfg, m)
+        kc, mc = base_coefficients(ModelSpec.from_config(cfg), m)
         modes = solve_modes(m.K(kc), m.M(mc), 10, shift_Hz=-10.0, fixed=m.fixed)
         freqs.append(modes.freqs_Hz)
     assert np.all(freqs[1] <= freqs[0] * (1 + 1e-8)) and np.any(freqs[1] < freqs[0] * (1 - 1e-4))
@@ -182,6 +183,7 @@ def test_rig_model_on_the_locally_refined_mesh(tmp_path):
 
 def test_edges_class_adds_one_nested_level():
     from jointid.config import load_config
+    from jointid.config.typed import MeshOptions
     from jointid.geometry.mesh import mesh_from_config
     from jointid.geometry.rig import build_rig
 
@@ -189,10 +191,10 @@ def test_edges_class_adds_one_nested_level():
 
     cfg = load_config(REPO / "config.yaml")
     rig = build_rig(cfg["rig"])
-    one = mesh_from_config(rig, dict(cfg["mesh"], edge_refine_levels=1))
-    two = mesh_from_config(rig, dict(cfg["mesh"], edge_refine_levels=1), halve=("edges",))
+    one = mesh_from_config(rig, MeshOptions.from_section(dict(cfg["mesh"], edge_refine_levels=1)))
+    two = mesh_from_config(rig, MeshOptions.from_section(dict(cfg["mesh"], edge_refine_levels=1)), halve=("edges",))
     assert (two.boxes[0].shape[0] > one.boxes[0].shape[0]
-            and np.array_equal(two.boxes[0], mesh_from_config(rig, dict(cfg["mesh"], edge_refine_levels=2)).boxes[0]))
+            and np.array_equal(two.boxes[0], mesh_from_config(rig, MeshOptions.from_section(dict(cfg["mesh"], edge_refine_levels=2))).boxes[0]))
     # nested: every cell of the finer mesh lies inside one cell of the coarser
     (lo1, hi1), (lo2, hi2) = one.boxes, two.boxes
     c2 = 0.5 * (lo2 + hi2)

@@ -18,6 +18,7 @@ from jointid.fe.layer import spring_layer_terms
 from jointid.fe.modal import solve_model
 from jointid.fe.model import base_coefficients, build_model
 from jointid.fe.meshexport import export_rig, write_mesh
+from jointid.config.typed import ModelSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 L, W, H_LOW, H_UP = 0.10, 0.08, 0.04, 0.05  # m: blocks' plan (X, Z) and heights
@@ -115,8 +116,8 @@ def test_rigid_block_on_a_non_matching_layer_has_the_analytic_frequencies(tmp_pa
     mesh, groups, surfaces = two_blocks()
     write_mesh(tmp_path / f"blocks{ext}", mesh, groups, surfaces)
     cfg = block_config(tmp_path, str(tmp_path / f"blocks{ext}"))
-    model = build_model(cfg)
-    kc, mc = base_coefficients(cfg, model, {"k_normal_N_per_m3": K_N, "k_feed_N_per_m3": K_T})
+    model = build_model(ModelSpec.from_config(cfg))
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, {"k_normal_N_per_m3": K_N, "k_feed_N_per_m3": K_T})
     assert kc == {"K_slide_normal": K_N, "K_slide_tangential": K_T}
     modes = solve_model(model, kc, mc, 8)
     exact = rigid_block_frequencies()
@@ -130,14 +131,14 @@ def test_rig_exported_as_a_mesh_file_and_read_back_has_the_same_frequencies(tmp_
     coarse = yaml.safe_load((ROOT / "tests" / "coarse_config.yaml").read_text())
     overrides = {"mesh": coarse["mesh"]}
     cfg = load_config(ROOT / "config.yaml", overrides=overrides)
-    rig = build_model(cfg)
-    section = export_rig(cfg, tmp_path / f"rig{ext}", tmp_path / "points.csv")
+    rig = build_model(ModelSpec.from_config(cfg))
+    section = export_rig(ModelSpec.from_config(cfg), tmp_path / f"rig{ext}", tmp_path / "points.csv")
     cfg_mesh = load_config(ROOT / "config.yaml", overrides={"mesh": {"extrapolate_edges": False}, "model": section})
-    mesh = build_model(cfg_mesh)
+    mesh = build_model(ModelSpec.from_config(cfg_mesh))
     assert mesh.n_dofs == rig.n_dofs
     theta = {"k_normal_N_per_m3": 1.3e12, "k_lateral_N_per_m3": 5.1e11, "k_feed_N_per_m3": 2.2e10}
-    a = solve_model(rig, *base_coefficients(cfg, rig, theta), 20)
-    b = solve_model(mesh, *base_coefficients(cfg_mesh, mesh, theta), 20)
+    a = solve_model(rig, *base_coefficients(ModelSpec.from_config(cfg), rig, theta), 20)
+    b = solve_model(mesh, *base_coefficients(ModelSpec.from_config(cfg_mesh), mesh, theta), 20)
     np.testing.assert_allclose(b.freqs_Hz, a.freqs_Hz, rtol=1e-6)
     # the measuring points read back from the CSV and projected onto the surface see the same shapes
     pa, pb = rig.probe @ a.phi, mesh.probe @ b.phi
@@ -157,25 +158,25 @@ def test_bad_meshes_get_errors_naming_file_group_and_fix(tmp_path):
     cfg = block_config(tmp_path, str(f), bodies={"lower": "stiff", "uper": "stiff"},
                        supports=[{"surface": "floor", "kind": "clamped"}])
     with pytest.raises(ModelError) as exc:
-        build_model(cfg)
+        build_model(ModelSpec.from_config(cfg))
     msg = _problems(exc)
     assert f"{f}: model.bodies.uper: no solid group 'uper' in the mesh" in msg
     assert "model.supports[0]: no surface group 'floor'" in msg and "'upper_bottom'" in msg
     # cells in no body
     with pytest.raises(ModelError, match="solid cells are in no group of model.bodies"):
-        build_model(block_config(tmp_path, str(f), bodies={"lower": "stiff"}))
+        build_model(ModelSpec.from_config(block_config(tmp_path, str(f), bodies={"lower": "stiff"})))
     # surfaces further apart than the tolerance
     mesh2, groups2, surfaces2 = two_blocks(shift_y=0.01)
     f2 = tmp_path / "gap.msh"
     write_mesh(f2, mesh2, groups2, surfaces2)
     with pytest.raises(ModelError, match=r"joint slide \(upper_bottom - lower_top\): the surfaces are up to 0.01 m "
                                          r"apart \(tolerance 0.001 m\)"):
-        build_model(block_config(tmp_path, str(f2)))
+        build_model(ModelSpec.from_config(block_config(tmp_path, str(f2))))
     # a measuring point off the surface
     cfg = block_config(tmp_path, str(f))
     Path(cfg["model"]["points"]).write_text("point,x_m,y_m,z_m\nFAR,0.05,0.2,0.04\n")
     with pytest.raises(ModelError, match=r"point FAR is 0.15 m from the nearest surface"):
-        build_model(cfg)
+        build_model(ModelSpec.from_config(cfg))
 
 
 def test_linear_cells_need_allow_linear_and_a_surface_off_the_bodies_is_an_error(tmp_path):
@@ -196,11 +197,11 @@ def test_linear_cells_need_allow_linear_and_a_surface_off_the_bodies_is_an_error
     meshio.write(f, m, file_format="gmsh22", binary=False)
     cfg = block_config(tmp_path, str(f))
     with pytest.raises(ModelError, match=r"linear hexahedron cells lock in bending .* set model.allow_linear: true"):
-        build_model(cfg)
+        build_model(ModelSpec.from_config(cfg))
     cfg = block_config(tmp_path, str(f), allow_linear=True)
     with pytest.raises(ModelError, match=r"surface 'stray': 1 of 1 faces use nodes of no solid cell"):
         with pytest.warns(Warning):
-            build_model(cfg)
+            build_model(ModelSpec.from_config(cfg))
 
 
 def test_measuring_points_from_a_uff_geometry_give_the_probe_of_the_csv(tmp_path):
@@ -211,13 +212,13 @@ def test_measuring_points_from_a_uff_geometry_give_the_probe_of_the_csv(tmp_path
     mesh, groups, surfaces = two_blocks()
     write_mesh(tmp_path / "blocks.msh", mesh, groups, surfaces)
     cfg = block_config(tmp_path, str(tmp_path / "blocks.msh"))
-    ref = build_model(cfg)
+    ref = build_model(ModelSpec.from_config(cfg))
     xyz = np.array([[L / 2, H_UP, W / 2], [L, H_UP / 2, W / 3]])
     uff = pyuff.UFF(str(tmp_path / "geometry.unv"))
     uff.write_sets(pyuff.prepare_15(node_nums=[101, 102], def_cs=[0, 0], disp_cs=[0, 0], color=[1, 1],
                                     x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2]), mode="overwrite")
     cfg["model"]["points"] = str(tmp_path / "geometry.unv")
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     assert model.meta["points"]["point"] == ["101", "102"]
     read = np.column_stack([model.meta["points"][k] for k in ("x_m", "y_m", "z_m")])
     np.testing.assert_allclose(read, xyz, atol=1e-6)  # UFF 15 stores coordinates to about 6 digits
@@ -233,6 +234,6 @@ def test_export_mesh_command_writes_a_mesh_and_an_overlay_that_reads_it_back(tmp
     assert "export-mesh: wrote" in capsys.readouterr().out
     overlay = yaml.safe_load((tmp_path / "own" / "model.yaml").read_text())
     assert overlay["model"]["path"].endswith("rig.vtu") and overlay["mesh"] == {"extrapolate_edges": False}
-    rig = build_model(load_config(ROOT / "config.yaml", overrides={"mesh": yaml.safe_load(coarse.read_text())["mesh"]}))
-    mesh = build_model(load_config(ROOT / "config.yaml", overrides=overlay))
+    rig = build_model(ModelSpec.from_config(load_config(ROOT / "config.yaml", overrides={"mesh": yaml.safe_load(coarse.read_text())["mesh"]})))
+    mesh = build_model(ModelSpec.from_config(load_config(ROOT / "config.yaml", overrides=overlay)))
     assert mesh.n_dofs == rig.n_dofs and mesh.meta["carriage_centres_m"] and len(mesh.meta["carriage_centres_m"]) == 4

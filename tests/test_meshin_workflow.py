@@ -15,6 +15,7 @@ import yaml
 from conftest import coarse_config_dict, copy_workflow, run_snakemake, write_config
 from jointid.config.load import load_config
 from jointid.fe.meshexport import export_rig
+from jointid.config.typed import ModelSpec
 
 pytestmark = [pytest.mark.slow, pytest.mark.extended]
 
@@ -26,7 +27,7 @@ def test_rig_read_back_from_a_mesh_file_identifies_the_same_parameters(tmp_path)
     rig_dir, mesh_dir = copy_workflow(tmp_path / "rig"), copy_workflow(tmp_path / "mesh")
     cfg = load_config(coarse_config_dict(), overrides=yaml.safe_load(SAME_RUN))
     (mesh_dir / "own").mkdir()
-    section = export_rig(cfg, mesh_dir / "own" / "rig.msh", mesh_dir / "own" / "points.csv")
+    section = export_rig(ModelSpec.from_config(cfg), mesh_dir / "own" / "rig.msh", mesh_dir / "own" / "points.csv")
     section.update(path="own/rig.msh", points="own/points.csv")  # relative to the working directory
     same = write_config(tmp_path / "same.yaml", SAME_RUN)
     as_mesh = write_config(tmp_path / "as_mesh.yaml", SAME_RUN + yaml.safe_dump({"model": section}))

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from jointid import io
+from jointid.config.typed import ModelSpec
 
 DTYPES = [np.float64, np.float32, np.int32, np.int64, np.uint8, np.bool_, np.complex128]
 
@@ -73,13 +74,13 @@ def test_saved_model_loads_mapped_and_solves_the_same(tmp_path):
     from jointid.fe.model import base_coefficients, build_model, load_model, save_model
 
     cfg = load_config(coarse_config_dict())
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     save_model(model, tmp_path / "m.npz")
     loaded = load_model(tmp_path / "m.npz")
     assert _mapped(loaded.stiffness["K0"].data) and _mapped(loaded.mass["M0"].indices)
     for name, A in model.stiffness.items():
         assert (A != loaded.stiffness[name]).nnz == 0
-    kc, mc = base_coefficients(cfg, model)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model)
     a, b = solve_model(model, kc, mc, 6), solve_model(loaded, kc, mc, 6)
     assert np.allclose(a.freqs_Hz, b.freqs_Hz, rtol=1e-10)
 
@@ -120,9 +121,9 @@ def test_a_solve_releases_the_model_file_and_leaves_the_model_unchanged(tmp_path
     from jointid.fe.model import base_coefficients, build_model, load_model, save_model
 
     cfg = load_config(coarse_config_dict())
-    save_model(build_model(cfg), tmp_path / "m.npz")
+    save_model(build_model(ModelSpec.from_config(cfg)), tmp_path / "m.npz")
     loaded = load_model(tmp_path / "m.npz")
-    kc, mc = base_coefficients(cfg, loaded)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), loaded)
     first = solve_model(loaded, kc, mc, 6)
     if hasattr(mmap, "MADV_DONTNEED") and __import__("os").path.exists("/proc/self/smaps"):
         assert _resident_kB(loaded.stiffness["K0"].data) < 0.1 * loaded.stiffness["K0"].data.nbytes / 1024

@@ -21,6 +21,7 @@ from jointid.fe.model import base_coefficients, build_model
 from jointid.geometry.points import dof_labels
 from jointid.identification.surface import fit_surface
 from jointid.identification.updating import identify_state
+from jointid.config.typed import ModelSpec
 
 BACKENDS = ["pardiso", "scipy"]
 N_MODES = 8
@@ -34,11 +35,11 @@ def cfg():
 
 @pytest.fixture(scope="module")
 def model(cfg):
-    return build_model(cfg)
+    return build_model(ModelSpec.from_config(cfg))
 
 
 def _solve(model, cfg, theta, shift_Hz, backend):
-    kc, mc = base_coefficients(cfg, model, theta)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
     return solve_modes(model.K(kc), model.M(mc), N_MODES, shift_Hz=shift_Hz, fixed=model.fixed,
                        backend=backend)
 

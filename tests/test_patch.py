@@ -12,6 +12,7 @@ from jointid.config import load_config
 from jointid.fe.modal import factorize, free_dofs, restrict
 from jointid.fe.model import base_coefficients, build_model
 from jointid.fe.patch import disc_points, patch_probe
+from jointid.config.typed import ModelSpec
 
 from conftest import COARSE_CONFIG, REPO
 
@@ -33,8 +34,8 @@ def coarse_cfg():
 
 def _flexibility(cfg, halve, diameter_m, points=("T05", "T08")):
     """Static drive-point flexibility in Y (m/N) at ``points`` with a patch of ``diameter_m``."""
-    m = build_model(cfg, halve=halve)
-    kc, _ = base_coefficients(cfg, m)
+    m = build_model(ModelSpec.from_config(cfg), halve=halve)
+    kc, _ = base_coefficients(ModelSpec.from_config(cfg), m)
     K = m.K(kc)
     free = free_dofs(K.shape[0], m.fixed)
     fac = factorize(restrict(sp.csr_matrix(K), free), "auto")
@@ -46,7 +47,7 @@ def _flexibility(cfg, halve, diameter_m, points=("T05", "T08")):
 
 
 def test_patch_rows_reduce_to_the_probe_and_sum_to_one(coarse_cfg):
-    m = build_model(coarse_cfg)
+    m = build_model(ModelSpec.from_config(coarse_cfg))
     names = ["T01", "T05", "T18"]
     rows = np.concatenate([[3 * i + c for c in range(3)] for i in (0, 4, 17)])
     assert abs(patch_probe(m, names, 0.0) - m.probe[rows]).max() == 0.0

@@ -1,5 +1,6 @@
 """Progress lines: wall-clock stamps and the time-left estimate of loops of known length."""
 import re
+from types import SimpleNamespace
 
 from jointid import progress
 
@@ -32,16 +33,16 @@ def test_edge_levels_report_the_time_left_weighted_by_their_size(monkeypatch):
     from jointid.identification import polish
 
     lines = []
-    monkeypatch.setattr(polish, "solve_point", lambda cfg, model, theta, n_modes, describe: (None, None, None, None))
+    monkeypatch.setattr(polish, "solve_point", lambda spec, model, theta, n_modes, describe: (None, None, None, None))
     monkeypatch.setattr(polish, "edge_limit", lambda solves: solves)
 
     class Model:
         def __init__(self, n):
             self.n_dofs, self.stiffness = n, {}
 
-    cfg = {"joints": {"parameters": {}}, "solver": {"n_modes": 4}}
-    monkeypatch.setattr(polish, "joint_terms", lambda joints, model: {})
-    polish.edge_limit_at(cfg, [Model(100), Model(200), Model(300)], {}, log=lines.append, base=("f", "s"),
+    spec = SimpleNamespace(joints=None, mesh_file=None, solver=SimpleNamespace(n_modes=4))
+    monkeypatch.setattr(polish, "joint_terms", lambda joints, mesh_file: {})
+    polish.edge_limit_at(spec, [Model(100), Model(200), Model(300)], {}, log=lines.append, base=("f", "s"),
                          sizes=[100, 200, 300])
     assert [re.sub(r"about \d+ s", "about N s", ln) for ln in lines] == [
         "edge level +1: 200 DOFs solved (1/2 done, about N s left)", "edge level +2: 300 DOFs solved (2/2 done)"]

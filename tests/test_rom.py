@@ -19,10 +19,11 @@ from jointid.correlate.mac import mac
 from jointid.fe.modal import solve_modes
 from jointid.fe.model import base_coefficients, build_model, save_model
 from jointid.identification.rom import ROM, frequency_error, load_rom
-from jointid.identification.rom_build import build_rom, residual_indicator, training_points
-from jointid.identification.polish import polish_on_model
+from jointid.identification.rom_build import RomOptions, build_rom, residual_indicator, training_points
+from jointid.identification.polish import PolishFit, polish_on_model
 from jointid.stages.doe import doe_sheet
 from jointid.stages.modal import run_modal, run_rom
+from jointid.config.typed import ModelSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 TOL = 1e-4
@@ -46,7 +47,7 @@ def _random_thetas(cfg, n, seed):
 
 
 def _full(model, cfg, theta, n=N_MODES):
-    kc, mc = base_coefficients(cfg, model, theta)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
     modes = solve_modes(model.K(kc), model.M(mc), n, shift_Hz=cfg["solver"]["shift_Hz"], fixed=model.fixed,
                         backend="scipy")
     return modes.freqs_Hz, model.probe @ modes.phi, kc, mc
@@ -58,7 +59,7 @@ def stage(tmp_path_factory):
     folder holds matrices.npz, points.csv (the DOE sheet), rom.npz and rom.json."""
     cfg = _cfg(solver={"n_modes": N_MODES, "method": "rom"})
     folder = tmp_path_factory.mktemp("rom_stage")
-    model = build_model(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
     save_model(model, folder / "matrices.npz")
     sheet = doe_sheet(cfg)
     io.write_csv(sheet, folder / "points.csv")
@@ -109,7 +110,7 @@ def test_coefficients_match_base_coefficients(coarse):
     cfg, model, rom = coarse
     theta = _random_thetas(cfg, 1, seed=5)[0]
     kc, mc = rom.coefficients(theta)
-    kb, mb = base_coefficients(cfg, model, theta)
+    kb, mb = base_coefficients(ModelSpec.from_config(cfg), model, theta)
     assert set(kc) == set(kb) and mc == mb
     for k in kb:
         assert kc[k] == pytest.approx(kb[k], rel=1e-12)
@@ -162,11 +163,12 @@ def test_greedy_enrichment_reaches_tolerance():
     """From the centre point alone the ROM is poor; greedy enrichment at the candidates with the
     largest residual indicator repairs it, and the result holds at independent random points."""
     cfg = _cfg(element="hex1")  # cheap model: this test exercises the error-control loop
-    model = build_model(cfg)
+    spec = ModelSpec.from_config(cfg)
+    model = build_model(spec)
     with pytest.warns(NumericalWarning, match="still above"):
-        poor = build_rom(model, cfg, 6, [np.zeros(3)], n_extra=0, n_verify=2, max_rounds=1, seed=1)
+        poor = build_rom(model, spec, [np.zeros(3)], RomOptions(6, n_extra=0, n_verify=2, max_rounds=1, seed=1))
     assert poor.report["max_error"] > TOL and not poor.report["verified"]
-    rom = build_rom(model, cfg, 6, [np.zeros(3)], n_extra=0, n_verify=2, max_rounds=8, seed=1)
+    rom = build_rom(model, spec, [np.zeros(3)], RomOptions(6, n_extra=0, n_verify=2, max_rounds=8, seed=1))
     rounds = rom.report["rounds"]
     assert len(rounds) >= 2 and rounds[0]["max_error"] > TOL
     assert rom.report["verified"] and rounds[-1]["max_error"] <= TOL
@@ -305,8 +307,9 @@ def test_training_kind_is_checked_and_modes_training_still_verifies(coarse):
     """Both training kinds meet the tolerance at fresh interior points; a wrong kind is a clear error."""
     cfg, model, rom_inverse = coarse
     with pytest.raises(ModelError, match="training 'lanczos' is unknown"):
-        build_rom(model, cfg, N_MODES, "corners", training="lanczos")
-    rom_modes = build_rom(model, cfg, N_MODES, "corners", training="modes", tol=TOL, seed=3)
+        build_rom(model, ModelSpec.from_config(cfg), "corners", RomOptions(N_MODES, training="lanczos"))
+    rom_modes = build_rom(model, ModelSpec.from_config(cfg), "corners",
+                          RomOptions(N_MODES, training="modes", tol=TOL, seed=3))
     assert rom_modes.report["verified"]
     assert [t["how"] for t in rom_inverse.report["training"]][1:] == ["1 inverse iteration(s)"] * 8
     for theta in _random_thetas(cfg, 2, seed=21):
@@ -335,8 +338,8 @@ def test_polish_on_the_rom_recovers_the_full_model_truth(coarse):
     theta0 = theta_true * np.array([1.3, 0.75, 1.2])
     results = {}
     for kind, m in (("rom", rom), ("full", model)):
-        res = polish_on_model(cfg, m, names, theta0, f_full[keep], shapes[:, keep], lo, hi, sigma_rel=0.01,
-                              log=lambda msg: None)
+        res = polish_on_model(ModelSpec.from_config(cfg), m, names, theta0,
+                              PolishFit(f_full[keep], shapes[:, keep], lo, hi, sigma_rel=0.01), log=lambda msg: None)
         results[kind] = np.asarray(res["theta"])
         np.testing.assert_allclose(res["f_fe"], f_full[keep], rtol=5 * TOL)
     np.testing.assert_allclose(results["rom"], theta_true, rtol=0.01)
@@ -349,7 +352,10 @@ def test_polish_reports_model_modes_left_unpaired_inside_the_measured_band(coars
     cfg, model, rom = coarse
     names, lo, hi, theta_true, f_full, shapes, keep = _polish_case(cfg, model)
     seen = keep[[0, 1, 3, 4]]
-    res = polish_on_model(cfg, rom, names, theta_true, f_full[seen], shapes[:, seen], lo, hi, log=lambda m: None)
+    spec = ModelSpec.from_config(cfg)
+    res = polish_on_model(spec, rom, names, theta_true, PolishFit(f_full[seen], shapes[:, seen], lo, hi),
+                          log=lambda m: None)
     assert res["unpaired_in_band_Hz"] == pytest.approx([f_full[keep[2]]], rel=5 * TOL)
-    full = polish_on_model(cfg, rom, names, theta_true, f_full[keep], shapes[:, keep], lo, hi, log=lambda m: None)
+    full = polish_on_model(spec, rom, names, theta_true, PolishFit(f_full[keep], shapes[:, keep], lo, hi),
+                           log=lambda m: None)
     assert full["unpaired_in_band_Hz"] == []

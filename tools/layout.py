@@ -9,6 +9,11 @@ Prints one line per finding and exits 1 if there is any; prints nothing and exit
 * No module is over 400 lines unless a comment among its first 40 lines starts with
   ``# over 400 lines:`` and gives the reason; no function is over 80 lines unless a comment at its top
   (before or right after its docstring) starts with ``# long`` and gives the reason.
+* No function in the domain layers of ``CONFIG_FREE`` takes the whole configuration (a parameter
+  named ``cfg`` or ``config``): they take the typed objects of :mod:`jointid.config.typed` or plain
+  numbers.  No function takes more than 8 parameters (positional and keyword-only, without
+  ``self``/``cls``, ``*args`` and ``**kwargs``) unless a comment at its top starts with
+  ``# many parameters:`` and gives the reason.
 """
 import ast
 import sys
@@ -48,7 +53,39 @@ def layer(mod: str) -> int:
     return LAYERS.index(parts[1]) if len(parts) > 1 and parts[1] in LAYERS else -1
 
 
-MAX_MODULE_LINES, MAX_FUNCTION_LINES = 400, 80
+MAX_MODULE_LINES, MAX_FUNCTION_LINES, MAX_PARAMETERS = 400, 80, 8
+CONFIG_FREE = ("fe", "identification", "response", "correlate")
+"""Layers whose functions take typed objects or numbers, never the whole configuration."""
+CONFIG_NAMES = ("cfg", "config")
+
+
+def _functions(tree: ast.AST):
+    return (n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
+
+
+def _head(lines: list[str], node) -> list[str]:
+    """The stripped lines of a function from its ``def`` to just past its docstring (where a reason goes)."""
+    first = node.body[0]
+    doc = isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+    end = first.end_lineno + 3 if doc else first.lineno + 2
+    return [ln.strip() for ln in lines[node.lineno - 1:end]]
+
+
+def parameter_findings(path: Path, config_free: bool = False) -> list[str]:
+    """Functions of ``path`` with more than 8 parameters and no ``# many parameters: <reason>`` comment at
+    their top, and (``config_free``: a module of a layer in ``CONFIG_FREE``) those taking ``cfg`` or ``config``."""
+    lines = path.read_text().splitlines()
+    out = []
+    for node in _functions(ast.parse("\n".join(lines))):
+        a = node.args
+        names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")]
+        if config_free:
+            out += [f"{path}:{node.lineno}: {node.name} takes {n!r}, the whole configuration — take the typed "
+                    "objects of jointid.config.typed or numbers" for n in names if n in CONFIG_NAMES]
+        if len(names) > MAX_PARAMETERS and not any(h.startswith("# many parameters:") for h in _head(lines, node)):
+            out.append(f"{path}:{node.lineno}: {node.name} takes {len(names)} parameters, no '# many parameters: "
+                       "<reason>' comment at its top")
+    return out
 
 
 def size_findings(path: Path) -> list[str]:
@@ -57,17 +94,11 @@ def size_findings(path: Path) -> list[str]:
     out = []
     if len(lines) > MAX_MODULE_LINES and not any(ln.startswith("# over 400 lines:") for ln in lines[:40]):
         out.append(f"{path}: {len(lines)} lines, no '# over 400 lines: <reason>' comment at its top")
-    for node in ast.walk(ast.parse("\n".join(lines))):
-        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-            continue
+    for node in _functions(ast.parse("\n".join(lines))):
         n = node.end_lineno - node.lineno + 1
         if n <= MAX_FUNCTION_LINES:
             continue
-        first = node.body[0]
-        doc = isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
-        end = first.end_lineno + 3 if doc else first.lineno + 2
-        head = [ln.strip() for ln in lines[node.lineno - 1:end]]  # from the def line to just past the docstring
-        if not any(h.startswith("# long") for h in head):
+        if not any(h.startswith("# long") for h in _head(lines, node)):
             out.append(f"{path}:{node.lineno}: {node.name} is {n} lines, no '# long ...: <reason>' comment at "
                        "its top")
     return out
@@ -116,7 +147,8 @@ def main(argv):
         print("cycle: " + " <-> ".join(comp))
         bad += 1
     for p in sorted(mods.values()):
-        for line in size_findings(p):
+        config_free = p.relative_to(root).parts[0] in CONFIG_FREE
+        for line in size_findings(p) + parameter_findings(p, config_free):
             print(line)
             bad += 1
     return 1 if bad else 0

@@ -13,6 +13,7 @@ import json
 import pandas as pd
 
 from jointid.config import load_config
+from jointid.config.typed import ModelSpec
 from jointid.correlate.observability import MeasurementSetup, visibility
 from jointid.fe.model import load_model
 from jointid.geometry.points import dof_labels
@@ -29,7 +30,7 @@ def main():
     cfg = load_config(args.config)
     model = load_model(args.matrices)
     theta = {k: v["value"] for k, v in json.load(open(args.params))["parameters"].items()}
-    freqs, shapes, desc, _ = solve_point(cfg, model, theta)
+    freqs, shapes, desc, _ = solve_point(ModelSpec.from_config(cfg), model, theta)
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
     lo, hi = cfg["harmonic"]["band_Hz"]
     band = [i for i, f in enumerate(freqs) if lo <= f <= hi]

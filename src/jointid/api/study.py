@@ -17,6 +17,7 @@ import pandas as pd
 
 import jointid.api.measured as measured
 from jointid.api.results import DiagnosisResult, Identification, ModalResult
+from jointid.config.typed import Settings
 from jointid.errors import DataError
 
 if TYPE_CHECKING:
@@ -51,6 +52,7 @@ class Study:
         """Wrap an already validated configuration (:func:`jointid.config.load_config`); prefer
         :meth:`from_config`."""
         self._cfg = config
+        self._settings = Settings.from_config(config)  # the typed objects the domain layers take
         self._model = None
         self._system = None
         self._solver = None
@@ -140,7 +142,7 @@ class Study:
         if self._model is None:
             from jointid.fe.model import build_model
 
-            self._model = build_model(self._cfg)
+            self._model = build_model(self._settings.model)
         return self._model
 
     def points(self) -> pd.DataFrame:
@@ -189,8 +191,9 @@ class Study:
         from jointid.identification.polish import solve_point
 
         model, values = self.model(), self.theta(state, theta)
-        freqs, shapes, desc, modes = solve_point(self._cfg, model, values, n_modes=n, certify=certify)
-        kc, mc = base_coefficients(self._cfg, model, values)
+        spec = self._settings.model
+        freqs, shapes, desc, modes = solve_point(spec, model, values, n_modes=n, certify=certify)
+        kc, mc = base_coefficients(spec, model, values)
         return ModalResult(state=state, theta=values, freqs_Hz=np.asarray(freqs), shapes=np.asarray(shapes),
                            labels=tuple(dof_labels(self.points())), phi=modes.phi, energy=desc,
                            k_coefficients=kc, m_coefficients=mc, sturm=modes.sturm)
@@ -275,7 +278,7 @@ class Study:
         states are fitted one by one (no pairing shared by the states, ``identify.pairing``) and
         without mesh extrapolation (``mesh.extrapolate_edges``).
         """
-        from jointid.identification.polish import polish_on_model
+        from jointid.identification.polish import PolishFit, polish_on_model
 
         cfg, names = self._cfg, list(self._cfg["joints"]["parameters"])
         (d,) = self.states(dataset, [state])
@@ -285,14 +288,13 @@ class Study:
         if len(pairing.unpaired_measured):
             raise DataError(f"measured {state} mode(s) {[i + 1 for i in pairing.unpaired_measured]} pair with "
                             "no model mode at the start — give theta0 nearer the answer, or raise solver.n_modes")
-        bounds = np.array([[cfg["joints"]["parameters"][k]["lower"], cfg["joints"]["parameters"][k]["upper"]]
-                           for k in names], float)
+        joints = self._settings.model.joints
         weights = cfg["identify"].get("weights")
-        polish = polish_on_model(cfg, self.model(), names, np.array([start.theta[k] for k in names]), d.f_meas,
-                                 start.shapes[:, pairing.model_index], bounds[:, 0], bounds[:, 1],
-                                 weights=None if not weights else np.asarray(weights, float),
-                                 sigma_rel=d.sigma_rel, repair=meas_shapes is None, max_iter=max_iter,
-                                 log=log or _quiet, rule=d.rule)
+        fit = PolishFit(d.f_meas, start.shapes[:, pairing.model_index], joints.lower_N_per_m3, joints.upper_N_per_m3,
+                        weights=None if not weights else np.asarray(weights, float), sigma_rel=d.sigma_rel,
+                        repair=meas_shapes is None, rule=d.rule)
+        polish = polish_on_model(self._settings.model, self.model(), names, np.array([start.theta[k] for k in names]),
+                                 fit, max_iter=max_iter, log=log or _quiet)
         result = measured.identification(state, names, start.theta, d.f_meas, polish,
                                          "frequency" if meas_shapes is None else "mac", cfg)
         self._identified[state] = result

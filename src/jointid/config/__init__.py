@@ -26,6 +26,9 @@ reference
     :func:`config_reference_markdown`, the generator of ``docs/config-reference.md``.
 snakefile
     Helpers the Snakefile uses (``validated``, ``sections``, ``merged``).
+typed, typed_mesh
+    The validated configuration as frozen dataclasses (:class:`~jointid.config.typed.Settings`,
+    :class:`~jointid.config.typed.ModelSpec` ...), what the domain layers take instead of the dict.
 __main__
     The command line ``python -m jointid.config check|reference|hash``.
 """

@@ -325,6 +325,7 @@ def import_uff(path, measuring_points: pd.DataFrame, *, state: str, tol_m: float
                out=None, length_scale: float | None = None, node_map: dict | None = None,
                em_force_N: float | None = None, merge: bool = False, n_frf_modes: int | None = None,
                frequencies_only: bool = False) -> tuple[Dataset, list[str]]:
+    # many parameters: the import's options (node mapping, tolerance, scale, merge, ...), keyword with defaults
     # long by its numpydoc; the body is one pass (units, nodes, modes, FRFs, conditions, write)
     """Import one state's modal test data from a UFF file.
 

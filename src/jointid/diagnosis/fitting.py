@@ -58,13 +58,13 @@ class Diagnoser:
     def __init__(self, system: System, cfg: dict, data: list[StateData], *, n_modes: int | None = None,
                  tol: float = 1e-6, mac_threshold: float = 0.5, solver: ReducedSolver | None = None,
                  start_basis=None, memo=None, log=print_log):
+        # many parameters: the fit's solver options beside system, configuration and data, keyword with defaults
         self.system, self.cfg, self.data = system, cfg, data
         s = cfg.get("solver", {})
         self.min_freq = float(s.get("min_freq_Hz", 100.0))
         m = max(len(d.f_meas) for d in data)
         self.n_modes = n_modes or m + 8
-        self.mac_threshold = mac_threshold
-        self.log = log
+        self.mac_threshold, self.log = mac_threshold, log
         self.solver: ReducedSolver | None = solver
         if solver is not None:
             if solver.system is not system:

@@ -85,6 +85,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
              candidates: list[str] | None = None, n_refit: int | None = None, alpha: float | None = None,
              reference_state: str | None = None, solver: ReducedSolver | None = None,
              start_basis=None, memo=None, compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
+    # many parameters: the loop's options (effects, candidates, refits, solver reuse, ...), keyword with defaults
     """Run the whole loop on measured states: compare, calibrate, score, refit, combine, rank, ladder, drift.
 
     Parameters

@@ -53,6 +53,7 @@ from jointid.diagnosis.effects import apply_effects, enabled_effects
 from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system, term_component
 from jointid.errors import ConfigError, JointidError
 from jointid.fe.modal import solve_model
+from jointid.config.typed import ModelSpec
 from jointid.fe.model import build_model, joint_terms
 from jointid.response.damping import joint_energy_share
 from jointid.response.drive_point import joint_stiffness
@@ -149,7 +150,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
     """
     check_truth(truth)
     cfg = truth_config(truth, base_cfg)
-    model = model or build_model(cfg)
+    model = model or build_model(ModelSpec.from_config(cfg))
     system = build_system(model, cfg)
     meas = {**MEASUREMENT_DEFAULTS, **(truth.get("measurement") or {})}
     noise = {**NOISE_DEFAULTS, **(truth.get("noise") or {})}
@@ -275,7 +276,8 @@ def joint_shares(system, phi, freqs_Hz, kc: dict, terms: dict[str, list[str]], n
 def hysteretic_ratios(system, cfg: dict, kc: dict, modes, truth: dict):
     """``(zeta (n_modes,), shares (n_modes, n_dirs))`` of every solved mode under the truth's hysteretic
     joint damping: ``zeta_r = zeta0 + sum_j eta_j e_rj / 2`` (``joint_loss_factors``, ``zeta0``)."""
-    terms = joint_terms(cfg["joints"], cfg.get("model"))
+    spec = ModelSpec.from_config(cfg)
+    terms = joint_terms(spec.joints, spec.mesh_file)
     eta = {str(k): float(v) for k, v in (truth.get("joint_loss_factors") or {}).items()}
     unknown = sorted(set(eta) - set(terms))
     if unknown:

@@ -28,8 +28,9 @@ import scipy.sparse as sp
 
 from jointid.errors import ModelError
 from jointid.fe.fem import Model
-from jointid.fe.model import (JOINT_FACES, RAIL_BONDED_N_PER_M3, base_coefficients, is_mesh_model,
-                              joint_layer_terms, motor_mass_kg, solid_coefficients)
+from jointid.config.typed import ModelSpec
+from jointid.fe.model import (JOINT_FACES, RAIL_BONDED_N_PER_M3, base_coefficients, joint_layer_terms,
+                              motor_mass_kg, solid_coefficients)
 from jointid.geometry.points import dof_labels
 from jointid.geometry.rig import PART_IDS
 
@@ -174,7 +175,8 @@ def build_system(model: Model, cfg: dict) -> System:
     loc = model.doflocs[[0, 2]].T  # (n_scalar, 2)
     d2 = ((loc[:, None, :] - xz[None, :, :]) ** 2).sum(axis=2)
     owner = np.repeat(np.argmin(d2, axis=1), 3)
-    ks, ms = solid_coefficients(cfg, model)  # the configuration's materials against the model's
+    spec = ModelSpec.from_config(cfg)
+    ks, ms = solid_coefficients(spec, model)  # the configuration's materials against the model's
     K0 = model.K(ks) if ks else model.stiffness["K0"]
     M0 = model.M(ms) if ms else model.mass["M0"]
     stiffness = {"K0": K0}
@@ -191,7 +193,7 @@ def build_system(model: Model, cfg: dict) -> System:
         fixed = np.array([], dtype=np.int64)  # bonded foundation layer instead (see module doc)
     pts = pd.DataFrame(model.meta["points"])
     mass = {**model.mass, "M0": M0}
-    motors = None if is_mesh_model(cfg) else motor_mass_kg(cfg)
+    motors = None if spec.is_mesh_file else motor_mass_kg(spec.rig)
     return System(stiffness=stiffness, mass=mass, fixed=fixed, probe=model.probe,
                   labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model, M0, motors),
                   support=support, model=model, meta={"points": pts, "solid_coefficients": {**ks, **ms}},
@@ -204,7 +206,7 @@ def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) 
     Joint terms are expanded to every carriage with the same value; a clamped support becomes the
     bonded foundation layer.  Returns ``(kc, mc)`` for :meth:`System.K` / :meth:`System.M`.
     """
-    kc0, mc = base_coefficients(cfg, system.model, theta)
+    kc0, mc = base_coefficients(ModelSpec.from_config(cfg), system.model, theta)
     folded = system.meta.get("solid_coefficients") or {}  # in the system's K0 and M0 already
     mc = {name: v for name, v in mc.items() if name not in folded}
     kc = {}

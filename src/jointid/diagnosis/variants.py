@@ -18,6 +18,7 @@ from jointid.correlate import pairing as correlate
 from jointid.diagnosis.effects import Effect, apply_effects
 from jointid.diagnosis.terms import StateInfo, System, baseline_coefficients
 from jointid.errors import DataError
+from jointid.config.typed import TestSetup
 from jointid.identification.visibility import dataset_rule
 
 
@@ -83,8 +84,8 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
 def state_rule(ds, state: str, system: System, cfg: dict, shapes: np.ndarray | None):
     """The observability rule of ``state`` at the system's probe labels
     (:func:`jointid.identification.visibility.dataset_rule`)."""
-    return dataset_rule(ds, state, system.labels, system.meta["points"]["point"], shapes, cfg,
-                        f"{ds.name}/conditions.yaml")
+    return dataset_rule(ds, state, system.labels, system.meta["points"]["point"], shapes,
+                        TestSetup.from_config(cfg), f"{ds.name}/conditions.yaml")
 
 
 @dataclass

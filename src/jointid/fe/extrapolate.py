@@ -23,7 +23,6 @@ moves (relative change below ``converged_rel``) it is taken as converged.
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,15 +67,6 @@ def aitken_weights(ratio, status) -> np.ndarray:
     w[status != "extrapolated"] = (0.0, 0.0, 1.0)
     w[status == "lost"] = (1.0, 0.0, 0.0)
     return w
-
-
-def level_config(cfg: dict, extra: int) -> dict:
-    """``cfg`` with ``extra`` more edge-refinement levels than its own mesh (``cfg`` itself for none)."""
-    if not extra:
-        return cfg
-    out = copy.deepcopy(cfg)
-    out["mesh"]["edge_refine_levels"] = int(cfg["mesh"].get("edge_refine_levels", 0)) + extra
-    return out
 
 
 def follow(shapes_a: np.ndarray, shapes_b: np.ndarray, threshold: float = MAC_FOLLOW) -> np.ndarray:

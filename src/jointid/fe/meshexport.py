@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jointid.config.typed import ModelSpec
 from jointid.geometry.rig import Box, PART_IDS
 
 # rig term K_<face>_<d> -> component of that face's layer (top: normal y; flank: normal x; feed z)
@@ -30,18 +31,18 @@ def _facets_in(mesh, owner_part: np.ndarray, part: int, boxes: list[Box]) -> np.
     return bnd[_in_patch(mid, boxes) & (owner_part[mesh.f2t[0, bnd]] == part)]
 
 
-def rig_groups(cfg: dict):
-    """The rig's corner mesh, the part of each cell and its named surfaces (facet indices)."""
+def rig_groups(spec: ModelSpec):
+    """The corner mesh of the rig of ``spec``, the part of each cell and its named surfaces (facet indices)."""
     from jointid.geometry.mesh import mesh_from_config
     from jointid.geometry.rig import build_rig
 
-    if cfg["mesh"].get("edge_refine_levels", 0):
+    if spec.mesh.edge_refine_levels:
         from jointid.errors import ConfigError
 
         raise ConfigError("mesh.edge_refine_levels: the rig is exported without edge refinement (hanging "
                           "nodes) — set mesh.edge_refine_levels: 0")
-    rig = build_rig(cfg["rig"])
-    rm = mesh_from_config(rig, cfg["mesh"])
+    rig = build_rig(spec.rig.geometry)
+    rm = mesh_from_config(rig, spec.mesh)
     mesh, part = rm.mesh, rm.part
     rail = PART_IDS["rail"]
     base = PART_IDS["base"]
@@ -57,32 +58,30 @@ def rig_groups(cfg: dict):
     return rig, mesh, part, surfaces
 
 
-def model_section(cfg: dict, mesh_path: str, points_path: str, areas: dict[str, float]) -> dict:
-    """The ``model:`` section reading the exported rig back (same joint parameters as ``cfg``)."""
-    from jointid.fe.model import RAIL_BONDED_N_PER_M3, joint_terms
+def model_section(spec: ModelSpec, mesh_path: str, points_path: str, areas: dict[str, float]) -> dict:
+    """The ``model:`` section reading the exported rig back (same joint parameters as ``spec``);
+    ``areas``: the surfaces' areas, m^2."""
+    from jointid.fe.model import joint_terms, rail_fixing_N_per_m3
 
     laws: dict[str, dict] = {"top": {}, "flank": {}}
-    for name, terms in joint_terms(cfg["joints"]).items():
+    for name, terms in joint_terms(spec.joints).items():
         for term in terms:
             _, face, d = term.split("_")
             laws[face][_COMPONENT[(face, d)]] = name
-    rig = cfg["rig"]
+    rig = spec.rig
     joints = [{"name": face, "surfaces": [f"carriage_{face}", f"rail_{face}"], "feed_axis": [0.0, 0.0, 1.0],
                "law": law} for face, law in laws.items() if law]
     joints.append({"name": "railfix", "surfaces": ["rail_bottom", "base_under_rail"],
-                   "law": {"all": float(rig["rails"].get("fixing_stiffness_N_per_m3", RAIL_BONDED_N_PER_M3))}})
-    support = rig["support"]["kind"]
-    if support == "clamped":
+                   "law": {"all": rail_fixing_N_per_m3(rig)}})
+    if rig.support_kind == "clamped":
         supports = [{"surface": "bottom", "kind": "clamped"}]
     else:
         supports = [{"surface": "mount", "kind": "foundation",
-                     "k_N_per_m3": rig["support"]["k_mount_N_per_m"] / (areas["mount"] / 4)}]
-    masses = [{"name": "motor", "surface": "motor_patch",
-               "mass_kg": rig["motors"]["count"] * rig["motors"]["mass_each_kg"]},
+                     "k_N_per_m3": rig.k_mount_N_per_m / (areas["mount"] / 4)}]
+    masses = [{"name": "motor", "surface": "motor_patch", "mass_kg": rig.motor_mass_kg},
               {"name": "table_top", "surface": "table_top", "mass_kg": 0.0},
               {"name": "table_edge", "surface": "table_edge", "mass_kg": 0.0}]
-    bodies = {p: rig[{"rail": "rails", "carriage": "carriages"}.get(p, p)]["material"]
-              for p in ("base", "rail", "carriage", "table")}
+    bodies = {p: rig.part_materials[p] for p in ("base", "rail", "carriage", "table")}
     return {"kind": "mesh", "path": mesh_path, "bodies": bodies, "joints": joints, "supports": supports,
             "masses": masses, "points": points_path}
 
@@ -140,20 +139,20 @@ def _oriented_quads(mesh, quads: np.ndarray) -> np.ndarray:
     return np.take_along_axis(quads, np.argsort(angle, axis=1), axis=1)
 
 
-def export_rig(cfg: dict, mesh_path: str | Path, points_path: str | Path) -> dict:
-    """Write the rig of ``cfg`` as ``mesh_path`` and its measuring points as ``points_path``; return
+def export_rig(spec: ModelSpec, mesh_path: str | Path, points_path: str | Path) -> dict:
+    """Write the rig of ``spec`` as ``mesh_path`` and its measuring points as ``points_path``; return
     the ``model:`` section that reads them back."""
     from jointid.fe import fem
     from jointid.geometry.points import measuring_points
     from skfem import ElementHex2
 
-    rig, mesh, part, surfaces = rig_groups(cfg)
+    rig, mesh, part, surfaces = rig_groups(spec)
     groups = {name: np.flatnonzero(part == pid) for name, pid in PART_IDS.items() if pid >= 0}
     write_mesh(mesh_path, mesh, groups, surfaces)
-    pts = measuring_points(cfg["rig"], rig.dims)
+    pts = measuring_points(spec.rig.geometry, rig.dims)
     pts.to_csv(points_path, index=False)
     areas = {s: float(fem.facet_mass(mesh, ElementHex2(), f, 4).sum()) for s, f in surfaces.items()}
-    return model_section(cfg, str(mesh_path), str(points_path), areas)
+    return model_section(spec, str(mesh_path), str(points_path), areas)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -172,10 +171,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--format", choices=("msh", "vtu", "inp"), default="msh",
                     help="gmsh 2.2 (default), VTK with one cell-data array per group, or Abaqus element sets")
     args = ap.parse_args(argv)
-    cfg = load_config(read_merged(args.config))
+    spec = ModelSpec.from_config(load_config(read_merged(args.config)))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    section = export_rig(cfg, out / f"rig.{args.format}", out / "points.csv")
+    section = export_rig(spec, out / f"rig.{args.format}", out / "points.csv")
     overlay = {"model": section, "mesh": {"extrapolate_edges": False}, "mesh_check": {"enabled": False}}
     (out / "model.yaml").write_text("# the rig read back from its mesh file: snakemake -j2 --configfile "
                                     f"{out / 'model.yaml'}\n" + yaml.safe_dump(overlay, sort_keys=False))

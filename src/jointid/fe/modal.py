@@ -222,6 +222,7 @@ def shift_sigma(shift_Hz: float) -> float:
 def solve_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, *, shift_Hz: float = -10.0,
                 fixed: np.ndarray | None = None, backend: str = "auto", tol: float = 0.0,
                 factor=None, ordering: np.ndarray | None = None, v0_seed: int | None = None) -> Modes:
+    # many parameters: the eigen solver's options (shift, backend, tolerance, factor, ordering, seed)
     """Lowest ``n_modes`` eigenpairs of ``K phi = w^2 M phi`` by shift-invert Lanczos.
 
     ``shift_Hz`` < 0 places the shift below zero, so ``K - sigma M`` is positive definite even with
@@ -291,6 +292,7 @@ def restrict(A: sp.spmatrix, free: np.ndarray) -> sp.csr_matrix:
 
 
 def _solve_free(Kf, Mf, free, n, n_modes, shift_Hz, backend, tol, factor, ordering, v0_seed=None) -> Modes:
+    # many parameters: the private continuation of solve_modes, its options passed through
     _check_count(n_modes, len(free))
     sigma = shift_sigma(shift_Hz)
     fac = factor if factor is not None else factorize_shifted(Kf, Mf, sigma, backend, ordering)

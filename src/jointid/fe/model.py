@@ -1,6 +1,6 @@
 """Build the affine FE model of the rig from the configuration, and cache it on disk.
 
-``build_model(cfg)`` runs rig geometry -> mesh -> assembly and returns a :class:`jointid.fe.fem.Model`
+``build_model(spec)`` runs rig geometry -> mesh -> assembly and returns a :class:`jointid.fe.fem.Model`
 whose named terms are:
 
 ===============  ==============================================================================
@@ -32,18 +32,21 @@ the model file grows by the smaller parts only (about a quarter of ``K0`` and ``
 ``M0`` stay the mapped, shared arrays they were.  :func:`jointid.fe.solids.solid_coefficients` gives
 ``c_b`` and ``m_b`` of a configuration.
 
-``joint_terms(cfg)`` maps a joint parameter (``k_normal_N_per_m3`` ...) to the terms it multiplies.
+``joint_terms(joints)`` maps a joint parameter (``k_normal_N_per_m3`` ...) to the terms it multiplies.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 from skfem import Basis
 
+from jointid.config.typed import Joints, Material, ModelSpec, RigModel
+from jointid.config.typed_mesh import MeshFileModel
 from jointid.fe import fem
 from jointid.fe.solids import (assemble_solid_parts, element_constants, motor_mass_kg,  # noqa: F401 (re-exported)
                                solid_coefficients)
@@ -57,23 +60,22 @@ from jointid.geometry.rig import PART_IDS, build_rig
 RAIL_BONDED_N_PER_M3 = 1.0e15  # rail-to-base layer standing in for a bonded (consolidated) fixing
 
 
-def joint_terms(joints_cfg: dict, model_cfg: dict | None = None) -> dict[str, list[str]]:
+def joint_terms(joints: Joints, mesh_file: MeshFileModel | None = None) -> dict[str, list[str]]:
     """Stiffness terms multiplied by each joint parameter (identified and fixed ones).
 
-    With ``model_cfg`` of kind mesh, the layers of ``model_cfg['joints']`` name the terms of each
+    With ``mesh_file`` (a model read from a mesh file), its joint layers name the terms of each
     parameter (:func:`jointid.fe.meshmodel.mesh_joint_terms`).  On the rig, a parameter ``k_<kind>_N_per_m3`` with direction d acts on the face of its kind: ``normal`` on the
     rail top; ``lateral`` on the flanks (or the top for a flat joint); ``feed`` and any other kind on
     every contact face (top and flanks).
     """
-    if (model_cfg or {}).get("kind", "rig") == "mesh":
+    if mesh_file is not None:
         from jointid.fe.meshmodel import mesh_joint_terms
 
-        return mesh_joint_terms(model_cfg)
-    params = dict(joints_cfg.get("parameters", {}))
-    dirs = {name: spec["direction"] for name, spec in params.items()}
-    for name in joints_cfg.get("fixed", {}):
+        return mesh_joint_terms(mesh_file)
+    dirs = {p.name: p.direction for p in joints.parameters}
+    for name in joints.fixed_N_per_m3:
         dirs.setdefault(name, {"normal": "y", "lateral": "x", "feed": "z"}.get(_kind(name), "z"))
-    lateral_face = "flank" if joints_cfg.get("lateral_face", "flanks") == "flanks" else "top"
+    lateral_face = "flank" if joints.lateral_face == "flanks" else "top"
     out = {}
     for name, d in dirs.items():
         kind = _kind(name)
@@ -101,44 +103,50 @@ def joint_layer_terms(model) -> frozenset:
                      if n.startswith("K_") and n.count("_") == 2 and n.split("_")[1] in JOINT_FACES)
 
 
-def is_mesh_model(cfg: dict) -> bool:
-    """Whether ``cfg`` describes a model read from a mesh file (``model: {kind: mesh}``)."""
-    return (cfg.get("model") or {}).get("kind", "rig") == "mesh"
-
-
 def _kind(name: str) -> str:
     return name.split("_")[1] if name.startswith("k_") else name
 
 
-def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] = (), rig=None,
+def build_model(spec: ModelSpec, *, refine: int | None = None, halve: tuple[str, ...] = (), rig=None,
                 progress=None) -> fem.Model:
-    """Assemble the rig model described by ``cfg`` (the whole validated configuration); ``refine``
-    and ``halve`` refine its mesh (see :func:`jointid.geometry.mesh.build_mesh`); ``rig`` is a geometry to use
-    instead of the one built from ``cfg['rig']`` (e.g. with extra grid breakpoints).  With
-    ``model: {kind: mesh}`` the model is read from the user's mesh file instead
-    (:func:`jointid.fe.meshmodel.build_mesh_model`; no refinement)."""
-    if is_mesh_model(cfg):
+    """Assemble the FE model described by ``spec``.
+
+    Parameters
+    ----------
+    spec : ModelSpec
+        The model (:meth:`jointid.config.typed.ModelSpec.from_config`).
+    refine, halve
+        Refinement of the rig's mesh (see :func:`jointid.geometry.mesh.build_mesh`).
+    rig : jointid.geometry.rig.Rig, optional
+        A geometry to use instead of the one built from ``spec.rig`` (e.g. with extra grid breakpoints).
+    progress : callable, optional
+        Called with one line of text per step.
+
+    With a mesh file (``spec.mesh_file``) the model is read from it instead
+    (:func:`jointid.fe.meshmodel.build_mesh_model`; no refinement).
+    """
+    if spec.is_mesh_file:
         if refine not in (None, 1) or halve:
             raise ModelError("model.kind: mesh: a mesh file is solved as it is — refinement (mesh.refine, "
                              "mesh_check, mesh.extrapolate_edges) works on the parametric rig only; "
                              "refine the mesh in the tool that made it")
         from jointid.fe.meshmodel import build_mesh_model
 
-        return build_mesh_model(cfg, progress)
+        return build_mesh_model(spec.mesh_file, spec.materials, progress)
     say = progress or (lambda msg: None)
-    rig_cfg, mesh_cfg = cfg["rig"], cfg["mesh"]
-    rig = rig or build_rig(rig_cfg)
-    rmesh = mesh_from_config(rig, mesh_cfg, refine, halve)
-    basis, stiffness, M0, dof_body = assemble_solids_and_joints(cfg, rig, rmesh, mesh_cfg["element"])
-    solids, solids_meta = assemble_solid_parts(cfg, rig, rmesh, basis)
-    elem, intorder = basis.elem, fem.ELEMENTS[mesh_cfg["element"]][1]
+    element = spec.mesh.element
+    rig = rig or build_rig(spec.rig.geometry)
+    rmesh = mesh_from_config(rig, spec.mesh, refine, halve)
+    basis, stiffness, M0, dof_body = assemble_solids_and_joints(spec.materials, rig, rmesh, element)
+    solids, solids_meta = assemble_solid_parts(spec.materials, rig, rmesh, basis)
+    elem, intorder = basis.elem, fem.ELEMENTS[element][1]
     doflocs = basis.doflocs
-    say(f"mesh: {rmesh.mesh.t.shape[1]} {mesh_cfg['element']} elements, {3 * basis.N} DOFs")
+    say(f"mesh: {rmesh.mesh.t.shape[1]} {element} elements, {3 * basis.N} DOFs")
     S_fix = fem.facet_mass(rmesh.mesh, elem, rmesh.facets["railfix"], intorder)
     stiffness["K_railfix"] = sum(fem.spring_layer(S_fix, doflocs, i, dof_body) for i in range(3)).tocsr()
     stiffness["K_foundation"] = fem.ground_springs(
         fem.facet_mass(rmesh.mesh, elem, rmesh.facets["bottom"], intorder))
-    support = rig_cfg["support"]["kind"]
+    support = spec.rig.support_kind
     fixed = np.array([], dtype=np.int64)
     if support == "mounts":
         stiffness["K_mount"] = fem.ground_springs(
@@ -149,7 +157,7 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     mass = {"M0": M0}
     for name, facets in (("motor", "motor"), ("table_top", "table_top"), ("table_edge", "table_edge")):
         mass[f"M_{name}"] = fem.surface_mass(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[facets], intorder))
-    pts = measuring_points(rig_cfg, rig.dims)
+    pts = measuring_points(spec.rig.geometry, rig.dims)
     xyz = pts[["x_m", "y_m", "z_m"]].to_numpy().T.copy()
     xyz[1] -= 1e-7  # nudge onto the solid side of the top surfaces
     P = basis.probes(xyz)  # (n_pts, N) scalar
@@ -158,10 +166,10 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     areas = {face: float(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder).sum())
              for face in ("top", "flank", "motor", "mount")}
     meta = {"n_elements": int(rmesh.mesh.t.shape[1]), "n_dofs": int(3 * basis.N),
-            "element": mesh_cfg["element"], "support": support,
+            "element": element, "support": support,
             "contact_area_m2": {"top": areas["top"], "flank": areas["flank"]},
             "mount_area_m2": areas["mount"], "motor_patch_area_m2": areas["motor"],
-            "motor_mass_kg": rig_cfg["motors"]["count"] * rig_cfg["motors"]["mass_each_kg"],
+            "motor_mass_kg": spec.rig.motor_mass_kg,
             "mount_area_each_m2": areas["mount"] / 4 if support == "mounts" else 0.0,
             "carriage_centres_m": rig.carriage_centres.tolist(), "dims_m": rig.dims,
             "points": pts.to_dict(orient="list"), "solids": solids_meta}
@@ -171,14 +179,14 @@ def build_model(cfg: dict, *, refine: int | None = None, halve: tuple[str, ...] 
     if rmesh.boxes is not None:
         lo, hi = rmesh.boxes
         T, free = localrefine.hanging_constraints(doflocs, basis.element_dofs, lo, hi, rmesh.body,
-                                                  localrefine.ORDER[mesh_cfg["element"]])
+                                                  localrefine.ORDER[element])
         say(f"hanging nodes: {basis.N - len(free)} of {basis.N} nodes tied, {3 * len(free)} DOFs left")
         model = _constrained(model, T, free)
     return model
 
 
-def assemble_solids_and_joints(cfg: dict, rig, rmesh, element: str):
-    """Elasticity of the solids (materials of ``cfg``) on ``rmesh`` and the unit joint spring layers.
+def assemble_solids_and_joints(materials: Mapping[str, Material], rig, rmesh, element: str):
+    """Elasticity of the solids (``materials`` by name) on ``rmesh`` and the unit joint spring layers.
 
     Returns ``(basis, stiffness, M0, dof_body)``: ``stiffness`` holds ``K0`` and ``K_<face>_<d>`` for
     the faces ``top`` and ``flank`` (see the module docstring); ``dof_body`` is the body of each scalar
@@ -187,7 +195,7 @@ def assemble_solids_and_joints(cfg: dict, rig, rmesh, element: str):
     elem_cls, intorder = fem.ELEMENTS[element]
     elem = elem_cls()
     basis = Basis(rmesh.mesh, elem, intorder=intorder)
-    lam, mu, rho, _ = element_constants(cfg, rig, rmesh)
+    lam, mu, rho, _ = element_constants(materials, rig, rmesh)
     K0, M0 = fem.assemble_elasticity(basis, lam, mu, rho)
     stiffness = {"K0": K0}
     dof_body = None
@@ -231,53 +239,69 @@ def _constrained(model: fem.Model, T: sp.csr_matrix, free: np.ndarray) -> fem.Mo
                      dof_part=model.dof_part[free], meta=meta, solids=project["solids"])
 
 
-def joint_coefficients(joints_cfg: dict, theta: dict[str, float] | None = None,
-                       model_cfg: dict | None = None) -> dict[str, float]:
+def joint_coefficients(joints: Joints, theta: dict[str, float] | None = None,
+                       mesh_file: MeshFileModel | None = None) -> dict[str, float]:
     """Coefficient of every joint spring term (``K_top_y`` ...) at joint parameters ``theta`` (N/m^3;
-    defaults: the geometric mean of the bounds for identified parameters, the configured value for
-    fixed ones)."""
-    values = {name: float(np.sqrt(s["lower"] * s["upper"])) for name, s in joints_cfg["parameters"].items()}
-    values.update({k: float(v) for k, v in joints_cfg.get("fixed", {}).items()})
+    defaults: :meth:`jointid.config.typed.Joints.defaults_N_per_m3`); ``mesh_file``: the model's mesh
+    file, if any (its layers name the terms)."""
+    values = joints.defaults_N_per_m3()
     if theta:
         values.update(theta)
     kc: dict[str, float] = {}
-    for name, terms in joint_terms(joints_cfg, model_cfg).items():
+    for name, terms in joint_terms(joints, mesh_file).items():
         for term in terms:
             kc[term] = kc.get(term, 0.0) + values.get(name, 0.0)
     return kc
 
 
-def base_coefficients(cfg: dict, model: fem.Model, theta: dict[str, float] | None = None,
+def base_coefficients(spec: ModelSpec, model: fem.Model, theta: dict[str, float] | None = None,
                       extra_k: dict[str, float] | None = None):
-    """Stiffness and mass coefficients of the rig at joint parameters ``theta``.
+    """Stiffness and mass coefficients of the model at joint parameters ``theta``.
 
-    ``theta`` maps joint parameter names to N/m^3 (defaults: the geometric mean of the bounds for
-    identified parameters, the configured value for fixed ones).  Returns ``(k_coeffs, m_coeffs)``
-    for :meth:`Model.K` and :meth:`Model.M`: the joints, the rail fixing and mounts, the motor mass
-    of ``cfg`` (``M_motor``) and the solids' material ratios (:func:`solid_coefficients`, none when
-    the materials are the model's own).
+    Parameters
+    ----------
+    spec : ModelSpec
+        The model's description (joints, rig or mesh file, materials).
+    model : jointid.fe.fem.Model
+        The assembled model (its mount area and reference materials).
+    theta : dict, optional
+        Joint parameter name -> stiffness per area, N/m^3 (defaults: the geometric mean of the bounds
+        for identified parameters, the configured value for fixed ones).
+    extra_k : dict, optional
+        Stiffness coefficients added to those of the model (term name -> coefficient).
+
+    Returns
+    -------
+    tuple of dict
+        ``(k_coeffs, m_coeffs)`` for :meth:`Model.K` and :meth:`Model.M`: the joints, the rail fixing
+        and mounts, the motor mass (``M_motor``, kg) and the solids' material ratios
+        (:func:`solid_coefficients`, none when the materials are the model's own).
     """
-    if is_mesh_model(cfg):
+    if spec.is_mesh_file:
         from jointid.fe.meshmodel import mesh_constant_coefficients
 
-        kc, mc = mesh_constant_coefficients(cfg["model"])
-        for name, v in joint_coefficients(cfg["joints"], theta, cfg["model"]).items():
+        kc, mc = mesh_constant_coefficients(spec.mesh_file)
+        for name, v in joint_coefficients(spec.joints, theta, spec.mesh_file).items():
             kc[name] = kc.get(name, 0.0) + v
         for name, v in (extra_k or {}).items():
             kc[name] = kc.get(name, 0.0) + v
         return kc, mc
-    kc = joint_coefficients(cfg["joints"], theta)
-    kc["K_railfix"] = float(cfg["rig"]["rails"].get("fixing_stiffness_N_per_m3", RAIL_BONDED_N_PER_M3))
+    kc = joint_coefficients(spec.joints, theta)
+    kc["K_railfix"] = rail_fixing_N_per_m3(spec.rig)
     if "K_mount" in model.stiffness:
-        kc["K_mount"] = cfg["rig"]["support"]["k_mount_N_per_m"] / model.meta["mount_area_each_m2"]
+        kc["K_mount"] = spec.rig.k_mount_N_per_m / model.meta["mount_area_each_m2"]
     for name, v in (extra_k or {}).items():
         kc[name] = kc.get(name, 0.0) + v
-    mc = {"M_motor": motor_mass_kg(cfg)}
-    ks, ms = solid_coefficients(cfg, model)
+    mc = {"M_motor": motor_mass_kg(spec.rig)}
+    ks, ms = solid_coefficients(spec, model)
     kc.update(ks)
     mc.update(ms)
     return kc, mc
 
+
+def rail_fixing_N_per_m3(rig: RigModel) -> float:
+    """The rail-to-base layer's stiffness per area, N/m^3 (``RAIL_BONDED_N_PER_M3`` for a bonded fixing)."""
+    return float(RAIL_BONDED_N_PER_M3 if rig.rail_fixing_N_per_m3 is None else rig.rail_fixing_N_per_m3)
 
 
 # ---------------------------------------------------------------- cache

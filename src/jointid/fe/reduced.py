@@ -80,6 +80,7 @@ class ReducedSolver:
     def __init__(self, system: System | Model, kc: dict, mc: dict, n_modes: int, directions=(), *,
                  shift_Hz: float = -10.0, backend: str = "auto", tol: float = 1e-6, max_basis: int = 900,
                  n_seed: int | None = None, basis=None):
+        # many parameters: the reduced solver's options (shift, backend, tolerance, basis size, seed), keyword with defaults
         self.system = system
         self.n_modes = int(n_modes)
         self.tol = tol

@@ -9,18 +9,17 @@ so is the motor mass (``M_motor``).  :func:`jointid.fe.model.build_model` keeps 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
+from jointid.config.typed import PART_SECTIONS, Material, ModelSpec, RigModel
 from jointid.errors import ModelError
 from jointid.fe import fem
 from jointid.geometry.rig import PART_IDS
 
-PART_SECTIONS = {"base": "base", "rail": "rails", "carriage": "carriages", "table": "table"}
-"""The ``rig`` section naming each part's material."""
-
-
-def element_constants(cfg: dict, rig, rmesh):
-    """Lamé constants and density of every element (Pa, kg/m^3) from the materials of ``cfg``, and
+def element_constants(materials: Mapping[str, Material], rig, rmesh):
+    """Lamé constants and density of every element (Pa, kg/m^3) from ``materials`` (by name), and
     the reference material of every part present: ``{part: {material, youngs_modulus_Pa,
     poisson_ratio, density_kg_per_m3}}``."""
     inv_parts = {v: k for k, v in PART_IDS.items()}
@@ -28,21 +27,21 @@ def element_constants(cfg: dict, rig, rmesh):
     ref = {}
     for pid in np.unique(rmesh.part):
         name = rig.materials[inv_parts[pid]]
-        m = cfg["materials"][name]
+        m = materials[name]
         sel = rmesh.part == pid
-        lam[sel], mu[sel] = fem.lame(m["youngs_modulus_Pa"], m["poisson_ratio"])
-        rho[sel] = m["density_kg_per_m3"]
-        ref[inv_parts[pid]] = {"material": name, **{k: float(m[k]) for k in
+        lam[sel], mu[sel] = fem.lame(m.youngs_modulus_Pa, m.poisson_ratio)
+        rho[sel] = m.density_kg_per_m3
+        ref[inv_parts[pid]] = {"material": name, **{k: float(getattr(m, k)) for k in
                                                     ("youngs_modulus_Pa", "poisson_ratio", "density_kg_per_m3")}}
     return lam, mu, rho, ref
 
 
-def assemble_solid_parts(cfg: dict, rig, rmesh, basis) -> tuple[dict, dict]:
-    """The solids per part, ``K_solid_<part>`` and ``M_solid_<part>`` at the materials of ``cfg``,
+def assemble_solid_parts(materials: Mapping[str, Material], rig, rmesh, basis) -> tuple[dict, dict]:
+    """The solids per part, ``K_solid_<part>`` and ``M_solid_<part>`` at ``materials`` (by name),
     for every part but the one with the most elements (the complement, formed from ``K0`` and ``M0``
     when asked, :meth:`jointid.fe.fem.Model.solid_term`).  Returns ``(terms, meta)``, meta
     ``{"parts": reference materials (:func:`element_constants`), "complement": part}``."""
-    lam, mu, rho, ref = element_constants(cfg, rig, rmesh)
+    lam, mu, rho, ref = element_constants(materials, rig, rmesh)
     count = {p: int(np.count_nonzero(rmesh.part == PART_IDS[p])) for p in ref}
     complement = max(count, key=lambda p: (count[p], p))
     terms = {}
@@ -53,29 +52,29 @@ def assemble_solid_parts(cfg: dict, rig, rmesh, basis) -> tuple[dict, dict]:
     return terms, {"parts": ref, "complement": complement}
 
 
-def solid_coefficients(cfg: dict, model: fem.Model) -> tuple[dict[str, float], dict[str, float]]:
-    """Coefficients of the solid terms at the materials of ``cfg``: ``K_solid_<part>``:
+def solid_coefficients(spec: ModelSpec, model: fem.Model) -> tuple[dict[str, float], dict[str, float]]:
+    """Coefficients of the solid terms at the rig's materials of ``spec``: ``K_solid_<part>``:
     ``E / E_ref - 1`` and ``M_solid_<part>``: ``rho / rho_ref - 1``, the reference being the material
     the model was built with (``model.meta['solids']``); only the non-zero ones (none at the
     reference).  :class:`ModelError` on a changed Poisson's ratio (the model is affine in E and rho
     only).  A model without solid terms (a mesh file's, or one written before them) gives none."""
     kc: dict[str, float] = {}
     mc: dict[str, float] = {}
-    if (cfg.get("model") or {}).get("kind", "rig") == "mesh":
+    if spec.is_mesh_file:
         return kc, mc
     parts = (model.meta.get("solids") or {}).get("parts") or {}
     for part, section in PART_SECTIONS.items():
         if part not in parts:
             continue
-        name = cfg["rig"][section]["material"]
-        m = cfg["materials"][name]
+        name = spec.rig.part_materials[part]
+        m = spec.materials[name]
         r = parts[part]
-        if float(m["poisson_ratio"]) != r["poisson_ratio"]:
-            raise ModelError(f"rig.{section}.material: {name} has Poisson's ratio {m['poisson_ratio']:g}, the "
+        if float(m.poisson_ratio) != r["poisson_ratio"]:
+            raise ModelError(f"rig.{section}.material: {name} has Poisson's ratio {m.poisson_ratio:g}, the "
                              f"model was built with {r['poisson_ratio']:g} ({r['material']}) — the model is affine "
                              "in Young's modulus and density only; build a model of this configuration")
-        c = float(m["youngs_modulus_Pa"]) / r["youngs_modulus_Pa"] - 1.0
-        d = float(m["density_kg_per_m3"]) / r["density_kg_per_m3"] - 1.0
+        c = float(m.youngs_modulus_Pa) / r["youngs_modulus_Pa"] - 1.0
+        d = float(m.density_kg_per_m3) / r["density_kg_per_m3"] - 1.0
         if c != 0.0:
             kc[f"K_solid_{part}"] = c
         if d != 0.0:
@@ -83,7 +82,7 @@ def solid_coefficients(cfg: dict, model: fem.Model) -> tuple[dict[str, float], d
     return kc, mc
 
 
-def motor_mass_kg(cfg: dict) -> float:
-    """The motor primaries' mass on the table of ``cfg``'s rig, kg (count x mass each): the
+def motor_mass_kg(rig: RigModel) -> float:
+    """The motor primaries' mass on the table of ``rig``, kg (count x mass each): the
     coefficient of ``M_motor`` (a 1 kg layer), so a changed motor mass needs no model of its own."""
-    return float(cfg["rig"]["motors"]["count"] * cfg["rig"]["motors"]["mass_each_kg"])
+    return float(rig.motor_mass_kg)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from skfem import MeshHex
 
+from jointid.config.typed import MeshOptions
 from jointid.geometry import localrefine
 from jointid.geometry.rig import BONDED_GROUP_OF_PART, Box, Rig, body_of, grid_lines
 
@@ -111,14 +112,13 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
     return RigMesh(mesh=mesh, part=part, facets=_tag_facets(mesh, part, rig))
 
 
-def mesh_from_config(rig: Rig, mesh_cfg: dict, refine: int | None = None, halve: tuple[str, ...] = ()) -> RigMesh:
-    """Mesh the rig as the ``mesh`` section of the configuration asks (``refine`` overrides it;
-    ``halve``: cell classes bisected on top, see :func:`build_mesh`)."""
-    h = mesh_cfg["max_cell_size_m"]
-    return build_mesh(rig, h, refine or mesh_cfg.get("refine", 1),
-                      joint_cell_m=h * mesh_cfg.get("joint_cell_fraction", 1.0),
-                      max_height_m=h * mesh_cfg.get("height_cell_fraction", 1.0), halve=tuple(halve),
-                      edge_levels=mesh_cfg.get("edge_refine_levels", 0))
+def mesh_from_config(rig: Rig, options: MeshOptions, refine: int | None = None, halve: tuple[str, ...] = ()) -> RigMesh:
+    """Mesh the rig as the mesh options ask (:class:`jointid.config.typed.MeshOptions`, the ``mesh``
+    section; ``refine`` overrides its own; ``halve``: cell classes bisected on top, see :func:`build_mesh`)."""
+    h = options.max_cell_size_m
+    return build_mesh(rig, h, refine or options.refine, joint_cell_m=h * options.joint_cell_fraction,
+                      max_height_m=h * options.height_cell_fraction, halve=tuple(halve),
+                      edge_levels=options.edge_refine_levels)
 
 
 def _edge_refined_mesh(rig: Rig, lines: list[np.ndarray], levels: int, halve: tuple[str, ...],

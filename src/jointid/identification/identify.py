@@ -178,6 +178,7 @@ def identify(
     extra: Callable[[np.ndarray], np.ndarray] | None = None,
     n_factors: int | None = None,
 ) -> IdentifyResult:
+    # many parameters: the multistart fit's options, keyword with defaults
     # long by its numpydoc and eleven options; the body is one call per step (checks, starts, statistics)
     """Identify coded parameters from measured frequencies.
 
@@ -279,6 +280,7 @@ def identify(
 
 
 def _check_inputs(f_meas, w, names, k, lo_b, hi_b, lower, upper, sigma_rel, n_starts) -> None:
+    # many parameters: checks every argument of identify at once, so that one error lists all problems
     """Raise one :class:`ConfigError` listing every problem of the arguments of :func:`identify`."""
     m = f_meas.size
     problems = []

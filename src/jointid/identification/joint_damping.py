@@ -344,10 +344,10 @@ def attraction_change(off: dict, on: dict) -> dict:
     return out
 
 
-def stage_record(cfg: dict, state: str, names, polish, f_meas_Hz, weights=None, *, extrapolated=False):
+def stage_record(folder: str, state: str, names, polish, f_meas_Hz, weights=None, *, extrapolated=False):
     """The ``joint_damping`` record of ``params.json``, or None when the state's dataset has no damping ratios.
 
-    ``cfg``: the validated configuration (the state's dataset folder); ``names``: the identified joint
+    ``folder``: the state's dataset folder (:func:`jointid.config.dataset_folder`); ``names``: the identified joint
     parameters (the polish's columns); ``polish``: the FE polish
     (:func:`jointid.identification.polish.fe_polish`; None: no energy shares, the record says so);
     ``f_meas_Hz`` ``(n_meas,)``: the measured frequencies in the dataset's mode order; ``weights``:
@@ -355,10 +355,9 @@ def stage_record(cfg: dict, state: str, names, polish, f_meas_Hz, weights=None, 
     ``{"identified": True, **JointDamping.record(), "shares_source"}``, or ``{"identified": False,
     "note"}`` when the ratios cannot be used.
     """
-    from jointid.config.datasets import dataset_folder
     from jointid.data.dataset import read_dataset
 
-    ds = read_dataset(dataset_folder(cfg, state))
+    ds = read_dataset(folder)
     zeta = ds.damping(state) if state in ds.states else None
     if zeta is None:
         return None
@@ -390,11 +389,11 @@ def summary_line(rec: dict) -> str:
                else ""))
 
 
-def params_entry(cfg: dict, state: str, names, polish, f_meas_Hz, weights=None, edge=None, log=None) -> dict:
+def params_entry(folder: str, state: str, names, polish, f_meas_Hz, weights=None, edge=None, log=None) -> dict:
     """``{"joint_damping": record}`` for ``params.json`` (:func:`stage_record`, logged by ``log``), ``{}``
-    when the dataset has no damping ratios (frequency-only data: ``params.json`` as without this step);
-    ``edge``: the polish's mesh-extrapolation record (None: none)."""
-    rec = stage_record(cfg, state, names, polish, f_meas_Hz, weights, extrapolated=edge is not None)
+    when the dataset ``folder`` has no damping ratios (frequency-only data: ``params.json`` as without
+    this step); ``edge``: the polish's mesh-extrapolation record (None: none)."""
+    rec = stage_record(folder, state, names, polish, f_meas_Hz, weights, extrapolated=edge is not None)
     if rec is not None and log is not None:
         log(f"identify[{state}]: " + summary_line(rec))
     return {} if rec is None else {"joint_damping": rec}

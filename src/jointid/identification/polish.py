@@ -7,6 +7,7 @@ edge-refinement levels (:mod:`jointid.fe.extrapolate`, docs/reconstruction.md, "
 extrapolation"): :func:`extrapolated_polish` repeats it with the factors taken at its last optimum
 until they settle.
 
+* :class:`PolishFit` - what the polish fits (measured modes, bounds, noise, visibility rule);
 * :func:`fe_polish` - the Gauss-Newton polish itself, on any solve function;
 * :func:`log_jacobian` - exact modal sensitivities ``d ln f / d log10 theta``;
 * :func:`solve_point` - modal solve of a cached model at joint parameters (Hz, shapes at the
@@ -24,6 +25,7 @@ from functools import partial
 
 import numpy as np
 
+from jointid.config.typed import ModelSpec
 from jointid.correlate.mac import mac
 from jointid.correlate.pairing import pair_by_frequency, pair_by_shapes
 from jointid.errors import DataError
@@ -34,14 +36,17 @@ from jointid.fe.modal import solve_model
 from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
 from jointid.identification.rom import ROM, load_rom
+from jointid.identification.polish_fit import PolishFit
 from jointid.identification.visibility import misfit_table
 from jointid.progress import Work, stamp
 
-__all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "corrected", "settled_below", "edge_limit_at", "extrapolated_polish",
-           "fe_polish", "log_jacobian", "model_sizes", "polish_on_model", "polish_optimum", "solve_point"]
+__all__ = ["EXTRAPOLATION_PASSES", "EXTRAPOLATION_SETTLED", "PolishFit", "corrected", "edge_limit_at",
+           "extrapolated_polish", "fe_polish", "log_jacobian", "model_sizes", "polish_on_model", "polish_optimum",
+           "settled_below", "solve_point"]
 
 EXTRAPOLATION_PASSES = 3  # polishes on extrapolated frequencies, each with factors taken at the last optimum
 EXTRAPOLATION_SETTLED = 2e-3  # the smallest threshold of settled_below (relative)
+STEP_TOL = 1e-4  # the polish stops once a step moves no log10 parameter by more than this
 
 
 def settled_below(sigma_rel) -> float:
@@ -67,22 +72,21 @@ def log_jacobian(stiffness: dict, phi: np.ndarray, lam: np.ndarray, terms: list[
     return J
 
 
-def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas: np.ndarray,
-              target_shapes: np.ndarray, terms: list[dict[str, float]], *, weights=None,
-              max_iter: int = 8, tol: float = 1e-4, sigma_rel: float = 0.01, log=print,
-              repair_min_Hz: float | None = None, rule=None):
+def fe_polish(solve, theta0: np.ndarray, names: list[str], terms: list[dict[str, float]], fit: PolishFit, *,
+              repair_min_Hz: float | None = None, max_iter: int = 8, log=print):
     # long: one Gauss-Newton loop whose every iterate re-pairs, scores the misfits and keeps the best
     """Refine the surface optimum with the full FE model (Gauss-Newton on log10 parameters).
 
     ``solve(theta) -> (freqs_Hz (n,), shapes (labels, n), phi (dofs, n), K_terms[, extra])`` gives the FE
     modes (``extra`` ``(n, n_params)``: a part of ``d ln f / d log10 theta`` beyond ``phi``'s);
+    ``fit`` (:class:`PolishFit`) holds the measured modes, the bounds, the weights and the noise;
     each measured mode follows the FE mode with the highest MAC to its current shape (starting from
-    ``target_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
+    ``fit.ref_shapes``, the tracked reference shapes of the paired modes). Frequency derivatives are
     exact modal sensitivities ``d lambda / d theta_i = phi^T K_i phi`` (mass-normalised phi).
     ``terms[i]`` maps stiffness term names to the coefficient per unit of parameter i.
     With ``repair_min_Hz`` (frequency-only data) the measured modes are re-paired at every iterate by
     the order-preserving frequency assignment among FE modes above that frequency, the same rule as
-    on the surfaces; the best iterate is kept.  ``rule``
+    on the surfaces; the best iterate is kept.  ``fit.rule``
     (:class:`jointid.identification.visibility.VisibilityRule`, its labels those of the solve's
     shapes): FE modes the test would clearly have seen that no measured mode takes are misfits, extra
     residuals with exact sensitivities, and the frequency re-pairing pays for leaving them unpaired.
@@ -90,10 +94,11 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
     Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations, unpaired_visible,
     chi2, dof)``.
     """
-    lo, hi = np.log10(lower), np.log10(upper)
+    f_meas, rule, sigma_rel = fit.f_meas_Hz, fit.rule, fit.sigma_rel
+    lo, hi = np.log10(fit.lower_N_per_m3), np.log10(fit.upper_N_per_m3)
     y = np.log10(np.asarray(theta0, float))
-    w = np.ones(len(f_meas)) if weights is None else np.asarray(weights, float)
-    shapes_now = np.asarray(target_shapes)
+    w = np.ones(len(f_meas)) if fit.weights is None else np.asarray(fit.weights, float)
+    shapes_now = np.asarray(fit.ref_shapes)
     history = []
     best = None
     for it in range(max_iter + 1):
@@ -134,7 +139,7 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], lower, upper, f_meas:
         lam = 1e-3 * np.trace(J.T @ J) / len(y)
         step = -np.linalg.solve(J.T @ J + lam * np.eye(len(y)), J.T @ r)
         y_new = np.clip(y + step, lo, hi)
-        if np.max(np.abs(y_new - y)) < tol:
+        if np.max(np.abs(y_new - y)) < STEP_TOL:
             y = y_new
             break
         y = y_new
@@ -165,16 +170,19 @@ def _log(msg: str) -> None:
     print(stamp(msg), flush=True)
 
 
-def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True,
+def solve_point(spec: ModelSpec, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True,
                 certify: bool = False):
-    """Modal solve of the cached model at joint parameters ``theta`` (N/m^3); ``certify``: with a
-    Sturm check of its completeness (``modes.sturm``, :func:`jointid.fe.modal.solve_model`).
+    """Modal solve of the cached model at joint parameters ``theta`` (N/m^3).
+
+    ``spec``: the model's description (its coefficients and solver options); ``n_modes``: default
+    ``spec.solver.n_modes``; ``describe``: with the modes' energy table; ``certify``: with a Sturm
+    check of its completeness (``modes.sturm``, :func:`jointid.fe.modal.solve_model`).
 
     Returns ``(freqs_Hz, shapes at measuring points (n_labels, n_modes), description table, modes)``.
     """
-    s = cfg["solver"]
-    kc, mc = base_coefficients(cfg, model, theta)
-    modes = solve_model(model, kc, mc, n_modes or s["n_modes"], shift_Hz=s["shift_Hz"], backend=s["backend"],
+    s = spec.solver
+    kc, mc = base_coefficients(spec, model, theta)
+    modes = solve_model(model, kc, mc, n_modes or s.n_modes, shift_Hz=s.shift_Hz, backend=s.backend,
                         certify=certify)
     shapes = model.probe @ modes.phi
     desc = None
@@ -183,18 +191,15 @@ def solve_point(cfg: dict, model, theta: dict[str, float], n_modes: int | None =
     return modes.freqs_Hz, shapes, desc, modes
 
 
-def polish_optimum(cfg, doc, matrices, theta0, pairing, f_meas, weights, sigma_rel, lower, upper, repair=False,
-                   rom=None, correction=None, rule=None):
+def polish_optimum(spec: ModelSpec, names: list[str], matrices, theta0, fit: PolishFit, *, rom=None,
+                   correction=None):
     """Gauss-Newton refinement of the surface optimum on the full FE model (or the ROM file ``rom``).
 
-    ``doc`` is the surface model (its ``names`` and ``ref_shapes``), ``matrices`` the cached model
-    file, ``theta0`` the surface optimum (N/m^3), ``pairing`` the tracked-mode columns of the
-    measured modes; the rest as in :func:`polish_on_model`.
+    ``names``: the joint parameters (the surface model's), ``matrices`` the cached model file,
+    ``theta0`` the surface optimum (N/m^3); the rest as in :func:`polish_on_model`.
     """
-    ref = np.asarray(doc["ref_shapes"])[:, pairing]
     model = load_rom(rom) if rom else _session_model(matrices)
-    return polish_on_model(cfg, model, doc["names"], theta0, f_meas, ref, lower, upper,
-                           weights=weights, sigma_rel=sigma_rel, repair=repair, correction=correction, rule=rule)
+    return polish_on_model(spec, model, names, theta0, fit, correction=correction)
 
 
 _SESSION: dict = {}
@@ -213,9 +218,12 @@ def _session_model(matrices):
     return _SESSION["model"]
 
 
-def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas, weights, sigma_rel,
-                        lower, upper, *, repair, rom, rule=None):
+def extrapolated_polish(spec: ModelSpec, state: str, names: list[str], matrices, edge_matrices, polish: dict,
+                        fit: PolishFit, *, rom=None):
     """The polish again on mesh-extrapolated frequencies, until their factors are those of its optimum.
+
+    ``edge_matrices``: the model files with one and two more edge levels; ``polish``: the polish on
+    the base mesh; the rest as in :func:`polish_optimum`.
 
     The factors are taken at the current optimum (first the base mesh's), with their first-order
     dependence on the parameters, and the polish is repeated with them.  Should they change by more
@@ -227,21 +235,21 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
     # each level is loaded when its turn comes and dropped after its solve (peak memory: one level)
     models = [partial(load_model, p) for p in (matrices, *edge_matrices)]
     sizes = model_sizes([matrices, *edge_matrices])
-    theta_mesh = dict(zip(doc["names"], map(float, polish["theta"])))
-    passes, settled = [], settled_below(sigma_rel)
+    theta_mesh = dict(zip(names, map(float, polish["theta"])))
+    passes, settled = [], settled_below(fit.sigma_rel)
     for k in range(EXTRAPOLATION_PASSES):
         at = np.asarray(polish["theta"], float)
         say(f"mesh extrapolation over the edge levels at {'the base-mesh optimum' if k == 0 else 'the new optimum'}")
-        lim = edge_limit_at(cfg, models, dict(zip(doc["names"], map(float, at))), log=say, sensitivities=True,
+        lim = edge_limit_at(spec, models, dict(zip(names, map(float, at))), log=say, sensitivities=True,
                             sizes=sizes)
-        shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= cfg["solver"]["min_freq_Hz"]]
+        shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= spec.solver.min_freq_Hz]
         say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
         say("polish on the extrapolated frequencies")
-        polish = polish_optimum(cfg, doc, matrices, at, pairing, f_meas, weights, sigma_rel, lower, upper,
-                                repair=repair, rom=rom, correction=FrequencyCorrection.from_limit(lim, at), rule=rule)
+        polish = polish_optimum(spec, names, matrices, at, fit, rom=rom,
+                                correction=FrequencyCorrection.from_limit(lim, at))
         moved = float(np.max(np.abs(polish["theta"] / at - 1)))
         drift = float(np.max(np.abs(lim.slope[shown] @ np.log10(polish["theta"] / at))))
-        passes.append({"factors_at": dict(zip(doc["names"], map(float, at))), "max_parameter_change": moved,
+        passes.append({"factors_at": dict(zip(names, map(float, at))), "max_parameter_change": moved,
                        "max_factor_change_first_order": drift, "settled_below": settled})
         say(f"pass {k + 1}: the polish moved the parameters by at most {100 * moved:.2f} %, the factors by "
             f"{100 * drift:.3f} % (first order)")
@@ -255,14 +263,13 @@ def extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairin
         say("kept the finest mesh's frequency (no geometric sequence): " + ", ".join(odd))
     record = {"theta_base_mesh": theta_mesh, "n_dofs": lim.n_dofs, "passes": passes,
               "modes": lim.table().to_dict(orient="list"), "not_extrapolated": odd,
-              "correction": {**FrequencyCorrection.from_limit(lim, at).record(), "names": list(doc["names"])}}
+              "correction": {**FrequencyCorrection.from_limit(lim, at).record(), "names": list(names)}}
     return record, polish
 
 
-def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shapes, lower, upper, *,
-                    weights=None, sigma_rel: float = 0.01, repair: bool = False, max_iter: int = 8, log=None,
-                    correction=None, rule=None):
-    """FE polish (:func:`fe_polish`) of joint parameters ``names`` on ``model``.
+def polish_on_model(spec: ModelSpec, model, names: list[str], theta0, fit: PolishFit, *, max_iter: int = 8,
+                    log=None, correction=None):
+    """FE polish (:func:`fe_polish`) of joint parameters ``names`` on ``model``, from ``theta0`` (N/m^3).
 
     ``model`` is the full FE model (:class:`jointid.fe.fem.Model`) or a reduced-order model
     (:class:`jointid.identification.rom.ROM`, evaluated in its generalised coordinates, where the sensitivities
@@ -270,17 +277,17 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
     :class:`jointid.fe.reduced.ReducedSolver` started at ``theta0`` (the exact modes there and their
     responses to each parameter, enriched wherever a Ritz pair's full-space residual says its
     eigenvalue is off by more than 1e-6): full-FE answers for one factorisation instead of one per
-    iterate.  ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes the measured modes follow by
-    MAC; with ``repair`` (frequency-only data) the modes are re-paired by frequency at every iterate
-    instead.  ``correction`` (:class:`jointid.fe.extrapolate.FrequencyCorrection`) scales each mode's
-    frequency by the mesh-extrapolation factor of the mode it continues.  ``rule``
+    iterate.  ``fit`` (:class:`PolishFit`): ``ref_shapes`` ``(n_labels, n_measured)`` are the shapes
+    the measured modes follow by MAC; with ``repair`` (frequency-only data) the modes are re-paired by
+    frequency (above ``spec.solver.min_freq_Hz``) at every iterate instead.  ``correction`` (:class:`jointid.fe.extrapolate.FrequencyCorrection`) scales each mode's
+    frequency by the mesh-extrapolation factor of the mode it continues.  ``fit.rule``
     (:class:`jointid.identification.visibility.VisibilityRule`): modes the test would clearly have
     seen count as misfits when no measured mode takes them.  On the full model the result carries
     ``certificate`` (:func:`jointid.fe.certificate.reduced_certificate` at the returned optimum).
     """
-    jt = joint_terms(cfg["joints"], cfg.get("model"))
+    jt = joint_terms(spec.joints, spec.mesh_file)
     terms = [{t: 1.0 for t in jt[n]} for n in names]
-    n_modes = cfg["solver"]["n_modes"]
+    n_modes = spec.solver.n_modes
     if isinstance(model, ROM):
         reduced_terms = dict(zip(model.k_names, model.k_terms))
 
@@ -288,33 +295,32 @@ def polish_on_model(cfg: dict, model, names: list[str], theta0, f_meas, ref_shap
             freqs, shapes, y = model.solve_theta(dict(zip(names, theta)), n_modes, return_coords=True)
             return freqs, shapes, y, reduced_terms
     else:
-        rs = _reduced_solver(cfg, model, names, theta0, terms, n_modes)
+        rs = _reduced_solver(spec, model, names, theta0, terms, n_modes)
         rs.log = log or _log  # a failed certificate's fallback to the full solve is logged
 
         def solve(theta):
-            sol = rs.solve(*base_coefficients(cfg, model, dict(zip(names, theta))), n_modes)
+            sol = rs.solve(*base_coefficients(spec, model, dict(zip(names, theta))), n_modes)
             return sol.freqs_Hz, sol.shapes, rs.full_phi(sol), model.stiffness
 
     if correction is not None:
         solve = corrected(solve, correction)
-    out = fe_polish(solve, theta0, names, lower, upper, f_meas, ref_shapes, terms, weights=weights,
-                    sigma_rel=sigma_rel, max_iter=max_iter, log=log or _log,
-                    repair_min_Hz=cfg["solver"]["min_freq_Hz"] if repair else None, rule=rule)
+    out = fe_polish(solve, theta0, names, terms, fit, repair_min_Hz=spec.solver.min_freq_Hz if fit.repair else None,
+                    max_iter=max_iter, log=log or _log)
     if not isinstance(model, ROM):  # the residual check of the returned modes (the ROM's: rule rom)
-        kc, mc = base_coefficients(cfg, model, dict(zip(names, out["theta"])))
+        kc, mc = base_coefficients(spec, model, dict(zip(names, out["theta"])))
         out["certificate"] = reduced_certificate(rs, kc, mc, n_modes)
     return out
 
 
-def _reduced_solver(cfg, model, names, theta0, terms, n_modes):
+def _reduced_solver(spec: ModelSpec, model, names, theta0, terms, n_modes):
     """A :class:`ReducedSolver` of ``model`` started at ``theta0``; the one built before for the same
     model object and parameters when there is one (see :func:`_session_model`)."""
     key = (id(model), tuple(names), n_modes)
     if _SESSION.get("model") is model and _SESSION.get("solver_key") == key:
         return _SESSION["solver"]
-    kc0, mc0 = base_coefficients(cfg, model, dict(zip(names, theta0)))
-    rs = ReducedSolver(model, kc0, mc0, n_modes, [(t, {}) for t in terms], shift_Hz=cfg["solver"]["shift_Hz"],
-                       backend=cfg["solver"]["backend"])
+    kc0, mc0 = base_coefficients(spec, model, dict(zip(names, theta0)))
+    rs = ReducedSolver(model, kc0, mc0, n_modes, [(t, {}) for t in terms], shift_Hz=spec.solver.shift_Hz,
+                       backend=spec.solver.backend)
     if _SESSION.get("model") is model:
         _SESSION.update(solver_key=key, solver=rs)
     return rs
@@ -341,9 +347,10 @@ def corrected(solve, correction):
 SOLVE_COST_EXPONENT = 1.3  # a modal solve's time grows about as DOFs^1.3 (benchmark d)
 
 
-def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, base=None,
+def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=None, base=None,
                   sensitivities: bool = False, sizes: list[int] | None = None):
-    """:class:`jointid.fe.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta``; ``models``:
+    """:class:`jointid.fe.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta`` (N/m^3);
+    ``spec``: the model's description (coefficients, solver options; the same for every mesh); ``models``:
     the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
     those, so that the highest base modes find their partner), each a model or a function that
     builds one (built when its turn comes and dropped after its solve); ``base``: the base mesh's
@@ -352,7 +359,7 @@ def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, ba
     of each mesh when known beforehand, for the time-left estimate of the progress lines (each solve
     weighted by DOFs^1.3; without them every level counts alike)."""
     names = list(theta)
-    jt = joint_terms(cfg["joints"], cfg.get("model"))
+    jt = joint_terms(spec.joints, spec.mesh_file)
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     solves = []
     todo = [k for k in range(len(models)) if not (k == 0 and base is not None)]
@@ -362,7 +369,7 @@ def edge_limit_at(cfg: dict, models: list, theta: dict[str, float], log=None, ba
         if k == 0 and base is not None:
             solves.append((*base, model.n_dofs))
             continue
-        f, s, _, modes = solve_point(cfg, model, theta, n_modes=cfg["solver"]["n_modes"] + (2 if k else 0),
+        f, s, _, modes = solve_point(spec, model, theta, n_modes=spec.solver.n_modes + (2 if k else 0),
                                      describe=False)
         J = (log_jacobian(model.stiffness, modes.phi, modes.omega2, terms, np.array([theta[n] for n in names]))
              if sensitivities else None)

@@ -11,19 +11,23 @@ from __future__ import annotations
 
 import itertools
 import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 import scipy.linalg as sla
 
+from jointid.config.typed import ModelSpec, SolverOptions
 from jointid.errors import ModelError, NumericalWarning
 from jointid.fe.modal import TWO_PI, factorize, free_dofs, restrict, solve_model
 from jointid.fe.model import base_coefficients, joint_terms
 from jointid.geometry.points import dof_labels
 from jointid.identification.doe import to_physical
 from jointid.identification.rom import ROM, frequency_error
+from jointid.identification.rom_options import RomOptions
 
-__all__ = ["build_rom", "training_points", "residual_indicator"]
+__all__ = ["RomOptions", "build_rom", "training_points", "residual_indicator"]
 
 
 def training_points(n_params: int, kind: str = "corners") -> np.ndarray:
@@ -100,22 +104,21 @@ class _Builder:
             setattr(self, attr, new)
 
 
-def _full_solve(model, kc, mc, n, solver):
-    return solve_model(model, kc, mc, n, shift_Hz=solver.get("shift_Hz", -10.0),
-                       backend=solver.get("backend", "auto"))
+def _full_solve(model, kc, mc, n, solver: SolverOptions):
+    return solve_model(model, kc, mc, n, shift_Hz=solver.shift_Hz, backend=solver.backend)
 
 
-def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver, n_inverse: int, labels) -> int:
+def _inverse_iterates(b: "_Builder", model, kc, mc, n, solver: SolverOptions, n_inverse: int, labels) -> int:
     """Improve the current ROM's ``n`` lowest Ritz vectors at ``(kc, mc)`` by ``n_inverse`` block
     inverse iterations with the full ``K - sigma M`` (one factorisation); add them to the basis.
     Returns the number of basis vectors added."""
-    shift = float(solver.get("shift_Hz", -10.0))
+    shift = float(solver.shift_Hz)
     sigma = -abs(TWO_PI * shift) ** 2 if shift <= 0 else (TWO_PI * shift) ** 2
     free = free_dofs(model.n_dofs, model.fixed)
     K, M = model.K(kc), model.M(mc)
     A = restrict(K - sigma * M, free)
     try:
-        fac = factorize(A, solver.get("backend", "auto"), model.ordering)
+        fac = factorize(A, solver.backend, model.ordering)
     except Exception as exc:
         raise ModelError(f"rom: factorisation of K - sigma*M failed at a training point ({exc}) — check "
                          "the joint stiffness bounds and supports, or use solver.shift_Hz < 0") from None
@@ -159,12 +162,10 @@ def residual_indicator(model, rom: ROM, k_coeffs: dict, m_coeffs: dict, n_modes:
     return np.linalg.norm(R, axis=0) / np.maximum(np.linalg.norm(Kp, axis=0), 1e-300)
 
 
-def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *, n_extra: int = 2,
-              training: str = "inverse", n_inverse: int = 1, tol: float = 1e-4, n_verify: int = 2, max_rounds: int = 6, n_candidates: int = 32,
-              seed: int = 0, extra_points: list[tuple[dict, dict]] | None = None, rank_rtol: float = 1e-6,
-              keep_basis: bool = True, labels: list[str] | None = None, candidates=None, progress=None) -> ROM:
-    # long only by its numpydoc (16 options); the body is three steps: train, enrich, assemble
-    """Build and verify a parametric ROM of ``model`` over the joint-parameter box of ``cfg``.
+def build_rom(model, spec: ModelSpec, points="corners", options: RomOptions | None = None, *,
+              extra_points: list[tuple[dict, dict]] | None = None, labels: list[str] | None = None,
+              candidates=None, progress=None) -> ROM:
+    """Build and verify a parametric ROM of ``model`` over the joint-parameter box of ``spec``.
 
     Greedy error control: ``n_candidates`` random interior points of the coded box are ranked by
     :func:`residual_indicator`; in each round the ``n_verify`` worst ones are solved in full and the
@@ -176,35 +177,15 @@ def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *,
     ----------
     model : jointid.fe.fem.Model
         The assembled affine model (``model.build_model`` or ``model.load_model``).
-    cfg : dict
-        Validated configuration (``joints``, ``rig``, ``solver`` sections are used).
-    n_modes : int, optional
-        Tracked modes (default ``solver.n_modes``); the ROM returns this many by default.
+    spec : ModelSpec
+        The model's description: its joints (the box, ``joints.parameters``), coefficients and solver options.
     points : ``"corners"``, ``"star"``, array (n, p) or list of dict
         Training points: coded points in ``[-1, 1]^p`` over ``joints.parameters`` (log coding as in
         :mod:`jointid.identification.doe`) or dicts of joint parameters in N/m^3 (e.g. an identified optimum).
-    training : ``"inverse"`` or ``"modes"``
-        How training points after the first enter the basis: block inverse iterations from the current
-        Ritz vectors (``"inverse"``, default, ``n_inverse`` steps, one factorisation each) or the
-        modes of a full solve (``"modes"``).  The first point is always a full solve.
-    n_inverse : int
-        Inverse-iteration steps per training point (``training="inverse"``).
-    n_extra : int
-        Modes computed beyond ``n_modes`` at each training point (default 2: a small basis evaluates
-        fast, and the greedy error control adds what is missing).
-    tol : float
-        Target relative frequency error on the tracked modes (modes at or above
-        ``solver.min_freq_Hz``).
-    n_verify, max_rounds, n_candidates, seed : int
-        Full verification solves per round, the most rounds, the size and seed of the candidate set.
-        ``n_verify = 0`` skips the error control.
+    options : RomOptions, optional
+        How the ROM is trained and verified (default :class:`RomOptions`).
     extra_points : list of (k_coeffs, m_coeffs), optional
         Further training points given directly as term coefficients (e.g. effect terms).
-    rank_rtol : float
-        Relative Gram eigenvalue below which a training direction is dropped (basis compression);
-        enrichment uses ``min(rank_rtol, 1e-10)``.
-    keep_basis : bool
-        Keep the (n_dofs x r) basis in the ROM (for :meth:`ROM.expand` and the indicator).
     labels : list of str, optional
         Labels of the probe rows (default ``<point>:<dir>`` from ``model.meta['points']``).
     candidates : array (n, p), optional
@@ -220,56 +201,68 @@ def build_rom(model, cfg: dict, n_modes: int | None = None, points="corners", *,
         verification points; ``report['verified']``: whether it met ``tol``.  A
         :class:`NumericalWarning` is issued when it did not after ``max_rounds`` rounds.
     """
-    say = progress or (lambda msg: None)
-    solver = cfg.get("solver", {})
-    n_modes = int(n_modes or solver.get("n_modes", 12))
-    n_extra = int(n_extra)
-    min_f = float(solver.get("min_freq_Hz", 0.0))
-    box = _Box(cfg, model)
+    opts = options or RomOptions()
+    box = _Box(spec, model)
     train = _training_set(box, points, extra_points)
-
-    b = _Builder(model, train[0][1][1], rank_rtol)
-    covered: dict[str, list[float]] = {}
-    if training not in ("inverse", "modes"):
-        raise ModelError(f"rom: training '{training}' is unknown — use inverse or modes")
-    n_train = n_modes + n_extra
-    report = {"n_modes": n_modes, "n_train_modes": n_train, "tol": tol, "training_kind": training,
-              "training": [], "rounds": []}
-    _train(b, model, train, covered, labels, report, say, training=training, n_train=n_train,
-           n_inverse=n_inverse, solver=solver)
-
-    pool = _candidate_set(box, n_candidates, seed, candidates)
+    b = _Builder(model, train[0][1][1], opts.rank_rtol)
+    if opts.training not in ("inverse", "modes"):
+        raise ModelError(f"rom: training '{opts.training}' is unknown — use inverse or modes")
+    run = _Run(model, spec.solver, opts, int(opts.n_modes or spec.solver.n_modes), labels,
+               progress or (lambda msg: None))
+    _train(b, run, train)
+    pool = _candidate_set(box, opts.n_candidates, opts.seed, candidates)
     for theta, (kc, mc) in pool:
-        _cover(covered, kc, mc)  # the greedy search certifies the box spanned by the candidates
-    b.rank_rtol = min(rank_rtol, 1e-10)
-    verified, max_err = _enrich(b, model, pool, covered, labels, report, say, n_modes=n_modes, n_train=n_train,
-                                n_verify=n_verify, max_rounds=max_rounds, tol=tol, min_f=min_f, solver=solver)
-    rom = _assemble(b, model, n_modes, covered, labels, keep_basis=keep_basis)
-    report.update({"size": rom.size, "max_error": max_err, "verified": bool(verified)})
-    rom.report = report
-    rom.params = _param_map(cfg, model, box.names, box.lower, box.upper)
+        _cover(run.covered, kc, mc)  # the greedy search certifies the box spanned by the candidates
+    b.rank_rtol = min(opts.rank_rtol, 1e-10)
+    verified, max_err = _enrich(b, run, pool)
+    rom = _assemble(b, model, run.n_modes, run.covered, labels, keep_basis=opts.keep_basis)
+    run.report.update({"size": rom.size, "max_error": max_err, "verified": bool(verified)})
+    rom.report = run.report
+    rom.params = _param_map(spec, model, box.names, box.lower, box.upper)
     if not verified:
-        warnings.warn(f"rom: relative frequency error {max_err:.2e} still above tol = {tol:.1e} after "
-                      f"{len(report['rounds'])} enrichment rounds (r = {rom.size}) — raise max_rounds, "
+        warnings.warn(f"rom: relative frequency error {max_err:.2e} still above tol = {opts.tol:.1e} after "
+                      f"{len(run.report['rounds'])} enrichment rounds (r = {rom.size}) — raise max_rounds, "
                       "n_extra or n_candidates, or narrow the parameter bounds", NumericalWarning, stacklevel=2)
     return rom
 
 
+@dataclass
+class _Run:
+    """One ROM build's inputs and its running records (the covered coefficient ranges, the report)."""
+
+    model: object
+    solver: SolverOptions
+    opts: RomOptions
+    n_modes: int
+    labels: list[str] | None
+    say: Callable[[str], None]
+    covered: dict[str, list[float]] = field(default_factory=dict)
+    report: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.report = {"n_modes": self.n_modes, "n_train_modes": self.n_train, "tol": self.opts.tol,
+                       "training_kind": self.opts.training, "training": [], "rounds": []}
+
+    @property
+    def n_train(self) -> int:
+        """Modes computed at each training point (tracked + extra)."""
+        return self.n_modes + int(self.opts.n_extra)
+
+
 class _Box:
-    """The coded joint-parameter box of ``cfg`` (``joints.parameters``, log coding as
+    """The coded joint-parameter box of ``spec`` (``joints.parameters``, log coding as
     :mod:`jointid.identification.doe`) and the term coefficients at its points."""
 
-    def __init__(self, cfg: dict, model):
-        jcfg = cfg["joints"]
-        self.cfg, self.model = cfg, model
-        self.names = list(jcfg["parameters"])
-        self.lower = np.array([jcfg["parameters"][n]["lower"] for n in self.names], float)
-        self.upper = np.array([jcfg["parameters"][n]["upper"] for n in self.names], float)
+    def __init__(self, spec: ModelSpec, model):
+        self.spec, self.model = spec, model
+        self.names = spec.joints.names
+        self.lower = spec.joints.lower_N_per_m3
+        self.upper = spec.joints.upper_N_per_m3
 
     def coefficients(self, x) -> tuple[dict, tuple[dict, dict]]:
         """``(theta, (k_coeffs, m_coeffs))`` at the coded point ``x`` (theta in N/m^3)."""
         theta = dict(zip(self.names, to_physical(np.atleast_2d(x), self.lower, self.upper)[0].tolist()))
-        return theta, base_coefficients(self.cfg, self.model, theta)
+        return theta, base_coefficients(self.spec, self.model, theta)
 
 
 def _training_set(box: _Box, points, extra_points) -> list[tuple[dict, tuple[dict, dict]]]:
@@ -280,7 +273,7 @@ def _training_set(box: _Box, points, extra_points) -> list[tuple[dict, tuple[dic
     pts = training_points(len(names), points) if isinstance(points, str) else points
     for pt in pts:
         if isinstance(pt, dict):
-            train.append((dict(pt), base_coefficients(box.cfg, box.model, dict(pt))))
+            train.append((dict(pt), base_coefficients(box.spec, box.model, dict(pt))))
         else:
             x = np.asarray(pt, float)
             if x.shape != (len(names),):
@@ -294,19 +287,19 @@ def _training_set(box: _Box, points, extra_points) -> list[tuple[dict, tuple[dic
     return train
 
 
-def _train(b: _Builder, model, train: list, covered: dict, labels, report: dict, say, *, training: str,
-           n_train: int, n_inverse: int, solver: dict) -> None:
+def _train(b: _Builder, run: _Run, train: list) -> None:
     """Add every training point to the basis: a full solve at the first (and at all of them for
-    ``training="modes"``), block inverse iterations at the others; record each in ``report['training']``."""
+    ``training="modes"``), block inverse iterations at the others; record each in ``run.report['training']``."""
+    n_inverse = run.opts.n_inverse
     for k, (theta, (kc, mc)) in enumerate(train):
-        if k == 0 or training == "modes":
-            added, how = b.add(_full_solve(model, kc, mc, n_train, solver).phi), "full solve"
+        if k == 0 or run.opts.training == "modes":
+            added, how = b.add(_full_solve(run.model, kc, mc, run.n_train, run.solver).phi), "full solve"
         else:
-            added = _inverse_iterates(b, model, kc, mc, n_train, solver, n_inverse, labels)
+            added = _inverse_iterates(b, run.model, kc, mc, run.n_train, run.solver, n_inverse, run.labels)
             how = f"{max(1, int(n_inverse))} inverse iteration(s)"
-        _cover(covered, kc, mc)
-        report["training"].append({"theta": theta, "added": added, "how": how})
-        say(f"rom: training point {k + 1}/{len(train)} ({how}): +{added} vectors (r = {b.V.shape[1]})")
+        _cover(run.covered, kc, mc)
+        run.report["training"].append({"theta": theta, "added": added, "how": how})
+        run.say(f"rom: training point {k + 1}/{len(train)} ({how}): +{added} vectors (r = {b.V.shape[1]})")
 
 
 def _cover(covered: dict[str, list[float]], kc: dict, mc: dict) -> None:
@@ -331,15 +324,16 @@ def _candidate_set(box: _Box, n_candidates: int, seed: int, candidates) -> list:
     return [box.coefficients(x) for x in coded]
 
 
-def _enrich(b: _Builder, model, candidates: list, covered: dict, labels, report: dict, say, *, n_modes: int,
-            n_train: int, n_verify: int, max_rounds: int, tol: float, min_f: float, solver: dict):
+def _enrich(b: _Builder, run: _Run, candidates: list):
     """Greedy error control of :func:`build_rom`: rank the candidates by the residual indicator, solve
     the ``n_verify`` worst in full, add the modes of those above ``tol``; repeat up to ``max_rounds``.
-    Appends each round to ``report['rounds']``; returns ``(verified, max_error)``."""
+    Appends each round to ``run.report['rounds']``; returns ``(verified, max_error)``."""
+    model, n_modes, n_verify, tol = run.model, run.n_modes, run.opts.n_verify, run.opts.tol
+    min_f = float(run.solver.min_freq_Hz)
     verified = n_verify <= 0
     max_err = float("nan")
-    for rnd in range(max_rounds if n_verify > 0 else 0):
-        rom = _assemble(b, model, n_modes, covered, labels)
+    for rnd in range(run.opts.max_rounds if n_verify > 0 else 0):
+        rom = _assemble(b, model, n_modes, run.covered, run.labels)
         if not candidates:
             break
         eta = np.array([residual_indicator(model, rom, kc, mc, V=b.V).max() for _, (kc, mc) in candidates])
@@ -347,7 +341,7 @@ def _enrich(b: _Builder, model, candidates: list, covered: dict, labels, report:
         checked, failing = [], []
         for i in worst:
             theta, (kc, mc) = candidates[i]
-            modes = _full_solve(model, kc, mc, n_train, solver)
+            modes = _full_solve(model, kc, mc, run.n_train, run.solver)
             f_rom, _ = rom.solve(kc, mc, check=False)
             e = frequency_error(f_rom, modes.freqs_Hz[:n_modes], min_f)
             err = float(np.nanmax(e)) if np.isfinite(e).any() else 0.0
@@ -358,9 +352,9 @@ def _enrich(b: _Builder, model, candidates: list, covered: dict, labels, report:
         max_err = max(c["max_error"] for c in checked)
         info = {"round": rnd, "r": rom.size, "max_indicator": float(eta.max()), "points": checked,
                 "max_error": max_err}
-        say(f"rom: round {rnd}: r = {rom.size}, worst indicator {eta.max():.1e}, max relative frequency "
-            f"error at the {len(checked)} worst candidates {max_err:.2e}")
-        report["rounds"].append(info)
+        run.say(f"rom: round {rnd}: r = {rom.size}, worst indicator {eta.max():.1e}, max relative frequency "
+                f"error at the {len(checked)} worst candidates {max_err:.2e}")
+        run.report["rounds"].append(info)
         if not failing:
             verified = True
             break
@@ -380,12 +374,10 @@ def _assemble(b: _Builder, model, n_modes, covered, labels, keep_basis=False) ->
                basis=b.V.copy() if keep_basis else None)
 
 
-def _param_map(cfg, model, names, lower, upper) -> dict:
-    jcfg = cfg["joints"]
-    terms = joint_terms(jcfg, cfg.get("model"))
-    kc, mc = base_coefficients(cfg, model, None)
-    defaults = {n: float(np.sqrt(s["lower"] * s["upper"])) for n, s in jcfg["parameters"].items()}
-    defaults.update({k: float(v) for k, v in jcfg.get("fixed", {}).items()})
+def _param_map(spec: ModelSpec, model, names, lower, upper) -> dict:
+    terms = joint_terms(spec.joints, spec.mesh_file)
+    kc, mc = base_coefficients(spec, model, None)
+    defaults = spec.joints.defaults_N_per_m3()
     k_fixed = dict(kc)
     for name, ts in terms.items():
         for t in ts:

@@ -108,6 +108,7 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
                    meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
                    seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None,
                    rule=None, damping=None, decision: dict | None = None):
+    # many parameters: the surface fit's options (shapes, weights, starts, pairing, rule, damping), keyword with defaults
     # long: four closures share the surface, the data and the rule (misfits, fit, run, pair); the body is the multistart
     """Identify the joint parameters of one state from measured frequencies.
 

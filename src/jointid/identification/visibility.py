@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from jointid.config.typed import TestSetup
 from jointid.correlate.observability import (VISIBLE_THRESHOLD, MeasurementSetup, clearly_visible,
                                              misfit_target, test_band, visibility)
 from jointid.correlate.pairing import pair_by_frequency
@@ -115,25 +116,22 @@ def misfit_table(rule: VisibilityRule, index, freqs_Hz, vis, f_meas, description
     return out
 
 
-def dataset_rule(ds, state: str, labels: list, point_names: list, shapes, cfg: dict, where: str):
+def dataset_rule(ds, state: str, labels: list, point_names: list, shapes, test: TestSetup, where: str):
     """The observability rule of ``state`` of the dataset ``ds`` (None when
-    ``identify.visible_threshold`` is null).
+    ``test.visible_threshold`` is None).
 
-    The dataset's ``test_setup`` (default: the hammer at ``harmonic.drive_point`` in x, y and z, the
+    The dataset's ``test_setup`` (default ``test``: the hammer at ``test.drive_point`` in x, y and z, the
     responses where ``shapes`` — the state's measured shapes at ``labels``, or None — are finite, else
-    every point in x, y and z), the test band (:func:`jointid.correlate.observability.test_band`) and
-    the threshold.  ``where`` names the conditions file in the setup's note.
+    every point in x, y and z), the test band (:func:`jointid.correlate.observability.test_band`, default
+    ``test.band_Hz``) and the threshold.  ``where`` names the conditions file in the setup's note.
     """
-    threshold = cfg.get("identify", {}).get("visible_threshold", VISIBLE_THRESHOLD)
-    if threshold is None:
+    if test.visible_threshold is None:
         return None
-    harmonic = cfg.get("harmonic", {})
     measured = None
     if shapes is not None:
         measured = [lab for lab, ok in zip(labels, np.isfinite(shapes).any(axis=1)) if ok]
-    drive = harmonic.get("drive_point", "T05")
     spec = ds.conditions.get("test_setup")
-    setup = MeasurementSetup.from_spec(spec, list(point_names), [f"{drive}:{d}" for d in "xyz"],
+    setup = MeasurementSetup.from_spec(spec, list(point_names), [f"{test.drive_point}:{d}" for d in "xyz"],
                                        measured_labels=measured, where=where)
-    band = test_band(spec, harmonic.get("band_Hz", (300.0, 3500.0)), ds.freqs(state))
-    return VisibilityRule(setup, tuple(labels), band, float(threshold))
+    band = test_band(spec, test.band_Hz, ds.freqs(state))
+    return VisibilityRule(setup, tuple(labels), band, float(test.visible_threshold))

@@ -18,10 +18,12 @@ The model is its own small mesh (``cell_m`` cells, quadratic hexahedra), indepen
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from jointid.config.typed import ModelSpec
 from jointid.errors import ModelError
 from jointid.geometry.mesh import build_mesh
 from jointid.fe.model import assemble_solids_and_joints, dof_parts, joint_coefficients
@@ -47,12 +49,13 @@ class BlockRigidity:
         return {d: v * 1e-6 for d, v in src.items()}
 
 
-def block_rig(rig_cfg: dict, overhang_m: float | None = None) -> Rig:
+def block_rig(geometry: Mapping, overhang_m: float | None = None) -> Rig:
     """One carriage on a rail segment, the rail's bottom at Y = 0 and the carriage centred at Z = 0.
 
+    ``geometry``: the ``rig`` section (:attr:`jointid.config.typed.RigModel.geometry`), its rails and carriages.
     The segment sticks out of the carriage by ``overhang_m`` at either end (default: twice the rail
     height, where the rail's deflection under the carriage has decayed)."""
-    r, c = rig_cfg["rails"], rig_cfg["carriages"]
+    r, c = geometry["rails"], geometry["carriages"]
     rh, gc, fh = r["height_m"], c["ground_clearance_m"], c["flank_contact_height_m"]
     w, W, L, ch = r["width_m"], c["width_m"], c["length_m"], c["height_m"]
     if not (gc < rh - fh and fh > 0 and ch > rh and W > w):
@@ -75,13 +78,16 @@ def block_rig(rig_cfg: dict, overhang_m: float | None = None) -> Rig:
 class BlockTest:
     """The catalogue test of :func:`block_rig`, meshed and assembled once for any joint parameters.
 
-    ``cfg`` is the whole validated configuration (rig, materials, joints, mesh.element, solver.backend).
+    ``spec`` is the model's description (rig, materials, joints, mesh element, solver backend);
+    ``cell_m``: the cell edge of the test's own mesh, m; ``element`` and ``backend`` override ``spec``'s.
     """
 
-    def __init__(self, cfg: dict, cell_m: float = 0.006, element: str | None = None, backend: str | None = None):
-        rig = block_rig(cfg["rig"])
+    def __init__(self, spec: ModelSpec, cell_m: float = 0.006, element: str | None = None,
+                 backend: str | None = None):
+        rig = block_rig(spec.rig.geometry)
         rmesh = build_mesh(rig, cell_m)
-        basis, self.stiffness, _, _ = assemble_solids_and_joints(cfg, rig, rmesh, element or cfg["mesh"]["element"])
+        basis, self.stiffness, _, _ = assemble_solids_and_joints(spec.materials, rig, rmesh,
+                                                                 element or spec.mesh.element)
         y, part = basis.doflocs[1], dof_parts(basis, rmesh)
         rail_bottom = np.flatnonzero((part == 1) & (np.abs(y) < 1e-9))
         self.plate = np.flatnonzero((part == 2) & (np.abs(y - rig.dims["carriage_top_m"]) < 1e-9))
@@ -89,8 +95,8 @@ class BlockTest:
         self.moved = np.concatenate([3 * self.plate + c for c in range(3)])
         self.free = np.setdiff1d(np.arange(self.n),
                                  np.concatenate([3 * rail_bottom + c for c in range(3)] + [self.moved]))
-        self.joints, self.cell_m = cfg["joints"], float(cell_m)
-        self.backend = backend or cfg["solver"]["backend"]
+        self.joints, self.cell_m = spec.joints, float(cell_m)
+        self.backend = backend or spec.solver.backend
 
     def rigidity(self, theta: dict[str, float], parts: bool = True) -> BlockRigidity:
         """Rigidity at joint parameters ``theta`` (N/m^3); ``parts=False`` skips the stiff-joint test
@@ -112,11 +118,11 @@ class BlockTest:
                              n_dofs=int(self.n), cell_m=self.cell_m)
 
 
-def block_rigidity(cfg: dict, theta: dict[str, float], cell_m: float = 0.006, element: str | None = None,
+def block_rigidity(spec: ModelSpec, theta: dict[str, float], cell_m: float = 0.006, element: str | None = None,
                    backend: str | None = None, parts: bool = True) -> BlockRigidity:
     """Catalogue-style rigidity of one carriage on its rail at joint parameters ``theta`` (N/m^3):
-    :class:`BlockTest` for one parameter point."""
-    return BlockTest(cfg, cell_m, element, backend).rigidity(theta, parts)
+    :class:`BlockTest` for one parameter point (``cell_m``: its mesh's cell edge, m)."""
+    return BlockTest(spec, cell_m, element, backend).rigidity(theta, parts)
 
 
 # ------------------------------------------------------------------------------ against the catalogue

@@ -176,6 +176,7 @@ def joint_energy_share(phi, freqs_Hz, K_joint) -> np.ndarray:
 
 def damping_matrix(model: str, K, M, *, alpha_per_s=None, beta_s=None, K_joint=None,
                    joint_loss_factor_s=None, phi=None, freqs_Hz=None, zeta=None):
+    # many parameters: one keyword per damping model's parameter; each model reads its own
     """Viscous damping matrix ``C`` for a direct harmonic solve.
 
     ``"rayleigh"``: ``C = alpha M + beta K``. ``"joint"``: ``C = eta K_joint``.

@@ -101,6 +101,7 @@ class ShiftedFactor:
 def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, shift_Hz: float = -10.0,
                      backend: str = "auto", factor: float = MODE_FACTOR, max_modes: int = MAX_MODES,
                      progress=None, keep_factor: bool = False, ordering=None):
+    # many parameters: the band solve's options, keyword with defaults
     # long by its numpydoc (47 lines); the body is three steps: Sturm count, solve until complete, warn
     """All modes up to ``factor * f_top_Hz`` (and possibly a few above).
 

@@ -93,6 +93,7 @@ def modal_frf(f_Hz, freqs_Hz, zeta, g, pphi, residual: float = 0.0) -> np.ndarra
 
 def band_minimum(band_Hz, freqs_Hz, zeta, g, pphi, residual: float = 0.0, *, paired=None,
                  n_freq: int = 1601, f_Hz=None, H=None) -> dict:
+    # many parameters: the drive point's modal data (one array each) and the band's options
     """Minimum of ``|F/X|`` over the band, the mode that sets it, and the lowest paired resonance peak.
 
     Parameters
@@ -238,6 +239,7 @@ def range_table(cases: dict[str, pd.DataFrame], reference: str, drive_point: str
 
 def damping_ratio_range(band_Hz, freqs_Hz, zeta, pphi, residual: float, ratio_range, *, fixed=None,
                         paired: dict | None = None, n_grid: int = 7, n_freq: int = 1601) -> dict:
+    # many parameters: the drive point's modal data (one array each) and the range's options
     """``K_min`` of the drive point over a range of the modal damping ratio.
 
     Every elastic mode not in ``fixed`` (e.g. the modes with a measured ratio, which keep ``zeta``)

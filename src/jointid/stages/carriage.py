@@ -4,6 +4,7 @@ carriage on its rail (:mod:`jointid.response.carriage`), the number to hold agai
 from __future__ import annotations
 
 from jointid import io
+from jointid.config.typed import ModelSpec
 from jointid.response.carriage import DIRECTIONS, BlockTest, catalogue_comparison, catalogue_verdict
 
 CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "catalogue")
@@ -23,7 +24,7 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     """
     par = io.read_json(params_json)
     cell = cfg["carriage_rigidity"]["cell_size_m"]
-    test = BlockTest(cfg, cell)
+    test = BlockTest(ModelSpec.from_config(cfg), cell)
     at = lambda key: {n: v[key] for n, v in par["parameters"].items()}  # noqa: E731
     res = test.rigidity(at("value"))
     low, high = test.rigidity(at("ci95_low"), False), test.rigidity(at("ci95_high"), False)

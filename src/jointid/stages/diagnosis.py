@@ -62,6 +62,7 @@ def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis, memo: FitMemo
 def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
                   history_csv: str | None = None, model=None, subspace: str | None = None,
                   log=print_log) -> Diagnosis:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Workflow stage: diagnose one dataset and write ``out_dir`` (+ a row of ``history_csv``).
 
     ``cfg`` holds the sections ``rig, joints, solver, identify, effects, states, harmonic`` (the test

@@ -143,6 +143,7 @@ def _stiffness_doc(curves: list, band: list[float], table1: dict, drive: str, di
 
 def write_frf_comparison(cfg: dict, state: str, model, modes, res, pts: dict, table1: dict, stiffness_json,
                          progress=print) -> dict | None:
+    # many parameters: the harmonic stage's results (model, modes, response, points, Table 1) passed on
     """Compare the state's measured FRFs with the model's and write :data:`OUTPUTS` into ``out_dir``.
 
     Parameters

@@ -39,6 +39,7 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
                  out_modes: str | None = None, verify_csv: str | None = None, out_points: str | None = None,
                  out_vtu: str | None = None, out_uff: str | None = None, tied_csv: str | None = None,
                  progress=print) -> dict:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """The ``harmonic`` workflow stage of one state.
 
     Reads the identified parameters and the cached model, writes the drive-point FRF (``out_csv``,
@@ -72,13 +73,14 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     dict
         The content of ``out_json``.
     """
+    from jointid.config.typed import ModelSpec
     from jointid.fe.model import base_coefficients, load_model
 
     h = cfg["harmonic"]
     par = io.read_json(params_json)
     theta = {n: float(v["value"]) for n, v in par["parameters"].items()}
     model = load_model(matrices)
-    kc, mc = base_coefficients(cfg, model, theta)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
     band = [float(b) for b in h["band_Hz"]]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -234,6 +236,7 @@ def _measured_order(verify_csv: str | None, g: int) -> int | None:
 
 
 def _summary(cfg, state, res, desc, damping, band, theta, notes, order) -> dict:
+    # many parameters: the parts of dynamic_stiffness.json that run_harmonic computed
     """The content of ``dynamic_stiffness.json``."""
     h = cfg["harmonic"]
     g = res.governing
@@ -271,6 +274,7 @@ def _summary(cfg, state, res, desc, damping, band, theta, notes, order) -> dict:
 
 
 def _response(cfg, state, par, model, kc, mc, band, verify_csv, progress):
+    # many parameters: the computing part of run_harmonic, with the inputs it read
     """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`), and
     the modal data of every table point (:func:`point_data`)."""
     from jointid.fe.describe import describe_modes
@@ -332,6 +336,7 @@ def _measured_orders(verify_csv: str | None, n_modes: int) -> np.ndarray:
 
 
 def point_data(names, pphi, resid, freqs_Hz, share, measured_order, desc, zeta, direction, diameter_m) -> dict:
+    # many parameters: one array per column of drive_points.npz
     """The content of ``drive_points.npz``: ``points (n_pts,)``, ``pphi (n_pts, n_modes)`` (patch
     participation ``p^T phi_r``, m/sqrt(kg) per N), ``residual_m_per_N`` and ``static_receptance_m_per_N``
     ``(n_pts,)`` (NaN where K is singular), ``freqs_Hz, joint_share, measured_order`` (0 = unpaired),

@@ -107,12 +107,14 @@ def state_damping(cfg: dict, state: str, par: dict, model, modes, kc: dict, shar
                 "text": (f"{kind}: harmonic.damping model {dcfg.get('model', 'modal')}"
                          + (", the measured ratios of the paired modes over it" if kind == MEASURED else "")
                          + ("" if "joint_damping" not in par else f" ({note})"))}
+    from jointid.config.typed import ModelSpec
     from jointid.diagnosis.synth import joint_shares
     from jointid.fe.model import joint_terms
 
     fr = np.asarray(modes.freqs_Hz, float)
     el = fr >= RIGID_HZ
-    shares = joint_shares(model, modes.phi[:, el], fr[el], kc, joint_terms(cfg["joints"], cfg.get("model")),
+    spec = ModelSpec.from_config(cfg)
+    shares = joint_shares(model, modes.phi[:, el], fr[el], kc, joint_terms(spec.joints, spec.mesh_file),
                           rec["directions"])
     r = law_ratios(rec, shares, fr[el])
     out = {"source": np.where(el, IDENTIFIED, "rigid").tolist(), "config": dcfg, "measured": mnote,

@@ -20,6 +20,7 @@ import pandas as pd
 
 from jointid import io
 from jointid.config import load_config
+from jointid.config.typed import ModelSpec
 from jointid.config.datasets import dataset_folder
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
@@ -72,11 +73,11 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
     cfg_h = load_config(raw, source=f"config.yaml (hypothesis {name})")
     own = needs_own_model(hyp, cfg)
     log(f"hypothesis {name}: {'building its own model' if own else 'the run model'}")
-    model = build_model(cfg_h) if own else load_model(matrices)
+    model = build_model(ModelSpec.from_config(cfg_h)) if own else load_model(matrices)
     if not own and needs_own_model(hyp) and "solids" not in model.meta and model.meta.get("kind") != "mesh":
         own = True  # a model file written before the solids were kept per part: no material coefficients
         log(f"hypothesis {name}: {matrices} has no per-part solids (written by an older version); building its own")
-        model = build_model(cfg_h)
+        model = build_model(ModelSpec.from_config(cfg_h))
     system = build_system(model, cfg_h)
     data = measured_states(cfg_h, system)
     forces = {s: v["em_force_N"] for s, v in (((hyp.get("overrides") or {}).get("states")) or {}).items()
@@ -134,7 +135,7 @@ def linked_summary(cfg: dict, rec: dict, log=print_log) -> dict:
 
     name = rec["hypothesis"]
     cfg_h = hypothesis_config(cfg, name, (cfg.get("hypotheses") or {}).get(name) or {})
-    test = BlockTest(cfg_h, cfg_h["carriage_rigidity"]["cell_size_m"])
+    test = BlockTest(ModelSpec.from_config(cfg_h), cfg_h["carriage_rigidity"]["cell_size_m"])
     states = {}
     for s in rec["states"]:
         res = test.rigidity(s["joints_N_per_m3"])

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from jointid import io
+from jointid.config.datasets import dataset_folder
+from jointid.config.typed import ModelSpec, TestSetup
 from jointid.identification import joint_damping
 from jointid.identification.model_error import from_chi2
 from jointid.stages.doe import parameter_bounds
@@ -49,7 +51,6 @@ def measured_modes(cfg: dict, state: str, pts):
     from jointid.data.dataset import read_dataset
     from jointid.errors import DataError
     from jointid.geometry.points import dof_labels
-    from jointid.config.datasets import dataset_folder
 
     ds = read_dataset(dataset_folder(cfg, state), measuring_points=pts)
     low = below_band(ds.name, {state: ds.freqs(state)}, float(cfg["solver"]["min_freq_Hz"]))
@@ -67,7 +68,6 @@ def visibility_rule(cfg: dict, state: str, pts):
     from its dataset's ``test_setup`` (default: the hammer at ``harmonic.drive_point`` in x, y and z,
     the responses where shapes were measured, else at every point in x, y and z); None when
     ``identify.visible_threshold`` is null."""
-    from jointid.config.datasets import dataset_folder
     from jointid.data.dataset import read_dataset
     from jointid.geometry.points import dof_labels
     from jointid.identification.visibility import dataset_rule
@@ -80,14 +80,14 @@ def visibility_rule(cfg: dict, state: str, pts):
     shapes = None
     if ds.shapes is not None and state in set(ds.shapes["state"]):
         shapes = ds.shape_matrix(state, labels)
-    return dataset_rule(ds, state, labels, list(pts["point"]), shapes, cfg, f"{folder}/conditions.yaml")
+    return dataset_rule(ds, state, labels, list(pts["point"]), shapes, TestSetup.from_config(cfg),
+                        f"{folder}/conditions.yaml")
 
 
 def tie_damping(cfg: dict, state: str, f_meas) -> tuple:
     """``(damping ratio of each measured mode or None, its source)`` for the resolvability rule among
     tied pairings (:func:`jointid.identification.ties.tie_damping`): the dataset's measured ratios,
     else the configured ``harmonic.damping``."""
-    from jointid.config.datasets import dataset_folder
     from jointid.data.dataset import read_dataset
     from jointid.identification.ties import tie_damping as _tie_damping
 
@@ -137,6 +137,7 @@ def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, 
 
 
 def _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule):
+    # many parameters: the inputs of the joint pairing that run_identify has read (surfaces, states, bounds, weights, rule)
     """``(shared pairing, joint-pairing record, notes)`` of frequency-only states of equal mode counts
     (:func:`jointid.identification.updating.identify_states_jointly`); ``(None, None, [])`` otherwise."""
     from jointid.identification.updating import identify_states_jointly
@@ -197,50 +198,57 @@ def _zoom_notes(names, theta, lower, upper, polish, res) -> list[str]:
     return []
 
 
-def _face_of(cfg: dict, name: str) -> str:
+def _face_of(spec: ModelSpec, name: str) -> str:
     from jointid.fe.model import joint_terms
 
-    terms = joint_terms(cfg["joints"], cfg.get("model"))[name]
+    terms = joint_terms(spec.joints, spec.mesh_file)[name]
     return "+".join(sorted({t[2:].rsplit("_", 1)[0] for t in terms}))  # K_<face>_<component>
 
 
-def _per_carriage(cfg, names, theta, ci_lo, ci_hi, areas: dict) -> dict:
+def _per_carriage(spec: ModelSpec, names, theta, ci_lo, ci_hi, areas: dict) -> dict:
     """The parameters as springs of one carriage (N/um): value x its faces' contact area per carriage."""
     per_carriage = {}
     for n, th, lo, hi in zip(names, theta, ci_lo, ci_hi):
-        a = areas.get(_face_of(cfg, n), 0.0)
+        a = areas.get(_face_of(spec, n), 0.0)
         per_carriage[n.replace("_N_per_m3", "_per_carriage_N_per_um")] = {
             "value": th * a * 1e-6, "ci95_low": lo * a * 1e-6, "ci95_high": hi * a * 1e-6}
     return per_carriage
 
 
-def _polish_step(cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairing, repair, matrices, rom,
-                 edge_matrices, vis_rule=None):
-    """The FE polish of the surface optimum ``res`` (and its repeats on mesh-extrapolated frequencies).
+def _polish_step(spec: ModelSpec, state: str, names: list[str], fit, surface_theta, matrices, rom, edge_matrices):
+    """The FE polish of the surface optimum ``surface_theta`` (N/m^3; and its repeats on
+    mesh-extrapolated frequencies); ``fit``: a :class:`jointid.identification.polish.PolishFit`.
 
     The 95 % intervals: :func:`jointid.identification.polish.polish_intervals`.
-    Returns ``(theta, ci95_low, ci95_high, frequencies fitted, polish, edge record, notes)``.
+    Returns ``(theta, ci95_low, ci95_high, frequencies fitted, polish, edge record)``.
     """
     from jointid.identification.polish import extrapolated_polish, polish_intervals, polish_optimum
 
-    surface_theta = np.asarray(res.theta, float)
-    b_lo, b_hi = parameter_bounds(cfg)
-    polish = polish_optimum(cfg, doc, matrices, surface_theta, pairing, f_meas, weights, sigma_pct / 100, b_lo,
-                            b_hi, repair=repair, rom=rom, rule=vis_rule)
+    surface_theta = np.asarray(surface_theta, float)
+    polish = polish_optimum(spec, names, matrices, surface_theta, fit, rom=rom)
     edge = None
     if edge_matrices:
-        edge, polish = extrapolated_polish(cfg, state, doc, matrices, edge_matrices, polish, pairing, f_meas,
-                                           weights, sigma_pct / 100, b_lo, b_hi, repair=repair, rom=rom,
-                                           rule=vis_rule)
+        edge, polish = extrapolated_polish(spec, state, names, matrices, edge_matrices, polish, fit, rom=rom)
     if polish.get("certificate"):
         log(f"identify[{state}]: optimum's {polish['certificate'].describe()}")
     theta = polish["theta"]
     polish["interval_scale"], ci_lo, ci_hi = polish_intervals(polish)
-    return theta, ci_lo, ci_hi, polish["f_fe"], polish, edge, _polish_notes(polish, shapes)
+    return theta, ci_lo, ci_hi, polish["f_fe"], polish, edge
+
+
+def _polish_fit(cfg: dict, doc: dict, pairing, f_meas, sigma_pct: float, weights, repair: bool, rule):
+    """What the FE polish fits (:class:`jointid.identification.polish.PolishFit`): the measured modes,
+    following the surface model's reference shapes of their paired modes, in the configured bounds."""
+    from jointid.identification.polish import PolishFit
+
+    b_lo, b_hi = parameter_bounds(cfg)
+    return PolishFit(f_meas, np.asarray(doc["ref_shapes"])[:, pairing], b_lo, b_hi, weights=weights,
+                     sigma_rel=sigma_pct / 100, repair=repair, rule=rule)
 
 
 def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
             f_final, polish, edge, rom, per_carriage, msgs) -> dict:
+    # many parameters: one parameter per part of params.json that run_identify computed; a result dataclass is issue 38's next step
     """The content of ``params.json``."""
     names, lower, upper = doc["names"], doc["lower"], doc["upper"]
     return {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
@@ -276,6 +284,7 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
                  matrices: str | None = None, rom: str | None = None, states: list[str] | None = None,
                  edge_matrices: list[str] | None = None, summary_json: str | None = None) -> None:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Identify one state's joint parameters: multistart on the surfaces, then the polish.
 
     The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
@@ -284,19 +293,17 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     alone in every one of them, in equal numbers, ``identify.pairing: shared`` pairs the measured
     modes with the same tracked modes in every state (:func:`jointid.identification.updating.identify_states_jointly`)
     and the polish follows those modes by shape; ``independent`` (default) pairs each state by its
-    own frequencies and re-pairs at every polish iterate.  Either way the notes name competing
-    pairings and the other rule's choice.  With ``edge_matrices`` (``mesh.extrapolate_edges``: the
-    models with one and two more edge levels) the polish is repeated on mesh-extrapolated frequencies
-    (:mod:`jointid.fe.extrapolate`) until their factors settle
-    (:func:`jointid.identification.polish.extrapolated_polish`).  ``summary_json``: the model summary
-    of rule ``mesh`` (default: ``summary.json`` beside ``points_csv``), for the per-carriage values.
+    own frequencies and re-pairs at every polish iterate.  Either way the notes name competing pairings
+    and the other rule's choice.  With ``edge_matrices`` (``mesh.extrapolate_edges``: the models with one
+    and two more edge levels) the polish is repeated on mesh-extrapolated frequencies (:mod:`jointid.fe.extrapolate`)
+    until their factors settle (:func:`jointid.identification.polish.extrapolated_polish`).  ``summary_json``:
+    the model summary of rule ``mesh`` (default: ``summary.json`` beside ``points_csv``), for the per-carriage values.
     """
     import pandas as pd
 
     from jointid.identification.updating import identify_state
 
-    doc = io.read_json(surface_json)
-    pts = pd.read_csv(points_csv)
+    doc, pts = io.read_json(surface_json), pd.read_csv(points_csv)
     f_meas, shapes, sigma_pct = measured_modes(cfg, state, pts)
     ic = cfg["identify"]
     weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
@@ -328,14 +335,14 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
         msgs.append("mesh.extrapolate_edges needs identify.fe_polish: the frequencies fitted are those of the "
                     "base mesh")
     if matrices and cfg["identify"].get("fe_polish", True):
-        theta, ci_lo, ci_hi, f_final, polish, edge, notes = _polish_step(
-            cfg, state, doc, f_meas, shapes, sigma_pct, weights, res, pairing, shapes is None and fixed is None,
-            matrices, rom, edge_matrices, vis_rule)
-        msgs += notes
+        fit = _polish_fit(cfg, doc, pairing, f_meas, sigma_pct, weights, shapes is None and fixed is None, vis_rule)
+        theta, ci_lo, ci_hi, f_final, polish, edge = _polish_step(
+            ModelSpec.from_config(cfg), state, doc["names"], fit, res.theta, matrices, rom, edge_matrices)
+        msgs += _polish_notes(polish, shapes)
     if zoom:
         msgs += _zoom_notes(names, theta, lower, upper, polish, res)
     summary = summary_json or points_csv.replace("measuring_points.csv", "summary.json")
-    per_carriage = _per_carriage(cfg, names, theta, ci_lo, ci_hi,
+    per_carriage = _per_carriage(ModelSpec.from_config(cfg), names, theta, ci_lo, ci_hi,
                                  io.read_json(summary)["contact_area_per_carriage_m2"])
     out = _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
                   f_final, polish, edge, rom, per_carriage, msgs)
@@ -343,7 +350,8 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     out["observability"] = None if vis_rule is None else {
         "excitation": list(vis_rule.setup.excitation), "response": list(vis_rule.setup.response),
         "note": vis_rule.setup.note, "band_Hz": list(vis_rule.band_Hz), "threshold": vis_rule.threshold}
-    io.write_json(out_json, out | joint_damping.params_entry(cfg, state, names, polish, f_meas, weights, edge, log))
+    damping = joint_damping.params_entry(dataset_folder(cfg, state), state, names, polish, f_meas, weights, edge, log)
+    io.write_json(out_json, out | damping)
     log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))
         + f"; max |error| {np.abs(out['residual_pct']).max():.2f} %")
     if tie_rule and len(tie_rule["tied"]) > 1:

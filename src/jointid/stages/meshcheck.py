@@ -12,6 +12,7 @@ from functools import partial
 import numpy as np
 
 from jointid import io
+from jointid.config.typed import ModelSpec
 from jointid.errors import ModelError
 from jointid.stages.modal import SOLVE_KEYS
 
@@ -19,8 +20,9 @@ CONFIG = ("materials", "rig", "model", "mesh", "mesh_check", "joints", "identify
 """Config keys of rule ``mesh_check``."""
 
 
-def _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices, say):
-    """Solve of the default mesh at the identified parameters.
+def _default_mesh(spec, theta_d, names, theta, matrices, edge_matrices, say):
+    """Solve of the default mesh at the identified parameters (``spec``: the model's
+    :class:`~jointid.config.typed.ModelSpec`).
 
     Returns ``(frequencies (Hz; extrapolated with edge_matrices), its own frequencies, shapes,
     d ln f / d log10 theta of every mode, number of DOFs)``.
@@ -30,37 +32,36 @@ def _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices, say):
     from jointid.identification.polish import log_jacobian
 
     coarse = load_model(matrices)
-    _, shapes_c, _, modes_c = solve_point(cfg, coarse, theta_d, describe=False)
-    jt = joint_terms(cfg["joints"], cfg.get("model"))
+    _, shapes_c, _, modes_c = solve_point(spec, coarse, theta_d, describe=False)
+    jt = joint_terms(spec.joints, spec.mesh_file)
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
     f_c = modes_c.freqs_Hz
     if edge_matrices:
         say("default mesh: extrapolated over its edge levels")
-        f_c = edge_limit_at(cfg, [coarse, *(partial(load_model, p) for p in edge_matrices)], theta_d, log=say,
+        f_c = edge_limit_at(spec, [coarse, *(partial(load_model, p) for p in edge_matrices)], theta_d, log=say,
                             base=(modes_c.freqs_Hz, shapes_c)).limit_Hz
     return f_c, modes_c.freqs_Hz, shapes_c, J_all, coarse.n_dofs
 
 
-def _refined_mesh(cfg, theta_d, halve, extrapolate: bool, say):
+def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
     """Solve of the mesh with the ``halve`` cells halved (and its two more edge levels with
     ``extrapolate``); returns ``(frequencies, its own frequencies, shapes, number of DOFs)``."""
-
-    from jointid.fe.extrapolate import level_config
     from jointid.fe.model import build_model
     from jointid.identification.polish import edge_limit_at, solve_point
 
     if extrapolate:  # and with one and two more edge levels, each built in turn
-        lim_f = edge_limit_at(cfg, [partial(build_model, level_config(cfg, k), halve=halve, progress=say)
+        lim_f = edge_limit_at(spec, [partial(build_model, spec.with_edge_levels(k), halve=halve, progress=say)
                                     for k in range(3)], theta_d, log=say)
         return lim_f.limit_Hz, lim_f.levels_Hz[0], lim_f.shapes, lim_f.n_dofs[0]
-    fine = build_model(cfg, halve=halve, progress=say)
-    _, shapes_f, _, modes_f = solve_point(cfg, fine, theta_d, describe=False)
+    fine = build_model(spec, halve=halve, progress=say)
+    _, shapes_f, _, modes_f = solve_point(spec, fine, theta_d, describe=False)
     return modes_f.freqs_Hz, modes_f.freqs_Hz, shapes_f, fine.n_dofs
 
 
 def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
                    out_json: str, out_csv: str, log=print, edge_matrices: list[str] | None = None) -> dict:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rule ``mesh_check`` for one state's identified parameters (see the module doc);
     ``edge_matrices``: the default mesh with one and two more edge levels (``mesh.extrapolate_edges``).
 
@@ -84,10 +85,11 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     # mesh_check.edge_levels: both meshes extrapolated over their edge levels; else both at their base level
     edge_matrices = edge_matrices if mc_cfg.get("edge_levels", False) else None
     say("default mesh at the identified parameters")
-    f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(cfg, theta_d, names, theta, matrices, edge_matrices,
+    spec = ModelSpec.from_config(cfg)
+    f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(spec, theta_d, names, theta, matrices, edge_matrices,
                                                              say)
     say(f"the mesh with {', '.join(halve)} cells halved")
-    f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(cfg, theta_d, halve, bool(edge_matrices), say)
+    f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(spec, theta_d, halve, bool(edge_matrices), say)
     index, macs = pair_by_shapes(shapes_c, shapes_f, threshold=0.8)
     fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
     use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)

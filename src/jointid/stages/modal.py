@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointid import io
+from jointid.config.typed import ModelSpec
 from jointid.stages.doe import parameter_names
 from jointid.stages.runner import log
 
@@ -50,7 +51,7 @@ def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, r
     else:
         from jointid.identification.polish import solve_point
 
-        freqs, shapes, desc, _ = solve_point(cfg, model, theta)
+        freqs, shapes, desc, _ = solve_point(ModelSpec.from_config(cfg), model, theta)
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
     io.write_npz(out_npz, freqs_Hz=freqs, shapes=shapes, labels=np.array(labels),
                  description=desc["description"].to_numpy().astype(str),
@@ -70,7 +71,7 @@ def _rom_point(cfg: dict, model, theta: dict[str, float], rom: str | None):
         raise ConfigError("solver.method: rom needs the reduced-order model (rule rom, "
                           "results/rom/rom.npz) — build it with run_rom, or set solver.method: full")
     reduced = load_rom(rom)
-    kc, mc = base_coefficients(cfg, model, theta)
+    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
     modes = full_modes(reduced, kc, mc, cfg["solver"]["n_modes"])
     return modes.freqs_Hz, model.probe @ modes.phi, describe_modes(model, modes.phi, kc, mc)
 
@@ -99,7 +100,7 @@ def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: st
 
     from jointid.errors import ModelError, NumericalWarning
     from jointid.fe.model import load_model
-    from jointid.identification.rom_build import build_rom
+    from jointid.identification.rom_build import RomOptions, build_rom
 
     s = cfg["solver"]
     tol = float(s.get("rom_tolerance", 1e-4))
@@ -108,7 +109,8 @@ def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: st
     doe_x = sheet[[f"x_{n}" for n in parameter_names(cfg)]].to_numpy(float)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)  # not verified: raised as an error below
-        rom = build_rom(model, cfg, s["n_modes"], "corners", tol=tol, candidates=doe_x, progress=log)
+        rom = build_rom(model, ModelSpec.from_config(cfg), "corners", RomOptions(n_modes=s["n_modes"], tol=tol),
+                        candidates=doe_x, progress=log)
     rep = rom.report
     n_inverse = sum(1 for t in rep["training"] if t.get("how", "full solve") != "full solve")
     n_full = len(rep["training"]) - n_inverse + sum(len(r["points"]) for r in rep["rounds"])

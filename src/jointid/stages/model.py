@@ -34,11 +34,11 @@ def run_mesh(cfg: dict, matrices: str, points_csv: str | None = None, vtu: str |
     edge levels."""
     import pandas as pd
 
-    from jointid.fe.extrapolate import level_config
+    from jointid.config.typed import ModelSpec
     from jointid.fe.modal import model_ordering
     from jointid.fe.model import build_model, save_model
 
-    model = build_model(level_config(cfg, extra_edge_levels), progress=log)
+    model = build_model(ModelSpec.from_config(cfg).with_edge_levels(extra_edge_levels), progress=log)
     model.ordering = model_ordering(model)  # the pattern, so its ordering, is the same at any shift
     save_model(model, matrices)
     if points_csv is None:

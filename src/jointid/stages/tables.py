@@ -63,6 +63,7 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
 def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md: str, *,
                points_npz: list[str] | None = None, cfg: dict | None = None, out_ranges: str | None = None,
                out_cases: str | None = None, out_pairings: str | None = None):
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rule ``table1``: read the harmonic results, write Table 1 (CSV and Markdown) and, given the
     states' ``drive_points.npz`` (same order as ``stiffness_jsons``), its ranges over the table points
     and the damping laws (``out_ranges``, ``out_cases``: one row per state, point and law);

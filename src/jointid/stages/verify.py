@@ -10,6 +10,7 @@ from functools import partial
 import numpy as np
 
 from jointid import io
+from jointid.config.typed import ModelSpec
 from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
 
@@ -85,8 +86,9 @@ def _recorded_limit(rec: dict, theta: dict, names: list[str], freqs, shapes):
                            status=["recorded" if abs(x - 1) > 0 else "no partner" for x in c])
 
 
-def _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices):
-    """The mesh-extrapolated modes at ``theta`` (see :func:`run_verify`), or None without extrapolation."""
+def _extrapolated(spec, state, par, model, theta, freqs, shapes, edge_matrices):
+    """The mesh-extrapolated modes at ``theta`` (see :func:`run_verify`; ``spec``: the model's
+    :class:`~jointid.config.typed.ModelSpec`), or None without extrapolation."""
     from jointid.fe.model import load_model
     from jointid.identification.polish import edge_limit_at, model_sizes
 
@@ -96,7 +98,7 @@ def _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices):
             "optimum, to first order), not re-solved on the edge levels")
         return _recorded_limit(correction, theta, correction["names"], freqs, shapes)
     if edge_matrices:
-        return edge_limit_at(cfg, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
+        return edge_limit_at(spec, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
                              log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes),
                              sizes=[model.n_dofs, *model_sizes(edge_matrices)])
     return None
@@ -120,6 +122,7 @@ def write_certificate(state: str, par: dict, modes, out_json: str | None) -> dic
 def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
                edge_matrices: list[str] | None = None, unpaired_csv: str | None = None,
                tied_csv: str | None = None, certificate_json: str | None = None) -> None:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Full FE re-solve at the identified parameters: the tables' simulated frequencies.
 
     ``unpaired_csv``: the model modes the test would clearly have seen that no measured mode is paired
@@ -140,15 +143,15 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     from jointid.fe.model import load_model
     from jointid.identification.polish import solve_point
 
-    par = io.read_json(params_json)
-    doc = io.read_json(surface_json)
+    spec = ModelSpec.from_config(cfg)
+    par, doc = io.read_json(params_json), io.read_json(surface_json)
     theta = {n: v["value"] for n, v in par["parameters"].items()}
     model = load_model(matrices)
-    freqs, shapes, desc, modes = solve_point(cfg, model, theta, certify=True)
+    freqs, shapes, desc, modes = solve_point(spec, model, theta, certify=True)
     write_certificate(state, par, modes, certificate_json)
     f_meas = np.asarray(par["f_meas_Hz"])
     correction = (par.get("edge_extrapolation") or {}).get("correction")
-    lim = _extrapolated(cfg, state, par, model, theta, freqs, shapes, edge_matrices)
+    lim = _extrapolated(spec, state, par, model, theta, freqs, shapes, edge_matrices)
     f_all = freqs if lim is None else lim.limit_Hz
     from jointid.geometry.points import dof_labels
     from jointid.identification.visibility import misfit_table
