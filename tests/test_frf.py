@@ -5,6 +5,8 @@ import json
 from pathlib import Path
 
 import numpy as np
+
+from jointid.config.typed import Damping
 import pandas as pd
 import pytest
 
@@ -85,7 +87,7 @@ def test_modal_superposition_with_residual_matches_direct_solve(rig):
     in_band = fr[(fr > BAND[0]) & (fr < BAND[1])]
     assert in_band.size >= 3  # a real multi-mode test
     alpha, beta = rayleigh_for(in_band[0], in_band[-1], 0.03)
-    zeta, source = frf.modal_damping_ratios({"model": "rayleigh", "alpha_per_s": alpha, "beta_s": beta}, fr)
+    zeta, source = frf.modal_damping_ratios(Damping(model="rayleigh", alpha_per_s=alpha, beta_s=beta), fr)
     assert set(source) == {"rayleigh"}
     R, H0, note = hm.static_residual(K, p, modes.phi, fr, fixed=model.fixed)
     assert R is not None and R > 0 and "residual" in note
@@ -138,7 +140,7 @@ def test_free_model_falls_back_to_no_residual():
     p = frf.drive_vector(model, "T05", "y")
     R, H0, note = hm.static_residual(K, p, modes.phi, modes.freqs_Hz, fixed=model.fixed)
     assert R is None and H0 is None and "rigid-body" in note
-    zeta, source = frf.modal_damping_ratios({"model": "modal", "damping_ratio": 0.03}, modes.freqs_Hz)
+    zeta, source = frf.modal_damping_ratios(Damping(model="modal", damping_ratio=0.03), modes.freqs_Hz)
     assert source.count("rigid") == 6 and np.all(zeta[:6] == 0) and np.all(zeta[6:] == 0.03)
     res = frf.harmonic_response(modes, p, zeta, (300.0, 1000.0), n_freq=50, residual=R, static_receptance=H0)
     assert res.dynamic["k_static_N_per_m"] is None
@@ -158,16 +160,16 @@ def test_single_mode_minimum_is_two_zeta_k():
 
 def test_damping_choices():
     f = np.array([0.0, 500.0, 1500.0, 2500.0])
-    z, src = frf.modal_damping_ratios({"model": "modal", "damping_ratio": 0.02}, f, measured={2: 0.05})
+    z, src = frf.modal_damping_ratios(Damping(model="modal", damping_ratio=0.02), f, measured={2: 0.05})
     np.testing.assert_allclose(z, [0, 0.02, 0.05, 0.02])
     assert src == ["rigid", "modal", "measured", "modal"]
-    z, src = frf.modal_damping_ratios({"model": "measured"}, f, measured={1: 0.01, 2: 0.03})
+    z, src = frf.modal_damping_ratios(Damping(model="measured"), f, measured={1: 0.01, 2: 0.03})
     np.testing.assert_allclose(z, [0, 0.01, 0.03, 0.02])
     assert src[3] == "mean measured"
     with pytest.raises(DataError, match="damping_ratio column"):
-        frf.modal_damping_ratios({"model": "measured"}, f)
+        frf.modal_damping_ratios(Damping(model="measured"), f)
     with pytest.warns(NumericalWarning, match="zero damping"):
-        z, _ = frf.modal_damping_ratios({"model": "joint", "joint_loss_factor_s": 1e-5}, f,
+        z, _ = frf.modal_damping_ratios(Damping(model="joint", joint_loss_factor_s=1e-5), f,
                                         joint_share=[0, 0.5, 0.5, 0.0])
     np.testing.assert_allclose(z, [0, 1e-5 * 2 * np.pi * 500 * 0.5 / 2, 1e-5 * 2 * np.pi * 1500 * 0.5 / 2, 0])
 

@@ -44,14 +44,16 @@ def test_layer_check_flags_an_upward_import_and_a_cycle(tmp_path):
 def test_parameter_check_flags_cfg_in_a_domain_layer_and_many_parameters_without_a_reason(tmp_path):
     src = tmp_path / "mod.py"
     src.write_text("def solve(cfg, model):\n    return model\n\n\n"
+                   "def damp(damping_cfg, f):\n    return f\n\n\n"
                    "def wide(a, b, c, d, e, f, g, h, i, *args, **kwargs):\n    return a\n\n\n"
                    "def reasoned(self, a, b, c, d, e, f, g, h, *, i=0):\n"
                    "    # many parameters: one per file of a workflow rule\n    return a\n\n\n"
                    "def eight(a, b, c, d, e, f, g, *, h=0, **kwargs):\n    return a\n")
     domain = layout.parameter_findings(src, config_free=True)
-    assert len(domain) == 2
-    assert "solve takes 'cfg'" in domain[0] and "wide takes 9 parameters" in domain[1]
-    assert layout.parameter_findings(src) == [domain[1]]  # outside fe/identification/response/correlate cfg is fine
+    assert len(domain) == 3
+    assert "solve takes 'cfg'" in domain[0] and "damp takes 'damping_cfg'" in domain[1]
+    assert "wide takes 9 parameters" in domain[2]
+    assert layout.parameter_findings(src) == [domain[2]]  # outside fe/identification/response/correlate cfg is fine
 
 
 def test_parameter_check_finds_config_in_the_domain_layers_of_a_package(tmp_path):

@@ -5,6 +5,8 @@ inside it merges with the peak in a frequency-only test, one outside it would sh
 """
 
 import numpy as np
+
+from jointid.config.typed import Damping
 import pytest
 
 from jointid.identification.ties import (NO_TIE, RESOLVABILITY, choose_tied, could_hide, hiding_peak,
@@ -71,14 +73,14 @@ def test_no_tie_no_rule():
 
 
 def test_tie_damping_measured_else_configured():
-    z, src = tie_damping(3, None, {"model": "modal", "damping_ratio": 0.03})
+    z, src = tie_damping(3, None, Damping(model="modal", damping_ratio=0.03))
     assert z.tolist() == [0.03] * 3 and "damping_ratio = 0.03" in src
-    z, src = tie_damping(3, [0.02, np.nan, 0.05], {"model": "modal", "damping_ratio": 0.03})
+    z, src = tie_damping(3, [0.02, np.nan, 0.05], Damping(model="modal", damping_ratio=0.03))
     assert z.tolist() == [0.02, 0.03, 0.05] and src.startswith("measured damping ratios of the dataset, else")
-    z, src = tie_damping(3, [0.02, 0.04, 0.05], {"model": "joint", "joint_loss_factor_s": 1e-5})
+    z, src = tie_damping(3, [0.02, 0.04, 0.05], Damping(model="joint", joint_loss_factor_s=1e-5))
     assert z.tolist() == [0.02, 0.04, 0.05] and src == "measured damping ratios of the dataset"
-    z, _ = tie_damping(1, None, {"model": "rayleigh", "alpha_per_s": 10.0, "beta_s": 1e-6}, [1000.0])
+    z, _ = tie_damping(1, None, Damping(model="rayleigh", alpha_per_s=10.0, beta_s=1e-6), [1000.0])
     w = 2 * np.pi * 1000.0
     assert z[0] == pytest.approx(10.0 / (2 * w) + 1e-6 * w / 2)
-    z, src = tie_damping(3, None, {"model": "joint", "joint_loss_factor_s": 1e-5})
+    z, src = tie_damping(3, None, Damping(model="joint", joint_loss_factor_s=1e-5))
     assert z is None and "no damping ratio" in src

@@ -57,6 +57,11 @@ MAX_MODULE_LINES, MAX_FUNCTION_LINES, MAX_PARAMETERS = 400, 80, 8
 CONFIG_FREE = ("fe", "identification", "response", "correlate")
 """Layers whose functions take typed objects or numbers, never the whole configuration."""
 CONFIG_NAMES = ("cfg", "config")
+"""Parameter names of a configuration dict (also as a suffix: ``damping_cfg``, ``rig_config``)."""
+
+
+def _config_name(name: str) -> bool:
+    return name in CONFIG_NAMES or name.endswith(tuple("_" + n for n in CONFIG_NAMES))
 
 
 def _functions(tree: ast.AST):
@@ -81,7 +86,7 @@ def parameter_findings(path: Path, config_free: bool = False) -> list[str]:
         names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")]
         if config_free:
             out += [f"{path}:{node.lineno}: {node.name} takes {n!r}, the whole configuration — take the typed "
-                    "objects of jointid.config.typed or numbers" for n in names if n in CONFIG_NAMES]
+                    "objects of jointid.config.typed or numbers" for n in names if _config_name(n)]
         if len(names) > MAX_PARAMETERS and not any(h.startswith("# many parameters:") for h in _head(lines, node)):
             out.append(f"{path}:{node.lineno}: {node.name} takes {len(names)} parameters, no '# many parameters: "
                        "<reason>' comment at its top")

@@ -11,6 +11,7 @@ computed from them stays the same.
   (:class:`jointid.config.typed_mesh.MeshFileModel`);
 * :class:`TestSetup` - the test a dataset gets when its conditions give none (drive point, band) and
   the visibility threshold;
+* :class:`Damping` - the harmonic analysis's damping model;
 * :class:`Settings` - all of them, built once.
 """
 
@@ -26,7 +27,7 @@ import numpy as np
 from jointid.config.typed_mesh import MeshFileModel, read_only
 from jointid.correlate.observability import VISIBLE_THRESHOLD
 
-__all__ = ["JointParameter", "Joints", "Material", "MeshOptions", "ModelSpec", "RigModel", "Settings",
+__all__ = ["Damping", "JointParameter", "Joints", "Material", "MeshOptions", "ModelSpec", "RigModel", "Settings",
            "SolverOptions", "TestSetup", "read_only"]
 
 
@@ -240,6 +241,33 @@ class TestSetup:
         harmonic = cfg.get("harmonic", {})
         return cls(harmonic.get("drive_point", "T05"), tuple(harmonic.get("band_Hz", (300.0, 3500.0))),
                    cfg.get("identify", {}).get("visible_threshold", VISIBLE_THRESHOLD))
+
+
+@dataclass(frozen=True)
+class Damping:
+    """The harmonic analysis's damping model (``harmonic.damping``, without Table 1's assumed range).
+
+    ``model``: modal, rayleigh, joint or measured; ``damping_ratio`` (model modal, fraction of
+    critical); ``alpha_per_s``, ``beta_s`` (model rayleigh, 1/s and s); ``joint_loss_factor_s``
+    (model joint, s).  A parameter the configuration does not give is None.
+    """
+
+    model: str = "modal"
+    damping_ratio: float | None = None
+    alpha_per_s: float | None = None
+    beta_s: float | None = None
+    joint_loss_factor_s: float | None = None
+
+    @classmethod
+    def from_section(cls, section: Mapping | None) -> Damping:
+        """The damping of a ``harmonic.damping`` section (None or empty: the defaults)."""
+        d = dict(section or {})
+        return cls(d.get("model", "modal"), d.get("damping_ratio"), d.get("alpha_per_s"), d.get("beta_s"),
+                   d.get("joint_loss_factor_s"))
+
+    def as_dict(self) -> dict:
+        """The section as the configuration gave it (the keys given, without the range)."""
+        return {k: v for k, v in dataclasses.asdict(self).items() if v is not None}
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from jointid.config.typed import Damping
+
 
 TIE = 1e-12  # cost difference below which two pairings fit alike (exact ties, round-off apart)
 RESOLVABILITY = "resolvability"
@@ -85,7 +87,7 @@ def choose_tied(options: list, cost, paired_ss, pairing, resolvable=None) -> tup
                               "visible mode hide in a measured peak)")
 
 
-def tie_damping(n_meas: int, measured=None, damping_cfg: dict | None = None, f_meas_Hz=None) -> tuple:
+def tie_damping(n_meas: int, measured=None, damping: Damping | None = None, f_meas_Hz=None) -> tuple:
     """``(zeta per measured mode or None, source in words)``: the damping ratios the resolvability rule
     judges the half-power bands with.
 
@@ -95,15 +97,14 @@ def tie_damping(n_meas: int, measured=None, damping_cfg: dict | None = None, f_m
     A joint-dashpot model needs each mode's joint strain-energy share, not known for a measured mode:
     then (and for model ``measured`` without measured ratios) None, and the rule falls back.
     """
-    cfg = dict(damping_cfg or {})
-    model = cfg.get("model", "modal")
+    d = damping or Damping()
     zeta = np.full(int(n_meas), np.nan)
-    if model == "modal" and cfg.get("damping_ratio") is not None:
-        zeta[:] = float(cfg["damping_ratio"])
-        conf = f"configured harmonic.damping.damping_ratio = {float(cfg['damping_ratio']):g}"
-    elif model == "rayleigh" and f_meas_Hz is not None:
+    if d.model == "modal" and d.damping_ratio is not None:
+        zeta[:] = float(d.damping_ratio)
+        conf = f"configured harmonic.damping.damping_ratio = {float(d.damping_ratio):g}"
+    elif d.model == "rayleigh" and f_meas_Hz is not None:
         w = 2 * np.pi * np.asarray(f_meas_Hz, float)
-        zeta[:] = float(cfg.get("alpha_per_s") or 0.0) / (2 * w) + float(cfg.get("beta_s") or 0.0) * w / 2
+        zeta[:] = float(d.alpha_per_s or 0.0) / (2 * w) + float(d.beta_s or 0.0) * w / 2
         conf = "Rayleigh ratios of harmonic.damping at the measured frequencies"
     else:
         conf = ""
@@ -111,7 +112,7 @@ def tie_damping(n_meas: int, measured=None, damping_cfg: dict | None = None, f_m
     have = np.isfinite(m) & (m > 0)
     zeta[have] = m[have]
     if not np.all(np.isfinite(zeta) & (zeta > 0)):
-        return None, f"no damping ratio for every measured mode (harmonic.damping.model {model!r}, no measured ratios)"
+        return None, f"no damping ratio for every measured mode (harmonic.damping.model {d.model!r}, no measured ratios)"
     if have.all():
         return zeta, "measured damping ratios of the dataset"
     return zeta, (f"measured damping ratios of the dataset, else the {conf}" if have.any() else f"the {conf}")

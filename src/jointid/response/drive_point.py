@@ -33,6 +33,7 @@ import scipy.sparse as sp
 from jointid.response import damping as dm
 from jointid.response import harmonic as hm
 from jointid.response.harmonic import RIGID_HZ
+from jointid.config.typed import Damping
 from jointid.errors import ConfigError, DataError, ModelError, NumericalWarning
 from jointid.fe.modal import (Modes, count_modes_below, factorize_shifted, free_dofs, restrict, shift_sigma,
                               solve_modes)
@@ -209,12 +210,12 @@ def joint_stiffness(model, k_coeffs: dict) -> sp.csr_matrix:
     return out.tocsr()
 
 
-def modal_damping_ratios(damping_cfg: dict, freqs_Hz, *, joint_share=None, measured=None):
+def modal_damping_ratios(damping: Damping, freqs_Hz, *, joint_share=None, measured=None):
     """Damping ratio of every mode, and which source set it.
 
     Parameters
     ----------
-    damping_cfg : dict
+    damping : jointid.config.typed.Damping
         ``harmonic.damping``: ``model`` (modal, rayleigh, joint, measured) and its parameters.
     freqs_Hz : array_like, shape (n_modes,)
         Natural frequencies (Hz); modes below :data:`RIGID_HZ` are rigid-body modes and get 0.
@@ -232,7 +233,7 @@ def modal_damping_ratios(damping_cfg: dict, freqs_Hz, *, joint_share=None, measu
         Per mode: ``"rigid"``, ``"measured"``, ``"<model>"`` or ``"mean measured"``.
     """
     fr = np.asarray(freqs_Hz, dtype=float)
-    model = damping_cfg.get("model", "modal")
+    model = damping.model
     elastic = fr >= RIGID_HZ
     zeta = np.zeros(fr.size)
     source = np.array(["rigid"] * fr.size, dtype=object)
@@ -245,15 +246,19 @@ def modal_damping_ratios(damping_cfg: dict, freqs_Hz, *, joint_share=None, measu
         source[elastic] = "mean measured"
     elif np.any(elastic):
         f = fr[elastic]
+        needs = {"modal": "damping_ratio", "joint": "joint_loss_factor_s"}.get(model)
+        if needs and getattr(damping, needs) is None:
+            raise ConfigError(f"harmonic.damping.model is {model!r} but harmonic.damping.{needs} is not given — "
+                              f"add it to config.yaml")
         if model == "modal":
-            z = dm.modal_damping(f, "modal", damping_ratio=damping_cfg["damping_ratio"])
+            z = dm.modal_damping(f, "modal", damping_ratio=damping.damping_ratio)
         elif model == "rayleigh":
-            z = dm.modal_damping(f, "rayleigh", alpha_per_s=damping_cfg.get("alpha_per_s", 0.0),
-                                 beta_s=damping_cfg.get("beta_s", 0.0))
+            z = dm.modal_damping(f, "rayleigh", alpha_per_s=damping.alpha_per_s or 0.0,
+                                 beta_s=damping.beta_s or 0.0)
         elif model == "joint":
             if joint_share is None:
                 raise ModelError("damping model 'joint' needs the joint strain-energy share of every mode")
-            z = dm.modal_damping(f, "joint", joint_loss_factor_s=damping_cfg["joint_loss_factor_s"],
+            z = dm.modal_damping(f, "joint", joint_loss_factor_s=damping.joint_loss_factor_s,
                                  joint_energy_share=np.asarray(joint_share, float)[elastic])
         else:
             raise ConfigError(f"harmonic.damping.model = {model!r} is unknown — use one of "

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from jointid.config.datasets import dataset_folder
+from jointid.config.typed import Damping
 from jointid.identification.damping_law import ASSUMED, IDENTIFIED, MEASURED, law_ratios, law_text, usable_record
 from jointid.response.drive_point import modal_damping_ratios
 from jointid.response.harmonic import RIGID_HZ
@@ -101,7 +102,8 @@ def state_damping(cfg: dict, state: str, par: dict, model, modes, kc: dict, shar
     measured, mnote = measured_damping(cfg, state, verify_csv)
     rec, note = usable_record(par)
     if rec is None:
-        zeta, source = modal_damping_ratios(dcfg, modes.freqs_Hz, joint_share=share, measured=measured)
+        zeta, source = modal_damping_ratios(Damping.from_section(dcfg), modes.freqs_Hz, joint_share=share,
+                                            measured=measured)
         kind = MEASURED if MEASURED in source else ASSUMED
         return {"zeta": zeta, "source": source, "config": dcfg, "measured": mnote, "kind": kind,
                 "text": (f"{kind}: harmonic.damping model {dcfg.get('model', 'modal')}"

@@ -15,7 +15,7 @@ import numpy as np
 
 from jointid import io
 from jointid.config.datasets import dataset_folder
-from jointid.config.typed import ModelSpec, TestSetup
+from jointid.config.typed import Damping, ModelSpec, TestSetup
 from jointid.identification import joint_damping
 from jointid.identification.model_error import from_chi2
 from jointid.stages.doe import parameter_bounds
@@ -93,7 +93,7 @@ def tie_damping(cfg: dict, state: str, f_meas) -> tuple:
 
     ds = read_dataset(dataset_folder(cfg, state))
     measured = ds.damping(state) if state in ds.states else None
-    return _tie_damping(len(f_meas), measured, (cfg.get("harmonic") or {}).get("damping"), f_meas)
+    return _tie_damping(len(f_meas), measured, Damping.from_section((cfg.get("harmonic") or {}).get("damping")), f_meas)
 
 
 def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:
