@@ -21,6 +21,7 @@ $(BIN)/python:
 $(STAMP): pyproject.toml | $(BIN)/python
 	if [ -x $(BIN)/uv ]; then $(BIN)/uv pip install -q --compile-bytecode --python $(BIN)/python -e ".[test]"; \
 	else $(BIN)/python -m pip install -q -e ".[test]"; fi
+	$(BIN)/python -m compileall -q src > /dev/null  # the editable package's .pyc files too
 	touch $(STAMP)
 
 install: $(STAMP)
