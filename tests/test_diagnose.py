@@ -161,7 +161,7 @@ def coarse():
 def _solver_at_reference(cfg, system) -> ReducedSolver:
     """A reduced solver of the coarse rig seeded at k_normal = k_lateral = 1e12, k_feed = 1e10 N/m^3."""
     theta = {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
-    kc, mc = T.baseline_coefficients(system, cfg, theta)
+    kc, mc = T.baseline_coefficients(system, ModelSpec.from_config(cfg), theta)
     return ReducedSolver(system, kc, mc, 10, [({f"K_top_y@{c}": 1.0 for c in range(4)}, {})], n_seed=6)
 
 
@@ -171,7 +171,7 @@ def test_reduced_solver_matches_the_full_solve_far_from_its_reference(coarse):
     cfg, system = coarse
     solver = _solver_at_reference(cfg, system)
     far = {"k_normal_N_per_m3": 3e11, "k_lateral_N_per_m3": 3e12, "k_feed_N_per_m3": 2e10}
-    kc2, mc2 = T.baseline_coefficients(system, cfg, far)
+    kc2, mc2 = T.baseline_coefficients(system, ModelSpec.from_config(cfg), far)
     kc2["K_railfix"] = 2e12
     mc2["M_table_edge"] = 2.0
     red = solver.solve(kc2, mc2, 10)
@@ -193,7 +193,7 @@ def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos
     cfg, system = coarse
     solver = _solver_at_reference(cfg, system)
     near = {"k_normal_N_per_m3": 1.2e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}
-    kc2, mc2 = T.baseline_coefficients(system, cfg, near)
+    kc2, mc2 = T.baseline_coefficients(system, ModelSpec.from_config(cfg), near)
     full = solve_modes(system.K(kc2), system.M(mc2), 10, fixed=system.fixed)
     lanczos_runs = solver.n_full_solves
     lines = []

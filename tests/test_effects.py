@@ -47,7 +47,7 @@ def test_joint_layers_split_per_carriage_sum_to_the_layer(setup):
 def test_bonded_foundation_reproduces_the_clamped_base(setup):
     cfg, model, system = setup
     assert system.support == "clamped" and len(system.fixed) == 0
-    kc, mc = T.baseline_coefficients(system, cfg, THETA)
+    kc, mc = T.baseline_coefficients(system, ModelSpec.from_config(cfg), THETA)
     assert kc["K_foundation"] == E.BONDED_N_PER_M3
     kc0, mc0 = base_coefficients(ModelSpec.from_config(cfg), model, THETA)
     a = solve_modes(model.K(kc0), model.M(mc0), 8, fixed=model.fixed).freqs_Hz
@@ -71,7 +71,7 @@ def test_carried_mass_is_table_carriages_and_motors(setup):
 
 def test_em_preload_scales_each_carriage_by_its_pressure_ratio(setup):
     cfg, model, system = setup
-    kc, mc = T.baseline_coefficients(system, cfg, THETA)
+    kc, mc = T.baseline_coefficients(system, ModelSpec.from_config(cfg), THETA)
     eff = E.EFFECTS["em_preload"]
     off = E.StateInfo("off", 0.0)
     on = E.StateInfo("on", 1000.0)
@@ -103,7 +103,7 @@ def test_em_preload_scales_each_carriage_by_its_pressure_ratio(setup):
 
 def test_mass_compliance_and_feed_effects(setup):
     cfg, model, system = setup
-    kc, mc = T.baseline_coefficients(system, cfg, THETA)
+    kc, mc = T.baseline_coefficients(system, ModelSpec.from_config(cfg), THETA)
     s = E.StateInfo("s", 0.0)
     _, m2 = E.apply_effects(system, kc, mc, s, [(E.EFFECTS["added_mass_table"], {"mass_kg": 3.0}, {})])
     assert m2["M_table_top"] == 3.0 and m2["M_motor"] == mc["M_motor"]

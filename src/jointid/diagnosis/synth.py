@@ -150,7 +150,8 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
     """
     check_truth(truth)
     cfg = truth_config(truth, base_cfg)
-    model = model or build_model(ModelSpec.from_config(cfg))
+    spec = ModelSpec.from_config(cfg)
+    model = model or build_model(spec)
     system = build_system(model, cfg)
     meas = {**MEASUREMENT_DEFAULTS, **(truth.get("measurement") or {})}
     noise = {**NOISE_DEFAULTS, **(truth.get("noise") or {})}
@@ -166,7 +167,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
     truncated = False
     for sname, scfg in truth["states"].items():
         state = StateInfo(sname, float((scfg or {}).get("em_force_N", 0.0)))
-        kc, mc = baseline_coefficients(system, cfg, theta)
+        kc, mc = baseline_coefficients(system, spec, theta)
         kc, mc = apply_effects(system, kc, mc, state, [(s.effect, s.values, s.options) for s in specs])
         _perturb(system, kc, mc, truth.get("perturbations"))
         n = int(meas["max_modes"]) + 8

@@ -200,13 +200,14 @@ def build_system(model: Model, cfg: dict) -> System:
                   layers=layers)
 
 
-def baseline_coefficients(system: System, cfg: dict, theta: dict | None = None) -> tuple[dict, dict]:
-    """Term coefficients of the baseline (no effect) at joint parameters ``theta`` (N/m^3).
+def baseline_coefficients(system: System, spec: ModelSpec, theta: dict | None = None) -> tuple[dict, dict]:
+    """Term coefficients of the baseline (no effect) at joint parameters ``theta`` (N/m^3), for the
+    model ``spec`` (:class:`jointid.config.typed.ModelSpec`, built once by the caller).
 
     Joint terms are expanded to every carriage with the same value; a clamped support becomes the
     bonded foundation layer.  Returns ``(kc, mc)`` for :meth:`System.K` / :meth:`System.M`.
     """
-    kc0, mc = base_coefficients(ModelSpec.from_config(cfg), system.model, theta)
+    kc0, mc = base_coefficients(spec, system.model, theta)
     folded = system.meta.get("solid_coefficients") or {}  # in the system's K0 and M0 already
     mc = {name: v for name, v in mc.items() if name not in folded}
     kc = {}

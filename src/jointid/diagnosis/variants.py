@@ -18,7 +18,7 @@ from jointid.correlate import pairing as correlate
 from jointid.diagnosis.effects import Effect, apply_effects
 from jointid.diagnosis.terms import StateInfo, System, baseline_coefficients
 from jointid.errors import DataError
-from jointid.config.typed import TestSetup
+from jointid.config.typed import ModelSpec, TestSetup
 from jointid.identification.visibility import dataset_rule
 
 
@@ -115,6 +115,7 @@ class Variant:
     def __init__(self, system: System, cfg: dict, effects: list[EffectSpec] = (), name: str | None = None,
                  theta_fixed: dict | None = None):
         self.system, self.cfg = system, cfg
+        self.spec = ModelSpec.from_config(cfg)  # once: the coefficients are asked for thousands of times
         jp = cfg["joints"]["parameters"]
         self.theta_fixed = dict(theta_fixed or {})
         self.joint_names = [n for n in jp if n not in self.theta_fixed]
@@ -171,7 +172,7 @@ class Variant:
     def coefficients(self, x, state: StateInfo) -> tuple[dict, dict]:
         """Term coefficients ``(kc, mc)`` at ``x`` in ``state`` (baseline, then the effects in order)."""
         theta, vals = self.unpack(x)
-        kc, mc = baseline_coefficients(self.system, self.cfg, theta)
+        kc, mc = baseline_coefficients(self.system, self.spec, theta)
         active = [(s.effect, v, s.options) for s, v in zip(self.effects, vals)]
         return apply_effects(self.system, kc, mc, state, active)
 
