@@ -115,7 +115,9 @@ def test_stage_writes_the_comparison_of_its_assembly(cfg, tmp_path, monkeypatch)
             return BlockRigidity({"lateral": 1.1e9 * f, "normal": 1.46e9 * f, "feed": 2.7e7 * f},
                                  {"lateral": 3.9e9, "normal": 1.49e10, "feed": 6.3e9} if parts else {}, 41000, 0.006)
 
-    monkeypatch.setattr(stage, "BlockTest", FakeTest)
+    import jointid.response.carriage as block
+
+    monkeypatch.setattr(block, "BlockTest", FakeTest)  # the stage imports it when it runs
     theta = {"k_normal_N_per_m3": 3.0e11, "k_lateral_N_per_m3": 1.3e12, "k_feed_N_per_m3": 8.4e9}
     (tmp_path / "params.json").write_text(json.dumps(
         {"parameters": {n: {"value": v, "ci95_low": 0.8 * v, "ci95_high": 1.25 * v} for n, v in theta.items()}}))

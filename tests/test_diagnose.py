@@ -381,3 +381,15 @@ def test_unexplained_verdict_says_what_was_tried_on_top_of_the_enabled_effects()
     base = NS(variant=NS(effects=[]), chi2=543.9, dof=13, p_value=1e-100)
     txt = unexplained_text(base, lead, "power_off max 11.4 %", pairs, 2)
     assert "(up to 2 effects at once tried; power_off" in txt and "on top of" not in txt
+
+
+@pytest.mark.parametrize("x, dof", [(3.2, 2), (0.0, 1), (-1.0, 3), (1e3, 5), (5.0, 0), (np.inf, 2), (2.5, 2.5),
+                                    (np.nan, 2), (0.3, 1)])
+def test_chi2_survival_is_scipy_stats_number_for_number(x, dof):
+    """The p-values without importing scipy.stats equal scipy.stats.chi2.sf exactly, edge cases included."""
+    from scipy.stats import chi2
+
+    from jointid.diagnosis.statistics import chi2_sf
+
+    ref = float(chi2.sf(x, dof))
+    assert chi2_sf(x, dof) == ref or (np.isnan(ref) and np.isnan(chi2_sf(x, dof)))

@@ -71,6 +71,19 @@ def test_lhs_deterministic_stratified_with_centre():
         assert sorted(strata[:, j]) == list(range(20))
 
 
+@pytest.mark.parametrize("n, d, seed", [(1, 1, 0), (7, 3, 20191), (40, 2, 5), (17, 5, 123)])
+def test_latin_hypercube_draws_scipys_points_bit_for_bit(n, d, seed):
+    import scipy
+    from scipy.stats import qmc
+
+    if tuple(int(v) for v in scipy.__version__.split(".")[:2]) < (1, 15):
+        pytest.skip("SciPy < 1.15 draws its Latin hypercube from the generator itself, not a spawned child")
+    ref = qmc.LatinHypercube(d=d, rng=np.random.default_rng(seed)).random(n)
+    ours = doe.latin_hypercube(n, d, np.random.default_rng(seed))
+    assert np.array_equal(ours, ref)
+    assert np.array_equal(np.sort(np.floor(ours * n), axis=0), np.tile(np.arange(n)[:, None], (1, d)))  # one per stratum
+
+
 def test_n_quadratic_terms():
     assert [doe.n_quadratic_terms(k) for k in (1, 2, 3, 4)] == [3, 6, 10, 15]
 

@@ -22,10 +22,16 @@ __main__
     The command line ``python -m jointid.diagnosis``.
 """
 
-from jointid.diagnosis.history import append_history, history_row
-from jointid.diagnosis.loop import Diagnosis, diagnose
-from jointid.diagnosis.outputs import write_outputs
-from jointid.diagnosis.variants import StateData, dataset_states
+import importlib
 
-__all__ = ["Diagnosis", "StateData", "append_history", "dataset_states", "diagnose", "history_row",
-           "write_outputs"]
+_EXPORTS = {"append_history": "history", "history_row": "history", "Diagnosis": "loop", "diagnose": "loop",
+            "write_outputs": "outputs", "StateData": "variants", "dataset_states": "variants"}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    """The package's exports, imported when first asked for: importing one submodule (as the
+    Snakefile's rules do) does not import the whole diagnosis and SciPy's statistics with it."""
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(f"jointid.diagnosis.{_EXPORTS[name]}"), name)
+    raise AttributeError(f"module 'jointid.diagnosis' has no attribute {name!r}")

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from jointid import io
 from jointid.config.typed import ModelSpec
-from jointid.response.carriage import DIRECTIONS, BlockTest, catalogue_comparison, catalogue_verdict
 
 CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "catalogue")
 """Config keys of rule ``carriage_rigidity``."""
@@ -22,6 +21,9 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     With a config section ``catalogue`` that has classes, ``catalogue`` holds the assembly against
     each of them (:func:`jointid.response.carriage.catalogue_comparison`); else it is null.
     """
+    # the FE of the test (scikit-fem) is imported here, not with the rule's config keys (every Snakemake start)
+    from jointid.response.carriage import DIRECTIONS, BlockTest, catalogue_comparison, catalogue_verdict
+
     par = io.read_json(params_json)
     cell = cfg["carriage_rigidity"]["cell_size_m"]
     test = BlockTest(ModelSpec.from_config(cfg), cell)

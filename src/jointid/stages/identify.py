@@ -16,8 +16,6 @@ import numpy as np
 from jointid import io
 from jointid.config.datasets import dataset_folder
 from jointid.config.typed import Damping, ModelSpec, TestSetup
-from jointid.identification import joint_damping
-from jointid.identification.model_error import from_chi2
 from jointid.stages.doe import parameter_bounds
 from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
@@ -250,6 +248,8 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
             f_final, polish, edge, rom, per_carriage, msgs) -> dict:
     # many parameters: one parameter per part of params.json that run_identify computed; a result dataclass is issue 38's next step
     """The content of ``params.json``."""
+    from jointid.identification.model_error import from_chi2  # scipy.optimize: not when the Snakefile imports us
+
     names, lower, upper = doc["names"], doc["lower"], doc["upper"]
     return {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
                                            for n, th, lo, hi in zip(names, theta, ci_lo, ci_hi)},
@@ -301,7 +301,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     """
     import pandas as pd
 
-    from jointid.identification.updating import identify_state
+    from jointid.identification import joint_damping, updating  # scipy.optimize: not when the Snakefile imports us
 
     doc, pts = io.read_json(surface_json), pd.read_csv(points_csv)
     f_meas, shapes, sigma_pct = measured_modes(cfg, state, pts)
@@ -319,7 +319,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     vis_rule = visibility_rule(cfg, state, pts)
     zeta, zeta_source = tie_damping(cfg, state, f_meas)
     decision = {}
-    res, pairing, msgs = identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
+    res, pairing, msgs = updating.identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
                                         n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
                                         pairing=fixed, rule=vis_rule, damping=zeta, decision=decision)
     tie_rule = joint_info["tie_rule"] if fixed is not None else (
