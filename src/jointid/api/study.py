@@ -100,12 +100,12 @@ class Study:
         """The joint parameters: one row each, columns ``parameter, identified, lower_N_per_m3,
         upper_N_per_m3, default_N_per_m3`` (the default of an identified parameter is the geometric
         mean of its bounds, of a fixed one its ``joints.fixed`` value)."""
-        joints = self._cfg["joints"]
-        rows = [{"parameter": n, "identified": True, "lower_N_per_m3": float(s["lower"]),
-                 "upper_N_per_m3": float(s["upper"]), "default_N_per_m3": float(np.sqrt(s["lower"] * s["upper"]))}
-                for n, s in joints["parameters"].items()]
+        joints = self._settings.model.joints
+        rows = [{"parameter": p.name, "identified": True, "lower_N_per_m3": float(p.lower_N_per_m3),
+                 "upper_N_per_m3": float(p.upper_N_per_m3), "default_N_per_m3": p.default_N_per_m3}
+                for p in joints.parameters]
         rows += [{"parameter": n, "identified": False, "lower_N_per_m3": np.nan, "upper_N_per_m3": np.nan,
-                  "default_N_per_m3": float(v)} for n, v in (joints.get("fixed") or {}).items()]
+                  "default_N_per_m3": float(v)} for n, v in joints.fixed_N_per_m3.items()]
         return pd.DataFrame(rows)
 
     def theta(self, state: str | None = None, theta: Mapping[str, float] | None = None) -> dict[str, float]:

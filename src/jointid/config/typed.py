@@ -265,10 +265,6 @@ class Damping:
         return cls(d.get("model", "modal"), d.get("damping_ratio"), d.get("alpha_per_s"), d.get("beta_s"),
                    d.get("joint_loss_factor_s"))
 
-    def as_dict(self) -> dict:
-        """The section as the configuration gave it (the keys given, without the range)."""
-        return {k: v for k, v in dataclasses.asdict(self).items() if v is not None}
-
 
 @dataclass(frozen=True)
 class Settings:
