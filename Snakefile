@@ -53,6 +53,7 @@ def state_datasets(wc):
 
 
 USE_ROM = config["solver"]["method"] == "rom"
+USE_REDUCED = config["solver"]["method"] == "reduced"  # the default: every DOE point in one job (rule modal)
 # with method full the modal rule's params leave out the ROM keys (see rule rom below)
 CFG_MODAL_RULE = sections(config, *modal.config_keys(config))
 CFG_MODAL_CHAIN = merged(CFG_MESH, CFG_DOE, CFG_MODAL_RULE)
@@ -171,27 +172,51 @@ rule rom:
         "workflow/scripts/rom.py"
 
 
-rule modal:
-    input:
-        unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),
-        matrices=rules.mesh.output.matrices,
-        sheet=rules.doe.output.sheet,
-    output:
-        modes=f"{R}/modal/points/{{point}}.npz",
-    params:
-        cfg=CFG_MODAL_RULE,
-        theta=lambda wc: {n: float(SHEET.set_index("point").loc[wc.point, n]) for n in config["joints"]["parameters"]},
-    log:
-        "logs/modal/{point}.log",
-    benchmark:
-        "benchmarks/out/modal/{point}.tsv"
-    priority: PRIORITY_TABLES
-    threads: 1
-    resources:
-        mem_mb=3000,
-        runtime=10,
-    script:
-        "workflow/scripts/modal.py"
+if USE_REDUCED:
+
+    rule modal:  # every DOE point in one job, on one reduced basis certified point by point
+        input:
+            matrices=rules.mesh.output.matrices,
+            sheet=rules.doe.output.sheet,
+        output:
+            modes=expand(f"{R}/modal/points/{{point}}.npz", point=POINTS),
+        params:
+            cfg=CFG_MODAL_RULE,
+        log:
+            "logs/modal/points.log",
+        benchmark:
+            "benchmarks/out/modal/points.tsv"
+        priority: PRIORITY_TABLES
+        threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=20,
+        script:
+            "workflow/scripts/modal_points.py"
+
+else:
+
+    rule modal:
+        input:
+            unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),
+            matrices=rules.mesh.output.matrices,
+            sheet=rules.doe.output.sheet,
+        output:
+            modes=f"{R}/modal/points/{{point}}.npz",
+        params:
+            cfg=CFG_MODAL_RULE,
+            theta=lambda wc: {n: float(SHEET.set_index("point").loc[wc.point, n]) for n in config["joints"]["parameters"]},
+        log:
+            "logs/modal/{point}.log",
+        benchmark:
+            "benchmarks/out/modal/{point}.tsv"
+        priority: PRIORITY_TABLES
+        threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=10,
+        script:
+            "workflow/scripts/modal.py"
 
 
 rule gather_modal:
@@ -293,26 +318,50 @@ rule doe_zoom:
         "workflow/scripts/doe_zoom.py"
 
 
-rule modal_zoom:
-    input:
-        unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),
-        matrices=rules.mesh.output.matrices,
-        sheet=rules.doe_zoom.output.sheet,
-    output:
-        modes=f"{R}/modal/zoom/points/{{point}}.npz",
-    params:
-        cfg=CFG_MODAL_RULE,  # the point's parameters come from the zoomed sheet (known at run time)
-    log:
-        "logs/modal_zoom/{point}.log",
-    benchmark:
-        "benchmarks/out/modal_zoom/{point}.tsv"
-    priority: PRIORITY_TABLES
-    threads: 1
-    resources:
-        mem_mb=3000,
-        runtime=10,
-    script:
-        "workflow/scripts/modal.py"
+if USE_REDUCED:
+
+    rule modal_zoom:
+        input:
+            matrices=rules.mesh.output.matrices,
+            sheet=rules.doe_zoom.output.sheet,
+        output:
+            modes=expand(f"{R}/modal/zoom/points/{{point}}.npz", point=POINTS),
+        params:
+            cfg=CFG_MODAL_RULE,  # the points' parameters come from the zoomed sheet (known at run time)
+        log:
+            "logs/modal_zoom/points.log",
+        benchmark:
+            "benchmarks/out/modal_zoom/points.tsv"
+        priority: PRIORITY_TABLES
+        threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=20,
+        script:
+            "workflow/scripts/modal_points.py"
+
+else:
+
+    rule modal_zoom:
+        input:
+            unpack(lambda wc: {"rom": rules.rom.output.rom} if USE_ROM else {}),
+            matrices=rules.mesh.output.matrices,
+            sheet=rules.doe_zoom.output.sheet,
+        output:
+            modes=f"{R}/modal/zoom/points/{{point}}.npz",
+        params:
+            cfg=CFG_MODAL_RULE,  # the point's parameters come from the zoomed sheet (known at run time)
+        log:
+            "logs/modal_zoom/{point}.log",
+        benchmark:
+            "benchmarks/out/modal_zoom/{point}.tsv"
+        priority: PRIORITY_TABLES
+        threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=10,
+        script:
+            "workflow/scripts/modal.py"
 
 
 rule gather_zoom:

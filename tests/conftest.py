@@ -55,8 +55,8 @@ CORE_RULES = ("mesh", "mesh_edges", "doe", "modal", "gather_modal", "fit_surface
               "gather_zoom", "fit_zoom", "identify", "verify", "tables")
 STATES = ("power_off", "power_on")
 TABLES = ("results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv")
-# what the resumed run is resumed to: the first response surface (mesh, DOE fan-out, gathered
-# modes, surface fit) and the edge-refined meshes (they run beside the fan-out, so the kill may hit
+# what the resumed run is resumed to: the first response surface (mesh, DOE solves, gathered
+# modes, surface fit) and the edge-refined meshes (they run beside the DOE solves, so the kill may hit
 # them too).  The rest of the chain is left out (about 250 core-s of CI); tests/test_determinism.py
 # runs the whole workflow twice under `make test-all`.
 RESUMED_TARGETS = ("results/surface/model.json",

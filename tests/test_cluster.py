@@ -40,7 +40,7 @@ def _workdir(tmp: Path) -> Path:
     cfg["joints"]["fixed"] = {n: float(np.sqrt(s["lower"] * s["upper"])) for n, s in params.items() if n != keep}
     cfg["joints"]["parameters"] = {keep: params[keep]}
     cfg["mesh"].update({"element": "hex1", "max_cell_size_m": 0.12, "refine": 1})
-    cfg["solver"]["n_modes"] = N_MODES
+    cfg["solver"].update({"n_modes": N_MODES, "method": "full"})  # the fan-out: one job per DOE point
     cfg["doe"].update({"design": "ccf", "n_center": 1, "n_verification": 2})
     (tmp / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
     return tmp

@@ -1,4 +1,5 @@
-"""Rules ``modal``/``modal_zoom`` (one modal solve per DOE point), ``gather_modal``/``gather_zoom``
+"""Rules ``modal``/``modal_zoom`` (the DOE points' modes: all in one job on one reduced basis with
+``solver.method: reduced``, one job per point otherwise), ``gather_modal``/``gather_zoom``
 and ``rom`` (the parametric reduced-order model of ``solver.method: rom``).
 
 Imports of the numerical modules are inside the functions (see :mod:`jointid.stages.model`): the
@@ -25,25 +26,26 @@ CONFIG_ROM = ("materials", "rig", "model", "joints", "solver")
 def config_keys(config: dict) -> tuple[str, ...]:
     """Config keys of rules ``modal`` and ``modal_zoom``.
 
-    With ``solver.method: full`` (the default) they leave out the ROM keys (:data:`ROM_KEYS`), so
-    that the full path's jobs, params and results stay exactly those it had before the option existed.
+    With ``solver.method: full`` they leave out the ROM keys (:data:`ROM_KEYS`), so that the full
+    path's jobs, params and results stay exactly those it had before the option existed; with
+    ``reduced`` (the default) they hold the method (a switch reruns the DOE solves) but not the
+    ROM's tolerance.
     """
-    if config["solver"]["method"] == "rom":
+    method = config["solver"]["method"]
+    if method == "rom":
         return CONFIG_ROM
-    return ("materials", "rig", "model", "joints", *(f"solver.{k}" for k in config["solver"] if k not in ROM_KEYS))
+    left_out = ROM_KEYS if method == "full" else ("rom_tolerance",)
+    return ("materials", "rig", "model", "joints", *(f"solver.{k}" for k in config["solver"] if k not in left_out))
 
 
 def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, rom: str | None = None) -> None:
     """Modes at one DOE point -> ``out_npz`` (freqs_Hz, shapes, labels, description, strain_joints, theta).
 
-    ``solver.method``: ``full`` (default) solves the FE model; ``rom`` evaluates the reduced-order
+    ``solver.method``: ``full`` solves the FE model; ``rom`` evaluates the reduced-order
     model ``rom`` (written by :func:`run_rom`) and expands its modes to full DOF vectors for the
     mode descriptions.  Both write the same arrays.
     """
-    import pandas as pd
-
     from jointid.fe.model import load_model
-    from jointid.geometry.points import dof_labels
 
     model = load_model(matrices)
     if cfg["solver"].get("method", "full") == "rom":
@@ -52,12 +54,59 @@ def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, r
         from jointid.identification.polish import solve_point
 
         freqs, shapes, desc, _ = solve_point(ModelSpec.from_config(cfg), model, theta)
-    labels = dof_labels(pd.DataFrame(model.meta["points"]))
-    io.write_npz(out_npz, freqs_Hz=freqs, shapes=shapes, labels=np.array(labels),
+    _write_point(out_npz, freqs, shapes, desc, _labels(model), theta)
+    log("modal: " + ", ".join(f"{f:.1f}" for f in freqs) + " Hz")
+
+
+def _labels(model) -> np.ndarray:
+    import pandas as pd
+
+    from jointid.geometry.points import dof_labels
+
+    return np.array(dof_labels(pd.DataFrame(model.meta["points"])))
+
+
+def _write_point(out_npz: str, freqs, shapes, desc, labels, theta: dict[str, float], **extra) -> None:
+    """One DOE point's modal file (the arrays :func:`run_gather` reads, and ``extra``)."""
+    io.write_npz(out_npz, freqs_Hz=freqs, shapes=shapes, labels=labels,
                  description=desc["description"].to_numpy().astype(str),
                  strain_joints=desc["strain_joints"].to_numpy(),
-                 theta_names=np.array(list(theta)), theta=np.array(list(theta.values())))
-    log("modal: " + ", ".join(f"{f:.1f}" for f in freqs) + " Hz")
+                 theta_names=np.array(list(theta)), theta=np.array(list(theta.values())), **extra)
+
+
+def run_modal_points(cfg: dict, matrices: str, sheet_csv: str, out_npzs: list[str]) -> None:
+    """``solver.method: reduced``: the modes of every point of ``sheet_csv`` in one job, on one reduced
+    basis certified point by point (:mod:`jointid.identification.doe_modes`) -> one file per point
+    (``out_npzs``, named ``<point>.npz``; the arrays of :func:`run_modal` and the point's
+    certificate: ``residual_error``, ``basis_size``)."""
+    import os
+    import time
+
+    import pandas as pd
+
+    from jointid.fe.model import load_model
+    from jointid.identification.doe_modes import solve_points
+    from jointid.progress import Steps
+
+    names = parameter_names(cfg)
+    paths = {os.path.splitext(os.path.basename(p))[0]: p for p in out_npzs}
+    sheet = pd.read_csv(sheet_csv)
+    if sorted(sheet["point"]) != sorted(paths):
+        from jointid.errors import DataError
+
+        raise DataError(f"modal: the outputs {', '.join(sorted(paths))} are not the points of {sheet_csv} "
+                        f"({', '.join(sheet['point'])}) — rerun rule doe")
+    points = list(sheet["point"])
+    thetas = [{n: float(v) for n, v in zip(names, row)} for row in sheet[names].to_numpy(float)]
+    t0 = time.time()
+    model = load_model(matrices)
+    labels, steps = _labels(model), Steps(len(points))
+    for point, theta, res in zip(points, thetas, solve_points(ModelSpec.from_config(cfg), model, thetas, log=log)):
+        _write_point(paths[point], res.freqs_Hz, res.shapes, res.description, labels, theta,
+                     residual_error=np.float64(res.error), basis_size=np.int64(res.basis_size))
+        log(f"modal {point} {steps.done()}: " + ", ".join(f"{f:.1f}" for f in res.freqs_Hz) +
+            f" Hz (basis {res.basis_size} vectors, estimated eigenvalue error {res.error:.1e})")
+    log(f"modal: {len(points)} points on one reduced basis ({model.n_dofs} DOFs) in {time.time() - t0:.1f} s")
 
 
 def _rom_point(cfg: dict, model, theta: dict[str, float], rom: str | None):
