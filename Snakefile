@@ -483,6 +483,7 @@ rule tables:
 
 include: "workflow/rules/rigidity.smk"
 include: "workflow/rules/report.smk"
+include: "workflow/rules/basis.smk"
 include: "workflow/rules/diagnosis.smk"
 include: "workflow/rules/meshcheck.smk"
 include: "workflow/rules/hypotheses.smk"

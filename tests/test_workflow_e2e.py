@@ -32,17 +32,21 @@ def measured(state: str) -> pd.DataFrame:
     return modes[modes.state == state].sort_values("mode")
 
 
-def test_dry_run_lists_every_stage_once_per_point_and_state(tmp_path):
+def test_dry_run_lists_every_stage_once_per_state_and_the_doe_in_one_job(tmp_path):
+    """solver.method reduced (the default): each DOE in one job; method full: one job per point."""
     wd = copy_workflow(tmp_path / "wf")
     proc = run_snakemake(wd, "-j2", "-n")
     assert proc.returncode == 0, proc.stderr
     jobs = scheduled_jobs(proc.stdout + proc.stderr)
     n_points = len(doe_sheet(coarse_config()))
     assert n_points == 15 + 2  # face-centred CCF in 3 factors + 1 centre, 2 verification points
-    expected = {"mesh": 1, "mesh_edges": 2, "doe": 1, "modal": n_points, "gather_modal": 1, "fit_surface": 1,
-                "scout": len(STATES), "doe_zoom": 1, "modal_zoom": n_points, "gather_zoom": 1, "fit_zoom": 1,
+    expected = {"mesh": 1, "mesh_edges": 2, "doe": 1, "modal": 1, "gather_modal": 1, "fit_surface": 1,
+                "scout": len(STATES), "doe_zoom": 1, "modal_zoom": 1, "gather_zoom": 1, "fit_zoom": 1,
                 "identify": len(STATES), "verify": len(STATES), "tables": 1}
     assert {r: n for r, n in jobs.items() if r in CORE_RULES} == expected
+    (wd / "full.yaml").write_text("solver:\n  method: full\n")
+    full = scheduled_jobs((lambda p: p.stdout + p.stderr)(run_snakemake(wd, "-j2", "-n", configs=[wd / "full.yaml"])))
+    assert {r: full.get(r) for r in ("modal", "modal_zoom")} == {"modal": n_points, "modal_zoom": n_points}
     unknown = set(jobs) - set(CORE_RULES) - extra_rule_names(wd)
     assert not unknown, f"jobs of rules defined nowhere: {unknown}"
     # rule all also builds what the rule files append to EXTRA_TARGETS (report, diagnosis)

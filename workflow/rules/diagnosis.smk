@@ -33,6 +33,7 @@ if DIAG_DATASETS:
         input:
             matrices=rules.mesh.output.matrices,
             dataset=_diagnosis_inputs,
+            basis=BASIS,  # rules/basis.smk: the start when no subspace is kept from an earlier run
         output:
             ranking=f"{R}/diagnosis/{{dataset}}/ranking.csv",
             ladder=f"{R}/diagnosis/{{dataset}}/ladder.csv",
@@ -64,6 +65,7 @@ if DIAG_DATASETS:
         input:
             matrices=rules.mesh.output.matrices,
             dataset=_diagnosis_inputs,
+            basis=BASIS,
         output:
             ladder=f"{R}/diagnosis/{{dataset}}/current/ladder.csv",
             current=f"{R}/diagnosis/{{dataset}}/current/current.csv",

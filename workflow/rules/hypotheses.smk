@@ -17,14 +17,11 @@ def _hypothesis_cfg(wc):
     return cfg
 
 
-def _hypothesis_data(wc):
-    import os
+def _hypothesis_basis(wc):
+    """The shared basis (rules/basis.smk) for a hypothesis on the run's model; none for one that builds its own."""
+    from jointid.diagnosis.hypotheses import needs_own_model
 
-    from jointid.config.datasets import dataset_folder
-
-    folders = {dataset_folder(config, s) for s in config["states"]}
-    names = ("modes.csv", "shapes.csv", "conditions.yaml")
-    return sorted(os.path.join(f, n) for f in folders for n in names if os.path.exists(os.path.join(f, n)))
+    return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
 
 
 if HYPOTHESES:
@@ -32,7 +29,8 @@ if HYPOTHESES:
     rule hypothesis:
         input:
             matrices=rules.mesh.output.matrices,
-            dataset=_hypothesis_data,
+            dataset=_run_datasets,
+            basis=_hypothesis_basis,
         output:
             fit=f"{R}/hypotheses/{{name}}/fit.json",
         params:

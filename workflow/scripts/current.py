@@ -7,4 +7,4 @@ from jointid.stages.runner import run_script
 
 run_script(snakemake, lambda cfg, inp, out: run_current(
     cfg, cfg["dataset"]["path"], inp.matrices, os.path.dirname(out.ladder),
-    subspace=snakemake.params.subspace))
+    subspace=snakemake.params.subspace, basis=inp.basis))

@@ -6,4 +6,4 @@ from jointid.stages.runner import run_script
 
 run_script(snakemake, lambda cfg, inp, out: run_diagnosis(
     cfg, snakemake.wildcards.dataset, cfg["dataset"]["path"], inp.matrices, os.path.dirname(out.ranking),
-    history_csv=snakemake.params.history, subspace=snakemake.params.subspace))
+    history_csv=snakemake.params.history, subspace=snakemake.params.subspace, basis=inp.basis))

@@ -2,5 +2,12 @@
 from jointid.stages.hypotheses import run_hypothesis
 from jointid.stages.runner import run_script
 
-run_script(snakemake, lambda cfg, inp, out: run_hypothesis(cfg, snakemake.wildcards.name, inp.matrices, out.fit),
-           provenance=True)
+
+def _basis(inp):
+    """The shared basis of a hypothesis on the run's model (an input list of one), else None."""
+    got = inp.get("basis")
+    return got if isinstance(got, str) else (str(got[0]) if got else None)
+
+
+run_script(snakemake, lambda cfg, inp, out: run_hypothesis(
+    cfg, snakemake.wildcards.name, inp.matrices, out.fit, basis=_basis(inp)), provenance=True)

@@ -93,7 +93,7 @@ class Diagnoser:
                                     backend=self._backend, tol=self._tol, n_seed=m + 2, basis=self.start_basis)
         kept, self.start_basis = self.start_basis, None  # taken over by the solver
         self.solver.log = self.log
-        kept = " (kept from the last run)" if kept is not None else ""
+        kept = " (started from a kept basis)" if kept is not None else ""
         self.log(f"diagnosis: reduced solver with {self.solver.V.shape[1]} vectors{kept} "
                  f"({self.system.n_dofs} DOFs) in {time.time() - t0:.1f} s")
 

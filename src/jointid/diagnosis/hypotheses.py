@@ -163,18 +163,19 @@ def _forces_differ(data: list[StateData]) -> bool:
     return len({round(d.info.em_force_N, 6) for d in data}) > 1
 
 
-def fit_hypothesis(system, cfg: dict, data: list[StateData], *, log=print_log) -> dict:
+def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None, log=print_log) -> dict:
     """Fit one hypothesis (its configuration ``cfg``, :func:`hypothesis_config`) to ``data`` under the
     linked law; the best preload class by chi-square.
 
     Returns a JSON-ready record: chi-square, counts, AICc, parameters with 95 % intervals scaled by
     ``max(1, sqrt(chi2 / dof))``, per-state errors (misfits counted), the unpaired visible modes, the
-    pairing and the profile over the preload classes.
+    pairing and the profile over the preload classes.  ``start_basis``: a basis of ``system`` to start
+    the reduced solver from (:mod:`jointid.stages.basis`).
     """
     law = LinkedLaw.from_config(cfg)
     linked = _forces_differ(data)
     classes = law.preload_classes_N if linked else (law.preload_classes_N[0],)
-    diag = Diagnoser(system, cfg, data, log=log)
+    diag = Diagnoser(system, cfg, data, start_basis=start_basis, log=log)
     diag.shapes.disable()  # the hypotheses' records and QAICc count frequency rows only (issue 40: not yet)
     profile, best = [], None
     x_prev = None

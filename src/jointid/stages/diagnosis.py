@@ -22,6 +22,7 @@ from jointid.diagnosis.variants import dataset_states
 from jointid.fe import warmstart
 from jointid.fe.model import load_model
 from jointid.fe.modal import free_dofs
+from jointid.stages.basis import load_basis
 from jointid.threads import limit_threads
 
 
@@ -39,15 +40,17 @@ def _kept_file(cfg: dict, subspace: str | None) -> str | None:
     return subspace if (cfg.get("diagnosis") or {}).get("reuse_subspace", True) else None
 
 
-def _warm(cfg: dict, system, subspace: str | None, log) -> tuple:
+def _warm(cfg: dict, system, subspace: str | None, log, basis: str | None = None) -> tuple:
     """What the last run kept at ``subspace``: its basis and a :class:`FitMemo` of its fits (an empty
     one when there is nothing to start from); ``(None, None)`` when ``diagnosis.reuse_subspace`` is
-    false."""
+    false.  Without a kept basis, the shared one at ``basis`` (rule ``diagnosis_basis``) when it is
+    this model's."""
     if _kept_file(cfg, subspace) is None:
-        return None, None
+        return load_basis(basis, system, log), None
     kept, why = warmstart.load(subspace, system, len(free_dofs(system.n_dofs, system.fixed)))
     log(f"diagnosis: {why}")
-    return kept, FitMemo(kept.fits if kept is not None else None)
+    memo = FitMemo(kept.fits if kept is not None else None)
+    return (kept if kept is not None else load_basis(basis, system, log)), memo
 
 
 def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis, memo: FitMemo | None, log) -> None:
@@ -61,7 +64,7 @@ def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis, memo: FitMemo
 
 def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
                   history_csv: str | None = None, model=None, subspace: str | None = None,
-                  log=print_log) -> Diagnosis:
+                  basis: str | None = None, log=print_log) -> Diagnosis:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Workflow stage: diagnose one dataset and write ``out_dir`` (+ a row of ``history_csv``).
 
@@ -69,10 +72,11 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
     band and drive point of the observability rule), ``diagnosis`` and ``dataset``
     (the ``datasets.<name>`` entry: ``path``, ``states``); the model comes from ``matrices`` (the
     cached ``results/model/matrices.npz``) or ``model``.  ``subspace``: the file the reduced solver's
-    final basis is kept in and the next run starts from (``diagnosis.reuse_subspace``).
+    final basis is kept in and the next run starts from (``diagnosis.reuse_subspace``); ``basis``: the
+    run model's shared basis (rule ``diagnosis_basis``), the start when nothing is kept.
     """
     system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    kept, memo = _warm(cfg, system, subspace, log)
+    kept, memo = _warm(cfg, system, subspace, log, basis)
     res = diagnose(system, cfg, data, start_basis=kept, memo=memo, log=log)
     _keep(cfg, system, subspace, res, memo, log)
     h = config_hash({k: v for k, v in cfg.items() if k != "dataset"})
@@ -86,17 +90,17 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
 
 
 def run_current(cfg: dict, dataset_path: str, matrices: str | None, out_dir: str, *, model=None,
-                subspace: str | None = None, log=print_log) -> Diagnosis:
+                subspace: str | None = None, basis: str | None = None, log=print_log) -> Diagnosis:
     """Workflow stage (rule ``current``): the quick half of the loop of docs/effects.md.
 
     The baseline and the configured effects are calibrated exactly as the diagnosis does it (the same
     steps, so the same numbers), but no candidate is tested: ``out_dir`` gets ``ladder.csv``
     (baseline -> +each configured effect, per-state errors), ``current.csv`` (the current model
     against every measured mode) and ``compare.csv``.  Which effect is still missing is the full
-    diagnosis' answer (``ranking.csv``).  ``subspace`` as for :func:`run_diagnosis` (the same file).
+    diagnosis' answer (``ranking.csv``).  ``subspace`` and ``basis`` as for :func:`run_diagnosis`.
     """
     system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    kept, memo = _warm(cfg, system, subspace, log)
+    kept, memo = _warm(cfg, system, subspace, log, basis)
     res = diagnose(system, cfg, data, candidates=[], drift=False, start_basis=kept, memo=memo, log=log)
     _keep(cfg, system, subspace, res, memo, log)
     out = Path(out_dir)

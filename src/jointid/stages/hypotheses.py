@@ -21,15 +21,13 @@ import pandas as pd
 from jointid import io
 from jointid.config import load_config
 from jointid.config.typed import ModelSpec
-from jointid.config.datasets import dataset_folder
-from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
 from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
 from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
 from jointid.diagnosis.terms import build_system
-from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
+from jointid.stages.basis import load_basis, measured_states
 from jointid.fe.model import build_model, load_model
 from jointid.threads import limit_threads
 
@@ -39,20 +37,8 @@ CONFIG = ("materials", "rig", "model", "mesh", "joints", "states", "measurements
 ADMISSIBLE_DELTA_AICC = 4.0
 
 
-def measured_states(cfg: dict, system) -> list:
-    """:class:`~jointid.diagnosis.variants.StateData` of every configured state, read from its dataset
-    folder (states sharing a folder are read together)."""
-    folders: dict[str, list[str]] = {}
-    for state in cfg["states"]:
-        folders.setdefault(dataset_folder(cfg, state), []).append(state)
-    data = []
-    for folder, states in folders.items():
-        ds = read_dataset(folder, measuring_points=system.meta["points"])
-        data += dataset_states(ds, system, cfg, states)
-    return data
-
-
-def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *, log=print_log) -> dict:
+def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *, basis: str | None = None,
+                   log=print_log) -> dict:
     """Fit hypothesis ``name`` and write its record to ``out_json``.
 
     The hypothesis's configuration is validated like config.yaml (its problems name the
@@ -61,7 +47,9 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
     :func:`~jointid.diagnosis.hypotheses.needs_own_model`); then it builds its own.  A material's
     Young's modulus or density, the motor mass and the like are coefficients of the run's model.
     An override of ``states.<state>.em_force_N`` is the hypothesis's attraction in that state and
-    wins over the dataset's ``conditions.yaml`` (which otherwise gives the force).
+    wins over the dataset's ``conditions.yaml`` (which otherwise gives the force).  ``basis``: the
+    run model's shared reduced basis (rule ``diagnosis_basis``, :mod:`jointid.stages.basis`), the start
+    of the reduced solver of a hypothesis on the run's model.
     """
     limit_threads(1)
     t0 = time.time()
@@ -87,7 +75,8 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
             log(f"hypothesis {name}: {d.name} attraction {float(forces[d.name]):g} N (the dataset's: "
                 f"{d.info.em_force_N:g} N)")
             d.info = dataclasses.replace(d.info, em_force_N=float(forces[d.name]))
-    rec = fit_hypothesis(system, cfg_h, data, log=log)
+    start = None if own else load_basis(basis, system, log)
+    rec = fit_hypothesis(system, cfg_h, data, start_basis=start, log=log)
     rec.update({"hypothesis": name, "description": str(hyp.get("description", "")), "own_model": own,
                 "n_dofs": system.n_dofs})  # no timing: the record is byte-identical run to run
     io.write_json(out_json, rec)
