@@ -139,10 +139,10 @@ class ReducedSolver:
         if kept.mc_ref != self.mc_ref or set(kept.Kr) != set(self.K_terms) or set(kept.Mr) != set(self.M_terms):
             self._append(V)
             return
-        # the kept products, else each cast to the basis's storage as formed (one at a time)
-        prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
-        if prods[0] is None or prods[0].dtype != PRODUCT_DTYPE:
-            prods = ((A @ V).astype(PRODUCT_DTYPE, order="F") for A in (self.K_terms["K0"], self.M_terms["M0"]))
+        # the kept products, else each cast to the basis's storage as formed
+        kept_prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
+        prods = [p if p is not None and p.dtype == PRODUCT_DTYPE else (A @ V).astype(PRODUCT_DTYPE, order="F")
+                 for p, A in zip(kept_prods, (self.K_terms["K0"], self.M_terms["M0"]))]
         self.basis.adopt(V, *prods)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V

@@ -12,9 +12,11 @@ tolerance, a Sturm count at the reported optima), so a warm run agrees with a ru
 that tolerance (1e-6 relative in each eigenvalue), not bit for bit.  A run from clean has no file
 to start from, so it stays bit-reproducible; ``diagnosis.reuse_subspace: false`` makes every run so.
 
-The file keeps the products ``K0 V`` and ``M0 V`` beside the basis, as the solver holds them (single
-precision): a run that adopts the basis takes them instead of forming them again (about 4 s on the
-default mesh, for a file about 1.7 times larger: 680 MB for 347 vectors).  It also keeps what the
+The file keeps the product ``K0 V`` beside the basis, as the solver holds it (single precision): a
+run that adopts the basis takes it instead of forming it again (about 3 s on the default mesh, for a
+file half as large again: 240 MB instead of 160 MB for 342 vectors).  ``M0 V`` is formed again
+(about 1 s: the mass matrix has a third of the stiffness matrix's entries); keeping it too would add
+80 MB to ``results/``.  It also keeps what the
 run learnt at single points of the model: its Sturm counts (a count is the model's, at those
 coefficients, whatever the subspace), the points whose full-space check passed
 on the kept columns (still passed on the same columns: a run that asks them again checks nothing
@@ -71,8 +73,8 @@ class Kept:
     """Points whose full-space check passed on the first ``r`` columns of ``V``: ``"<point key>#<n>"``
     -> ``(r, estimated error)`` (see :func:`certified_entries`)."""
     KV: np.ndarray | None = None
-    """``K0 V`` in the basis's storage precision (:data:`jointid.fe.basis.PRODUCT_DTYPE`), or None;
-    with ``MV`` (``M0 V``) it spares the solver the two largest sparse products of its start."""
+    """``K0 V`` in the basis's storage precision (:data:`jointid.fe.basis.PRODUCT_DTYPE`), or None
+    (formed again); ``MV`` the same for ``M0 V``: each spares the solver a large sparse product."""
     MV: np.ndarray | None = None
 
     def certified_at(self, generation: int) -> dict:
@@ -88,10 +90,12 @@ class Kept:
         return out
 
 
-def save(path: str | Path, solver, system, fits: dict | None = None) -> None:
+def save(path: str | Path, solver, system, fits: dict | None = None, products: tuple[str, ...] = ("KV",)) -> None:
     """Keep the first :data:`MAX_SAVED` columns of ``solver``'s basis with their reduced matrices, its
     Sturm counts, the records of the fits made (``fits``) and the model's fingerprint; written to a
-    temporary file and renamed, so a reader never sees half a file."""
+    temporary file and renamed, so a reader never sees half a file.  ``products``: which of the
+    solver's products with the basis to keep (``"KV"``: ``K0 V``, ``"MV"``: ``M0 V``; a reader forms
+    the others)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     r = min(solver.V.shape[1], MAX_SAVED)
@@ -103,7 +107,8 @@ def save(path: str | Path, solver, system, fits: dict | None = None) -> None:
     for group, red in (("K", solver.Kr), ("M", solver.Mr)):
         arrays.update({f"{group}r:{name}": A[:r, :r] for name, A in red.items()})
     if solver.basis.KV is not None:  # the products as the solver holds them (the same bits it would form)
-        arrays.update(KV=solver.basis.KV[:, :r], MV=solver.basis.MV[:, :r])
+        held = {"KV": solver.basis.KV, "MV": solver.basis.MV}
+        arrays.update({k: held[k][:, :r] for k in products})
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
     try:
         np.savez(tmp, **arrays)
@@ -137,8 +142,7 @@ def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
             extra = {k: json.loads(str(f[k])) if k in f.files else {} for k in ("sturm", "fits", "certified")}
             sturm = {k: [(float(a), int(c)) for a, c in v] for k, v in extra["sturm"].items()}
             kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])), sturm, extra["fits"], extra["certified"])
-            if "KV" in f.files and "MV" in f.files and f["KV"].shape == f["MV"].shape == V.shape:
-                kept.KV, kept.MV = f["KV"], f["MV"]
+            kept.KV, kept.MV = (f[k] if k in f.files and f[k].shape == V.shape else None for k in ("KV", "MV"))
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         return None, f"{path}: unreadable ({exc}): starting afresh"
     r = V.shape[1] if V.ndim == 2 else -1
