@@ -36,14 +36,9 @@ CFG_MESH = sections(config, *model.config_keys(config))
 CFG_DOE = sections(config, *doe.CONFIG)
 CFG_FIT_SURFACE = sections(config, *surface.CONFIG)
 CFG_VERIFY = sections(config, *verify.CONFIG)
-# mesh.extrapolate_edges: identify (and the mesh check) also solve on the meshes with one and two more edge levels.
-# Their model files (324 + 539 MB on the default mesh) are temp(): deleted once the last job reading them has
-# finished, rebuilt (about 35 core-s) when a rerun needs them.  The readers take them as ancient(): a rebuild for
-# one state's rerun does not make the other state's results look out of date (the files are a function of the
-# mesh config and the base mesh, which the readers depend on directly).
-EDGE_MODELS = ([f"{R}/model/edge_plus{k}/matrices.npz" for k in (1, 2)]
-               if config["mesh"]["extrapolate_edges"] else [])
-EDGE_INPUTS = [ancient(p) for p in EDGE_MODELS]
+# mesh.extrapolate_edges: identify (and, with mesh_check.edge_levels, the mesh check) also solves the mesh with one
+# and two more edge levels.  It builds them itself, each when its turn comes (about 12 and 16 s): as files they
+# took 863 MB of results/ on the default mesh, and a rebuild for one state's rerun reran the other state's chain.
 
 
 def cfg_identify(state):
@@ -107,27 +102,6 @@ rule mesh:
         runtime=10,
     script:
         "workflow/scripts/mesh.py"
-
-
-# mesh.extrapolate_edges: the same mesh with one and two more edge-refinement levels
-rule mesh_edges:
-    output:
-        matrices=temp(f"{R}/model/edge_plus{{extra}}/matrices.npz"),  # see EDGE_MODELS
-    wildcard_constraints:
-        extra="[12]",
-    params:
-        cfg=CFG_MESH,
-    log:
-        "logs/mesh_edges/plus{extra}.log",
-    benchmark:
-        "benchmarks/out/mesh_edges/plus{extra}.tsv"
-    priority: PRIORITY_TABLES
-    threads: 1
-    resources:
-        mem_mb=4000,
-        runtime=10,
-    script:
-        "workflow/scripts/mesh_edges.py"
 
 
 rule doe:
@@ -415,7 +389,6 @@ rule identify:
         points=rules.mesh.output.points,
         summary=rules.mesh.output.summary,
         matrices=rules.mesh.output.matrices,
-        edges=EDGE_INPUTS,
         datasets=state_datasets,
     output:
         params=f"{R}/identify/{{state}}/params.json",

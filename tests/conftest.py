@@ -51,7 +51,7 @@ REPO = Path(__file__).resolve().parents[1]
 COARSE_CONFIG = REPO / "tests" / "coarse_config.yaml"
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 WORKFLOW_ITEMS = ("Snakefile", "config.yaml", "workflow", "data")
-CORE_RULES = ("mesh", "mesh_edges", "doe", "modal", "gather_modal", "fit_surface", "scout", "doe_zoom", "modal_zoom",
+CORE_RULES = ("mesh", "doe", "modal", "gather_modal", "fit_surface", "scout", "doe_zoom", "modal_zoom",
               "gather_zoom", "fit_zoom", "identify", "verify", "tables")
 STATES = ("power_off", "power_on")
 TABLES = ("results/tables/table2_power_off.csv", "results/tables/table3_power_on.csv")

@@ -15,7 +15,6 @@ if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "
             params=rules.identify.output.params,
             verify=rules.verify.output.table,
             matrices=rules.mesh.output.matrices,
-            edges=EDGE_INPUTS,
         output:
             json=f"{R}/mesh_check/{{state}}.json",
             csv=f"{R}/mesh_check/{{state}}.csv",

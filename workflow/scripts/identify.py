@@ -5,5 +5,4 @@ from jointid.stages import identify
 
 run_script(snakemake, lambda cfg, inp, out: identify.run_identify(
     cfg, snakemake.wildcards.state, inp.surface, inp.points, out.params, inp.get("matrices"),
-    rom=inp.get("rom"), states=list(snakemake.params.states),
-    edge_matrices=list(inp.get("edges") or []), summary_json=inp.summary), provenance=True)
+    rom=inp.get("rom"), states=list(snakemake.params.states), summary_json=inp.summary), provenance=True)

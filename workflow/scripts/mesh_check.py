@@ -3,5 +3,4 @@ from jointid.stages.runner import run_script
 from jointid.stages.meshcheck import run_mesh_check
 
 run_script(snakemake, lambda cfg, inp, out: run_mesh_check(
-    cfg, snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv,
-    edge_matrices=list(inp.get("edges") or [])), provenance=True)
+    cfg, snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv), provenance=True)

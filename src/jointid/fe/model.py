@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -105,6 +106,22 @@ def joint_layer_terms(model) -> frozenset:
 
 def _kind(name: str) -> str:
     return name.split("_")[1] if name.startswith("k_") else name
+
+
+def edge_level_model(spec: ModelSpec, extra: int, progress=None):
+    """The model of ``spec`` with ``extra`` more edge-refinement levels, with its fill-reducing ordering
+    (:func:`jointid.fe.modal.model_ordering`: the pattern, so its ordering, is the same at any shift)."""
+    from jointid.fe.modal import model_ordering
+
+    model = build_model(spec.with_edge_levels(extra), progress=progress)
+    model.ordering = model_ordering(model)
+    return model
+
+
+def edge_level_builders(spec: ModelSpec, levels=(1, 2), progress=None) -> list:
+    """Functions that each build the model with one of ``levels`` more edge levels
+    (:func:`edge_level_model`), called when its turn comes, so that only one is held at a time."""
+    return [partial(edge_level_model, spec, k, progress) for k in levels]
 
 
 def build_model(spec: ModelSpec, *, refine: int | None = None, halve: tuple[str, ...] = (), rig=None,

@@ -218,11 +218,13 @@ def _session_model(matrices):
     return _SESSION["model"]
 
 
-def extrapolated_polish(spec: ModelSpec, state: str, names: list[str], matrices, edge_matrices, polish: dict,
+def extrapolated_polish(spec: ModelSpec, state: str, names: list[str], matrices, edge_models, polish: dict,
                         fit: PolishFit, *, rom=None):
     """The polish again on mesh-extrapolated frequencies, until their factors are those of its optimum.
 
-    ``edge_matrices``: the model files with one and two more edge levels; ``polish``: the polish on
+    ``edge_models``: the models with one and two more edge levels, or functions that build them
+    (:func:`jointid.fe.model.edge_level_builders`: each built when its turn comes and dropped after
+    its solve); ``polish``: the polish on
     the base mesh; the rest as in :func:`polish_optimum`.
 
     The factors are taken at the current optimum (first the base mesh's), with their first-order
@@ -232,16 +234,14 @@ def extrapolated_polish(spec: ModelSpec, state: str, names: list[str], matrices,
     ``EXTRAPOLATION_PASSES`` passes).  Returns ``(record for params.json, the last polish)``.
     """
     say = lambda m: _log(f"identify[{state}]: {m}")  # noqa: E731
-    # each level is loaded when its turn comes and dropped after its solve (peak memory: one level)
-    models = [partial(load_model, p) for p in (matrices, *edge_matrices)]
-    sizes = model_sizes([matrices, *edge_matrices])
+    models = [partial(load_model, matrices), *edge_models]  # peak memory: one level at a time
     theta_mesh = dict(zip(names, map(float, polish["theta"])))
     passes, settled = [], settled_below(fit.sigma_rel)
     for k in range(EXTRAPOLATION_PASSES):
         at = np.asarray(polish["theta"], float)
         say(f"mesh extrapolation over the edge levels at {'the base-mesh optimum' if k == 0 else 'the new optimum'}")
         lim = edge_limit_at(spec, models, dict(zip(names, map(float, at))), log=say, sensitivities=True,
-                            sizes=sizes)
+                            base=None if rom else certified_base(spec, names, matrices, at))
         shown = [i for i in range(lim.limit_Hz.size) if lim.levels_Hz[0, i] >= spec.solver.min_freq_Hz]
         say("extrapolated: " + ", ".join(f"{lim.levels_Hz[0, i]:.1f}->{lim.limit_Hz[i]:.1f} Hz" for i in shown))
         say("polish on the extrapolated frequencies")
@@ -354,7 +354,8 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
     the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
     those, so that the highest base modes find their partner), each a model or a function that
     builds one (built when its turn comes and dropped after its solve); ``base``: the base mesh's
-    ``(freqs_Hz, shapes)`` at ``theta`` when already solved; ``sensitivities``: with the factors'
+    ``(freqs_Hz, shapes)`` at ``theta`` when already solved (with ``sensitivities``: ``(freqs_Hz,
+    shapes, log-Jacobian)``, :func:`log_jacobian`); ``sensitivities``: with the factors'
     first-order dependence on ``theta`` (exact modal sensitivities on each mesh); ``sizes``: the DOFs
     of each mesh when known beforehand, for the time-left estimate of the progress lines (each solve
     weighted by DOFs^1.3; without them every level counts alike)."""
@@ -367,7 +368,7 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
     for k, model in enumerate(models):
         model = model() if callable(model) else model
         if k == 0 and base is not None:
-            solves.append((*base, model.n_dofs))
+            solves.append((base[0], base[1], model.n_dofs, *base[2:]))
             continue
         f, s, _, modes = solve_point(spec, model, theta, n_modes=spec.solver.n_modes + (2 if k else 0),
                                      describe=False)
@@ -378,6 +379,19 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
             log(f"edge level +{k}: {model.n_dofs} DOFs solved {work.done()}")
         del model
     return edge_limit(solves)
+
+
+def certified_base(spec: ModelSpec, names: list[str], matrices, theta: np.ndarray):
+    """The base mesh's ``(freqs_Hz, shapes, log-Jacobian)`` at ``theta`` from the reduced solver of this
+    process's polish on ``matrices`` (certified: eigenvalues within 1e-6), instead of a full solve
+    (about 6 s on the default mesh); None when no polish ran on that file."""
+    model, rs = _session_model(matrices), _SESSION.get("solver")
+    if rs is None:
+        return None
+    sol = rs.solve(*base_coefficients(spec, model, dict(zip(names, map(float, theta)))), spec.solver.n_modes)
+    phi, jt = rs.full_phi(sol), joint_terms(spec.joints, spec.mesh_file)
+    J = log_jacobian(model.stiffness, phi, sol.lam, [{t: 1.0 for t in jt[n]} for n in names], np.asarray(theta, float))
+    return sol.freqs_Hz, model.probe @ phi, J
 
 
 def model_sizes(paths: list) -> list[int]:

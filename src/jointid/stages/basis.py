@@ -25,7 +25,7 @@ from jointid.fe.model import load_model
 from jointid.fe.modal import free_dofs
 from jointid.threads import limit_threads
 
-CONFIG = ("materials", "rig", "model", "mesh", "joints", "states", "measurements", "solver", "identify", "harmonic",
+CONFIG = ("materials", "rig", "model", "joints", "states", "measurements", "solver", "identify", "harmonic",
           "effects")
 """Config sections of rule ``diagnosis_basis`` (plus ``datasets`` when a state names one)."""
 

@@ -28,7 +28,7 @@ TIE_DAMPING_KEYS = tuple(f"harmonic.damping.{k}" for k in ("model", "damping_rat
 def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
     """Config keys of rule ``identify``: the shared sections, this state's settings and the other
     states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
-    return ("materials", "rig", "model", "joints", "identify", "mesh.extrapolate_edges", *SOLVE_KEYS, "measurements",
+    return ("materials", "rig", "model", "joints", "identify", "mesh", *SOLVE_KEYS, "measurements",
             "harmonic.band_Hz", "harmonic.drive_point", *TIE_DAMPING_KEYS, f"states.{state}",
             *(f"states.{s}.dataset" for s in states))
 
@@ -213,20 +213,23 @@ def _per_carriage(spec: ModelSpec, names, theta, ci_lo, ci_hi, areas: dict) -> d
     return per_carriage
 
 
-def _polish_step(spec: ModelSpec, state: str, names: list[str], fit, surface_theta, matrices, rom, edge_matrices):
-    """The FE polish of the surface optimum ``surface_theta`` (N/m^3; and its repeats on
-    mesh-extrapolated frequencies); ``fit``: a :class:`jointid.identification.polish.PolishFit`.
+def _polish_step(spec: ModelSpec, state: str, names: list[str], fit, surface_theta, matrices, rom, edges: bool):
+    """The FE polish of the surface optimum ``surface_theta`` (N/m^3; with ``edges`` its repeats on
+    frequencies extrapolated over the mesh with one and two more edge levels, each built in this job
+    when its turn comes); ``fit``: a :class:`jointid.identification.polish.PolishFit`.
 
     The 95 % intervals: :func:`jointid.identification.polish.polish_intervals`.
     Returns ``(theta, ci95_low, ci95_high, frequencies fitted, polish, edge record)``.
     """
+    from jointid.fe.model import edge_level_builders
     from jointid.identification.polish import extrapolated_polish, polish_intervals, polish_optimum
 
     surface_theta = np.asarray(surface_theta, float)
     polish = polish_optimum(spec, names, matrices, surface_theta, fit, rom=rom)
     edge = None
-    if edge_matrices:
-        edge, polish = extrapolated_polish(spec, state, names, matrices, edge_matrices, polish, fit, rom=rom)
+    if edges:
+        builders = edge_level_builders(spec, progress=lambda m: log(f"identify[{state}]: {m}"))
+        edge, polish = extrapolated_polish(spec, state, names, matrices, builders, polish, fit, rom=rom)
     if polish.get("certificate"):
         log(f"identify[{state}]: optimum's {polish['certificate'].describe()}")
     theta = polish["theta"]
@@ -283,7 +286,7 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
 
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
                  matrices: str | None = None, rom: str | None = None, states: list[str] | None = None,
-                 edge_matrices: list[str] | None = None, summary_json: str | None = None) -> None:
+                 summary_json: str | None = None) -> None:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Identify one state's joint parameters: multistart on the surfaces, then the polish.
 
@@ -294,8 +297,8 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     modes with the same tracked modes in every state (:func:`jointid.identification.updating.identify_states_jointly`)
     and the polish follows those modes by shape; ``independent`` (default) pairs each state by its
     own frequencies and re-pairs at every polish iterate.  Either way the notes name competing pairings
-    and the other rule's choice.  With ``edge_matrices`` (``mesh.extrapolate_edges``: the models with one
-    and two more edge levels) the polish is repeated on mesh-extrapolated frequencies (:mod:`jointid.fe.extrapolate`)
+    and the other rule's choice.  With ``mesh.extrapolate_edges`` (the mesh with one and two more edge
+    levels, built in this job) the polish is repeated on mesh-extrapolated frequencies (:mod:`jointid.fe.extrapolate`)
     until their factors settle (:func:`jointid.identification.polish.extrapolated_polish`).  ``summary_json``:
     the model summary of rule ``mesh`` (default: ``summary.json`` beside ``points_csv``), for the per-carriage values.
     """
@@ -330,14 +333,14 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     if zoom:  # an edge of the zoomed box is no bound of the parameters: the FE polish may pass it
         msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in names)]
     theta, ci_lo, ci_hi = np.asarray(res.theta, float), res.ci_lower, res.ci_upper
-    f_final, polish, edge = res.f_model, None, None
-    if edge_matrices and not (matrices and ic.get("fe_polish", True)):
+    f_final, polish, edge, edges = res.f_model, None, None, bool((cfg.get("mesh") or {}).get("extrapolate_edges"))
+    if edges and not (matrices and ic.get("fe_polish", True)):
         msgs.append("mesh.extrapolate_edges needs identify.fe_polish: the frequencies fitted are those of the "
                     "base mesh")
     if matrices and cfg["identify"].get("fe_polish", True):
         fit = _polish_fit(cfg, doc, pairing, f_meas, sigma_pct, weights, shapes is None and fixed is None, vis_rule)
         theta, ci_lo, ci_hi, f_final, polish, edge = _polish_step(
-            ModelSpec.from_config(cfg), state, doc["names"], fit, res.theta, matrices, rom, edge_matrices)
+            ModelSpec.from_config(cfg), state, doc["names"], fit, res.theta, matrices, rom, edges)
         msgs += _polish_notes(polish, shapes)
     if zoom:
         msgs += _zoom_notes(names, theta, lower, upper, polish, res)

@@ -20,11 +20,12 @@ CONFIG = ("materials", "rig", "model", "mesh", "mesh_check", "joints", "identify
 """Config keys of rule ``mesh_check``."""
 
 
-def _default_mesh(spec, theta_d, names, theta, matrices, edge_matrices, say):
+def _default_mesh(spec, theta_d, names, theta, matrices, edge_models, say):
     """Solve of the default mesh at the identified parameters (``spec``: the model's
     :class:`~jointid.config.typed.ModelSpec`).
 
-    Returns ``(frequencies (Hz; extrapolated with edge_matrices), its own frequencies, shapes,
+    Returns ``(frequencies (Hz; extrapolated over ``edge_models``: the mesh with one and two more
+    edge levels, or functions that build them), its own frequencies, shapes,
     d ln f / d log10 theta of every mode, number of DOFs)``.
     """
     from jointid.fe.model import joint_terms, load_model
@@ -37,9 +38,9 @@ def _default_mesh(spec, theta_d, names, theta, matrices, edge_matrices, say):
     terms = [{t: 1.0 for t in jt[n]} for n in names]
     J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
     f_c = modes_c.freqs_Hz
-    if edge_matrices:
+    if edge_models:
         say("default mesh: extrapolated over its edge levels")
-        f_c = edge_limit_at(spec, [coarse, *(partial(load_model, p) for p in edge_matrices)], theta_d, log=say,
+        f_c = edge_limit_at(spec, [coarse, *edge_models], theta_d, log=say,
                             base=(modes_c.freqs_Hz, shapes_c)).limit_Hz
     return f_c, modes_c.freqs_Hz, shapes_c, J_all, coarse.n_dofs
 
@@ -60,10 +61,11 @@ def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
 
 
 def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
-                   out_json: str, out_csv: str, log=print, edge_matrices: list[str] | None = None) -> dict:
+                   out_json: str, out_csv: str, log=print) -> dict:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
-    """Rule ``mesh_check`` for one state's identified parameters (see the module doc);
-    ``edge_matrices``: the default mesh with one and two more edge levels (``mesh.extrapolate_edges``).
+    """Rule ``mesh_check`` for one state's identified parameters (see the module doc); with
+    ``mesh_check.edge_levels`` and ``mesh.extrapolate_edges`` both meshes are extrapolated over one and
+    two more edge levels (built in this job).
 
     Writes every mode of the default mesh beside the refined mesh's (``out_csv``,
     :func:`jointid.identification.meshcheck.mode_table`) and the parameters' first-order change
@@ -72,6 +74,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     import pandas as pd
 
     from jointid.correlate.pairing import pair_by_shapes
+    from jointid.fe.model import edge_level_builders
     from jointid.identification.meshcheck import error_budget, first_order_shift, mode_table, parameter_changes
 
     mc_cfg = cfg["mesh_check"]
@@ -83,13 +86,13 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     theta_d = dict(zip(names, theta))
     say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
     # mesh_check.edge_levels: both meshes extrapolated over their edge levels; else both at their base level
-    edge_matrices = edge_matrices if mc_cfg.get("edge_levels", False) else None
-    say("default mesh at the identified parameters")
     spec = ModelSpec.from_config(cfg)
-    f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(spec, theta_d, names, theta, matrices, edge_matrices,
-                                                             say)
+    edges = bool(mc_cfg.get("edge_levels", False) and cfg["mesh"].get("extrapolate_edges", False))
+    say("default mesh at the identified parameters")
+    f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(
+        spec, theta_d, names, theta, matrices, edge_level_builders(spec, progress=say) if edges else [], say)
     say(f"the mesh with {', '.join(halve)} cells halved")
-    f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(spec, theta_d, halve, bool(edge_matrices), say)
+    f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(spec, theta_d, halve, edges, say)
     index, macs = pair_by_shapes(shapes_c, shapes_f, threshold=0.8)
     fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
     use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
@@ -108,13 +111,13 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
                         "MAC >= 0.8 on the refined mesh; left out of the estimate")
     params, notes = parameter_changes(par, delta, limit)
     warnings += notes
-    raw = None if not edge_matrices else {"default_mesh_Hz": f_c_mesh, "refined_mesh_Hz": f_f_mesh}
+    raw = None if not edges else {"default_mesh_Hz": f_c_mesh, "refined_mesh_Hz": f_f_mesh}
     table = mode_table(f_c, f_f, index, macs, fe_mode, raw)
     io.write_csv(table, out_csv)
     change = np.full(len(fe_mode), np.nan)
     change[use] = 100 * np.expm1(dlnf)
     budget = error_budget(change, par, float(mc_cfg.get("budget_fraction", 1 / 3)))
-    doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": bool(edge_matrices),
+    doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": edges,
            "budget": budget,
            "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
            "parameters": params, "max_parameter_change_pct": limit, "warnings": warnings,

@@ -1,4 +1,4 @@
-"""Rules ``mesh`` and ``mesh_edges``: build and cache the FE model of the rig.
+"""Rule ``mesh``: build and cache the FE model of the rig.
 
 Imports of the numerical modules are inside the functions: every workflow job is a fresh Python
 process and loads only what its stage uses, and the Snakefile reads :func:`config_keys` at parse
@@ -19,31 +19,25 @@ def input_files(config: dict) -> list[str]:
 
 
 def config_keys(config: dict) -> tuple[str, ...]:
-    """Config keys of rules ``mesh`` and ``mesh_edges``: the mesh, not whether identify and verify
-    extrapolate over its edge levels (``mesh.extrapolate_edges``)."""
+    """Config keys of rule ``mesh``: the mesh, not whether identify and verify extrapolate over its
+    edge levels (``mesh.extrapolate_edges``)."""
     if (config.get("model") or {}).get("kind") == "mesh":
         return ("materials", "model")
     return ("materials", "rig", "model", *(f"mesh.{k}" for k in config["mesh"] if k != "extrapolate_edges"))
 
 
-def run_mesh(cfg: dict, matrices: str, points_csv: str | None = None, vtu: str | None = None,
-             extra_edge_levels: int = 0, summary_json: str | None = None) -> None:
+def run_mesh(cfg: dict, matrices: str, points_csv: str, vtu: str | None = None,
+             summary_json: str | None = None) -> None:
     """Build and cache the model matrices, the measuring-point table, the model summary
     (:func:`model_summary`; ``summary_json``, by default ``summary.json`` beside ``points_csv``) and a
-    VTK file of the mesh; ``extra_edge_levels``: the matrices alone of the mesh with that many more
-    edge levels."""
+    VTK file of the mesh."""
     import pandas as pd
 
     from jointid.config.typed import ModelSpec
-    from jointid.fe.modal import model_ordering
-    from jointid.fe.model import build_model, save_model
+    from jointid.fe.model import edge_level_model, save_model
 
-    model = build_model(ModelSpec.from_config(cfg).with_edge_levels(extra_edge_levels), progress=log)
-    model.ordering = model_ordering(model)  # the pattern, so its ordering, is the same at any shift
+    model = edge_level_model(ModelSpec.from_config(cfg), 0, progress=log)  # with its ordering
     save_model(model, matrices)
-    if points_csv is None:
-        log(f"mesh: wrote {matrices} ({model.n_dofs} DOFs)")
-        return
     pts = pd.DataFrame(model.meta["points"])
     io.write_csv(pts, points_csv)
     io.write_json(summary_json or str(points_csv).replace("measuring_points.csv", "summary.json"),
