@@ -1,0 +1,74 @@
+"""The run model's shared reduced basis (rule diagnosis_basis, jointid.stages.basis; issue 39: one
+basis built once, used by the hypotheses and the diagnosis).
+
+A hypothesis on the run's model started from the shared basis must give the fit it gives when its
+reduced solver is built afresh: parameters to 1e-4 relative and AICc to 0.01 (issue 39 asks 1e-4 and
+0.1).  The answers are certified in the full space either way; what differs is where the least-squares
+search stops (chi-square 2e-6 relative apart on the coarse rig), so chi-square is held to 1e-5.  A basis of another model is not taken: the job
+starts afresh and says so.
+"""
+
+import numpy as np
+import pytest
+
+from conftest import coarse_config_dict
+from jointid.config import load_config
+from jointid.config.typed import ModelSpec
+from jointid.fe.model import build_model, save_model
+from jointid.stages.basis import run_basis
+from jointid.stages.hypotheses import run_hypothesis
+
+HYPOTHESIS = {"description": "3 kg more on each motor (a coefficient of the run's model)",
+              "overrides": {"rig": {"motors": {"mass_each_kg": 6.0}}}}
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory):
+    raw = coarse_config_dict()
+    raw["hypotheses"] = {"heavy": HYPOTHESIS}
+    cfg = load_config(raw)
+    tmp = tmp_path_factory.mktemp("basis")
+    matrices = tmp / "matrices.npz"
+    save_model(build_model(ModelSpec.from_config(cfg)), matrices)
+    basis = tmp / "diagnosis_basis.npz"
+    lines = []
+    run_basis(cfg, str(matrices), str(basis), log=lines.append)
+    return cfg, tmp, matrices, basis, lines
+
+
+def _fit(case, basis, name):
+    cfg, tmp, matrices, _, _ = case
+    lines = []
+    rec = run_hypothesis(cfg, "heavy", str(matrices), str(tmp / f"{name}.json"), basis=basis, log=lines.append)
+    return rec, lines
+
+
+def test_a_hypothesis_from_the_shared_basis_fits_as_from_its_own(case):
+    _, _, _, basis, built = case
+    assert any("diagnosis basis:" in m and "vectors" in m for m in built), built
+    shared, lines = _fit(case, str(basis), "shared")
+    assert any("of the shared basis" in m for m in lines), lines
+    fresh, lines_fresh = _fit(case, None, "fresh")
+    assert not any("shared basis" in m for m in lines_fresh)
+    theta = {p["parameter"]: p["value"] for p in shared["parameters"]}
+    theta_f = {p["parameter"]: p["value"] for p in fresh["parameters"]}
+    worst = max(abs(theta[k] / theta_f[k] - 1) for k in theta_f)
+    print(f"shared basis against a fresh solver: chi2 {shared['chi2']:.9g} / {fresh['chi2']:.9g}, "
+          f"parameters {worst:.1e} (relative)")
+    assert shared["chi2"] == pytest.approx(fresh["chi2"], rel=1e-5)
+    assert worst <= 1e-4
+    assert shared["aicc"] == pytest.approx(fresh["aicc"], abs=0.01)
+
+
+def test_a_basis_of_another_model_is_not_taken(case, tmp_path):
+    cfg, _, _, basis, _ = case
+    raw = coarse_config_dict()
+    raw["hypotheses"] = {"heavy": HYPOTHESIS}
+    raw["mesh"] = {**raw.get("mesh", {}), "max_cell_size_m": 0.10}
+    other = load_config(raw)
+    matrices = tmp_path / "other.npz"
+    save_model(build_model(ModelSpec.from_config(other)), matrices)
+    lines = []
+    rec = run_hypothesis(other, "heavy", str(matrices), str(tmp_path / "h.json"), basis=str(basis), log=lines.append)
+    assert any("kept for another model: starting afresh" in m for m in lines), lines
+    assert np.isfinite(rec["chi2"])
