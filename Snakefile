@@ -64,10 +64,13 @@ EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
 # Scheduling on few cores: the chain to Tables 1-3 (mesh -> DOE -> surfaces -> identify -> verify ->
 # harmonic -> tables) goes first whenever one of its jobs is ready, so the tables land as early as the
-# chain allows; the diagnosis (the longest job off that chain) next; the hypotheses fill the rest.
+# chain allows; the diagnosis (the longest job off that chain) next; then the hypotheses, so that their
+# ranking (one job after all of them) runs beside the mesh checks and carriage tests, which fill the
+# rest, instead of alone at the end.
 # Priorities only order ready jobs: the results are the same, and a run of one target is unaffected.
 PRIORITY_TABLES = 20
 PRIORITY_DIAGNOSIS = 10
+PRIORITY_HYPOTHESES = 5
 
 
 localrules: all, doe, gather_modal, tables, doe_zoom, gather_zoom

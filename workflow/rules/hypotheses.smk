@@ -41,6 +41,7 @@ if HYPOTHESES:
             "logs/hypotheses/{name}.log",
         benchmark:
             "benchmarks/out/hypotheses/{name}.tsv"
+        priority: PRIORITY_HYPOTHESES
         threads: 1
         resources:
             mem_mb=4500,
@@ -61,6 +62,7 @@ if HYPOTHESES:
             cfg=sections(config, *hyp_stage.RANKING_CONFIG),
         log:
             "logs/hypotheses/ranking.log",
+        priority: PRIORITY_HYPOTHESES
         threads: 1
         script:
             "../scripts/rank_hypotheses.py"

@@ -90,28 +90,24 @@ class Kept:
         return out
 
 
-def save(path: str | Path, solver, system, fits: dict | None = None, products: tuple[str, ...] = ("KV",),
-         start_only: bool = False) -> None:
+def save(path: str | Path, solver, system, fits: dict | None = None, products: tuple[str, ...] = ("KV",)) -> None:
     """Keep the first :data:`MAX_SAVED` columns of ``solver``'s basis with their reduced matrices, its
     Sturm counts, the records of the fits made (``fits``) and the model's fingerprint; written to a
     temporary file and renamed, so a reader never sees half a file.  ``products``: which of the
     solver's products with the basis to keep (``"KV"``: ``K0 V``, ``"MV"``: ``M0 V``; a reader forms
-    the others).  ``start_only``: the basis alone, in single precision, as a start that a reader
-    orthonormalises and projects itself (half the file again; no reduced matrices, counts or checks,
-    which belong to the exact columns)."""
+    the others)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     r = min(solver.V.shape[1], MAX_SAVED)
-    arrays = {"V": np.asfortranarray(solver.V[:, :r], dtype=np.float32 if start_only else float),
-              "fingerprint": np.array(fingerprint(system)),
-              "mc_ref": np.array(json.dumps({} if start_only else solver.mc_ref, sort_keys=True)),
-              "sturm": np.array(json.dumps({} if start_only else solver.sturm_counts, sort_keys=True)),
+    arrays = {"V": np.asfortranarray(solver.V[:, :r]), "fingerprint": np.array(fingerprint(system)),
+              "mc_ref": np.array(json.dumps(solver.mc_ref, sort_keys=True)),
+              "sturm": np.array(json.dumps(solver.sturm_counts, sort_keys=True)),
               "fits": np.array(json.dumps(fits or {})),
-              "certified": np.array(json.dumps({} if start_only else certified_entries(solver, r), sort_keys=True))}
+              "certified": np.array(json.dumps(certified_entries(solver, r), sort_keys=True))}
     iu = np.triu_indices(r)
     for group, red in (("K", solver.Kr), ("M", solver.Mr)):  # symmetric: the upper triangle, row by row
-        arrays.update({f"{group}r:{name}": A[:r, :r][iu] for name, A in red.items() if not start_only})
-    if solver.basis.KV is not None and not start_only:  # the products as the solver holds them (the same bits)
+        arrays.update({f"{group}r:{name}": A[:r, :r][iu] for name, A in red.items()})
+    if solver.basis.KV is not None:  # the products as the solver holds them (the same bits it would form)
         held = {"KV": solver.basis.KV, "MV": solver.basis.MV}
         arrays.update({k: held[k][:, :r] for k in products})
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
@@ -155,7 +151,7 @@ def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
         with np.load(path) as f:
             if str(f["fingerprint"]) != fingerprint(system):
                 return None, f"{path}: kept for another model: starting afresh"
-            V = f["V"].astype(float, copy=False)
+            V = f["V"]
             red = {g: {k.split(":", 1)[1]: _square(f[k]) for k in f.files if k.startswith(g + "r:")} for g in "KM"}
             extra = {k: json.loads(str(f[k])) if k in f.files else {} for k in ("sturm", "fits", "certified")}
             sturm = {k: [(float(a), int(c)) for a, c in v] for k, v in extra["sturm"].items()}
