@@ -281,6 +281,20 @@ def release_model_pages(model) -> int:
     return release_mapped([A.data for A in terms if hasattr(A, "data")])  # a model without terms: nothing
 
 
+def release_heap() -> None:
+    """Collect garbage and return the freed heap to the system (glibc ``malloc_trim``), so that a
+    model built after another one was dropped (the edge levels, :func:`jointid.identification.polish.edge_limit_at`)
+    does not stack its peak on the first one's freed but still resident memory.  Elsewhere: collect only."""
+    import ctypes
+    import gc
+
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
+
+
 def free_dofs(n: int, fixed) -> np.ndarray:
     """The DOFs of ``range(n)`` not in ``fixed``."""
     return np.setdiff1d(np.arange(n), fixed) if fixed is not None and len(fixed) else np.arange(n)

@@ -1,3 +1,4 @@
+# over 400 lines: the solver, its basis growth and its factorisation life cycle (released for other work, made again on use) are one state
 """Rayleigh-Ritz eigen-solver on an adaptively enriched subspace of an affine FE model.
 
 ``K(c) = K0 + sum c_a K_a``, ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.fem.Model`, or the
@@ -163,12 +164,26 @@ class ReducedSolver:
         """Full mass matrix (free DOFs) at coefficients ``mc``."""
         return self.pencil.M(mc)
 
+    @property
+    def fac(self):
+        """The factorisation of ``K - sigma M`` at the last point factorised (made again there after
+        :meth:`release_factor`)."""
+        if self._fac is None:
+            self._refactor(*self._fac_at)
+        return self._fac
+
+    def release_factor(self) -> None:
+        """Free the factorisation while other work in the process needs the memory (the edge levels)."""
+        if getattr(self, "_fac", None) is not None:
+            self._fac.free()
+            self._fac = None
+
     def _refactor(self, kc, mc):
-        if getattr(self, "fac", None) is not None:
-            self.fac.free()
+        self.release_factor()
         self.n_factorizations = getattr(self, "n_factorizations", 0) + 1
+        self._fac_at = (kc, mc)
         try:
-            self.fac = factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend)
+            self._fac = factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend)
         except ModelError as exc:
             detail = getattr(exc, "detail", exc)
             raise ModelError(f"diagnosis: factorisation of K - sigma M failed ({detail}) — a stiffness "

@@ -32,7 +32,7 @@ from jointid.errors import DataError
 from jointid.fe.certificate import reduced_certificate
 from jointid.fe.describe import describe_modes
 from jointid.fe.extrapolate import FrequencyCorrection, edge_limit
-from jointid.fe.modal import solve_model
+from jointid.fe.modal import release_heap, solve_model
 from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
 from jointid.identification.rom import ROM, load_rom
@@ -366,6 +366,7 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
     todo = [k for k in range(len(models)) if not (k == 0 and base is not None)]
     work = Work([float(sizes[k]) ** SOLVE_COST_EXPONENT if sizes else 1.0 for k in todo])
     for k, model in enumerate(models):
+        release_heap() if k and callable(model) else None  # a level built here: the one before is freed first
         model = model() if callable(model) else model
         if k == 0 and base is not None:
             solves.append((base[0], base[1], model.n_dofs, *base[2:]))
@@ -382,14 +383,14 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
 
 
 def certified_base(spec: ModelSpec, names: list[str], matrices, theta: np.ndarray):
-    """The base mesh's ``(freqs_Hz, shapes, log-Jacobian)`` at ``theta`` from the reduced solver of this
-    process's polish on ``matrices`` (certified: eigenvalues within 1e-6), instead of a full solve
-    (about 6 s on the default mesh); None when no polish ran on that file."""
-    model, rs = _session_model(matrices), _SESSION.get("solver")
-    if rs is None:
+    """The base mesh's ``(freqs_Hz, shapes, log-Jacobian)`` at ``theta`` from this process's certified polish
+    solver (eigenvalues within 1e-6) instead of a full solve (6 s on the default mesh); None without one."""
+    if (rs := _SESSION.get("solver")) is None:
         return None
+    model = _session_model(matrices)
     sol = rs.solve(*base_coefficients(spec, model, dict(zip(names, map(float, theta)))), spec.solver.n_modes)
     phi, jt = rs.full_phi(sol), joint_terms(spec.joints, spec.mesh_file)
+    rs.release_factor()  # the edge levels' solves need the memory (0.3 GB); a later enrichment factorises again
     J = log_jacobian(model.stiffness, phi, sol.lam, [{t: 1.0 for t in jt[n]} for n in names], np.asarray(theta, float))
     return sol.freqs_Hz, model.probe @ phi, J
 
