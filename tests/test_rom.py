@@ -275,11 +275,11 @@ def _modal_inputs(output: str) -> list[str]:
 
 def test_dry_run_rom_rule_once_with_method_rom_and_never_with_full(tmp_path):
     """Coarse dry-runs: with solver.method: rom one rom job that every modal job takes as input;
-    with the default (full) no rom job and modal jobs exactly as before the option existed."""
+    with full no rom job and modal jobs exactly as before the option existed."""
     runs = {}
     for method in ("full", "rom"):
         wd = copy_workflow(tmp_path / method)
-        extra = [write_config(tmp_path / "rom.yaml", "solver:\n  method: rom\n")] if method == "rom" else []
+        extra = [write_config(tmp_path / f"{method}.yaml", f"solver:\n  method: {method}\n")]
         runs[method] = subprocess.Popen(snakemake_cmd("-n", "-j2", configs=extra), cwd=wd, env=workflow_env(),
                                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out = {m: p.communicate(timeout=300)[0] for m, p in runs.items()}  # the two run side by side
