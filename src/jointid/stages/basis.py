@@ -25,9 +25,9 @@ from jointid.fe.model import load_model
 from jointid.fe.modal import free_dofs
 from jointid.threads import limit_threads
 
-CONFIG = ("materials", "rig", "model", "joints", "states", "measurements", "solver", "identify", "harmonic",
-          "effects")
-"""Config sections of rule ``diagnosis_basis`` (plus ``datasets`` when a state names one)."""
+CONFIG = ("materials", "rig", "model", "joints", "states", "measurements", "solver", "identify", "harmonic")
+"""Config sections of rule ``diagnosis_basis`` (plus ``datasets`` when a state names one).  Not ``effects``:
+the basis starts at the baseline, and enabling an effect (the loop of docs/effects.md) must not build it again."""
 
 
 def measured_states(cfg: dict, system) -> list:
