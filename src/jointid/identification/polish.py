@@ -366,7 +366,8 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
     todo = [k for k in range(len(models)) if not (k == 0 and base is not None)]
     work = Work([float(sizes[k]) ** SOLVE_COST_EXPONENT if sizes else 1.0 for k in todo])
     for k, model in enumerate(models):
-        release_heap() if k and callable(model) else None  # a level built here: the one before is freed first
+        if k and callable(model):  # a level built here: the one before it is given back first
+            release_heap()
         model = model() if callable(model) else model
         if k == 0 and base is not None:
             solves.append((base[0], base[1], model.n_dofs, *base[2:]))
@@ -383,11 +384,10 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
 
 
 def certified_base(spec: ModelSpec, names: list[str], matrices, theta: np.ndarray):
-    """The base mesh's ``(freqs_Hz, shapes, log-Jacobian)`` at ``theta`` from this process's certified polish
-    solver (eigenvalues within 1e-6) instead of a full solve (6 s on the default mesh); None without one."""
-    if (rs := _SESSION.get("solver")) is None:
-        return None
-    model = _session_model(matrices)
+    """Base mesh ``(freqs_Hz, shapes, log-Jacobian)`` at ``theta`` from this process's certified polish solver."""
+    if _SESSION.get("path") != str(matrices) or (rs := _SESSION.get("solver")) is None:
+        return None  # no polish solver of this very model file in this process
+    model = _SESSION["model"]
     sol = rs.solve(*base_coefficients(spec, model, dict(zip(names, map(float, theta)))), spec.solver.n_modes)
     phi, jt = rs.full_phi(sol), joint_terms(spec.joints, spec.mesh_file)
     rs.release_factor()  # the edge levels' solves need the memory (0.3 GB); a later enrichment factorises again
