@@ -2,9 +2,12 @@
 
 ``build_model`` keeps the solids per part (``K_solid_<part>``, ``M_solid_<part>``, fe/model.py): at the
 reference materials the model is the one it was before the split (frequencies to 1e-9), a changed
-Young's modulus, density or motor mass given as coefficients of one model equals the model built
-with it, and the part terms are the parts' own elasticity and mass.
+Young's modulus, density, Poisson's ratio (the Lamé split, fe/lame.py) or motor mass given as
+coefficients of one model equals the model built with it, and the part terms are the parts' own
+elasticity and mass.
 """
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -12,6 +15,7 @@ import pytest
 from jointid.config import load_config
 from jointid.errors import ModelError
 from jointid.fe import fem
+from jointid.fe.lame import add_lame_terms
 from jointid.fe.modal import solve_modes
 from jointid.fe.model import base_coefficients, build_model, load_model, save_model, solid_coefficients
 from jointid.yamlio import deep_merge
@@ -89,11 +93,61 @@ def test_coefficients_equal_the_model_built_with_the_change(run, change):
     assert np.abs(f_affine / np.array(BEFORE_SPLIT_HZ) - 1).max() > 1e-3  # the change is seen
 
 
-def test_a_changed_poisson_ratio_is_no_coefficient(run):
+STEEL_TABLE = {"rig": {"table": {"material": "steel"}}}  # E, density and Poisson's ratio 0.33 -> 0.30
+
+
+def test_a_changed_poisson_ratio_needs_the_volumetric_term(run):
     cfg, model = run
-    steel_table = load_config(deep_merge(coarse_config_dict(), {"rig": {"table": {"material": "steel"}}}))
+    spec = ModelSpec.from_config(load_config(deep_merge(coarse_config_dict(), STEEL_TABLE)))
+    bare = dataclasses.replace(model, solids=dict(model.solids))
     with pytest.raises(ModelError, match="Poisson's ratio 0.3, the model was built with 0.33"):
-        solid_coefficients(ModelSpec.from_config(steel_table), model)
+        solid_coefficients(spec, bare)
+    assert add_lame_terms(spec, bare) == ["K_lambda_table"]
+    kc, mc = solid_coefficients(spec, bare)
+    lam, mu = fem.lame(2.06e11, 0.30)
+    lam0, mu0 = fem.lame(7.0e10, 0.33)
+    assert kc == {"K_solid_table": pytest.approx(mu / mu0 - 1), "K_lambda_table": pytest.approx(lam / lam0 - mu / mu0)}
+    assert mc == {"M_solid_table": pytest.approx(7850.0 / 2700.0 - 1)}
+
+
+def test_the_volumetric_term_is_the_parts_lambda_form(run):
+    # u = x e_x: a uniform strain eps_xx = 1, div u = 1, so u^T K_lambda u = lambda_0 V and
+    # u^T K_solid u = (lambda_0 + 2 mu_0) V over the table's volume V; a rigid translation strains nothing
+    cfg, model = run
+    spec = ModelSpec.from_config(load_config(deep_merge(coarse_config_dict(), STEEL_TABLE)))
+    m = dataclasses.replace(model, solids=dict(model.solids))
+    add_lame_terms(spec, m)
+    r = cfg["rig"]["table"]
+    volume = r["length_m"] * r["width_m"] * r["thickness_m"]
+    lam0, mu0 = fem.lame(7.0e10, 0.33)
+    u = np.zeros(m.n_dofs)
+    u[0::3] = m.doflocs[0]
+    KL, KS = m.solid_term("K_lambda_table"), m.solid_term("K_solid_table")
+    assert u @ (KL @ u) == pytest.approx(lam0 * volume, rel=1e-9)
+    assert u @ (KS @ u) == pytest.approx((lam0 + 2 * mu0) * volume, rel=1e-9)
+    ones = np.ones(m.n_dofs)
+    assert np.abs(KL @ ones).max() <= 1e-8 * abs(KL).max()
+    assert abs(KL - KL.T).max() <= 1e-12 * abs(KL).max()
+
+
+def test_a_poisson_change_as_coefficients_equals_the_model_built_with_it(run):
+    cfg, model = run
+    model = dataclasses.replace(model, solids=dict(model.solids))
+    spec2 = ModelSpec.from_config(load_config(deep_merge(coarse_config_dict(), STEEL_TABLE)))
+    add_lame_terms(spec2, model)
+    own = build_model(spec2)
+    f_affine = _freqs(model, *base_coefficients(spec2, model))
+    f_own = _freqs(own, *base_coefficients(spec2, own))
+    print(f"Lame split against the model built with it: {np.abs(f_affine / f_own - 1).max():.1e}")
+    np.testing.assert_allclose(f_affine, f_own, rtol=1e-9)
+    assert np.abs(f_affine / np.array(BEFORE_SPLIT_HZ) - 1).max() > 1e-3  # the change is seen
+
+
+def test_the_volumetric_term_needs_the_models_own_mesh(run):
+    _, model = run
+    coarser = deep_merge(coarse_config_dict(), {**STEEL_TABLE, "mesh": {"max_cell_size_m": 0.1}})
+    with pytest.raises(ModelError, match="the mesh of this configuration is not the model's"):
+        add_lame_terms(ModelSpec.from_config(load_config(coarser)), dataclasses.replace(model, solids=dict(model.solids)))
 
 
 def test_the_file_keeps_the_parts_but_the_largest(run, tmp_path):
@@ -110,12 +164,15 @@ def test_the_file_keeps_the_parts_but_the_largest(run, tmp_path):
 
 
 def test_coefficients_hold_on_a_mesh_with_hanging_nodes():
-    # mesh.edge_refine_levels: the solid terms are projected onto the free nodes like every other term
+    # mesh.edge_refine_levels: the solid terms (and the volumetric term of a Poisson change, assembled
+    # later) are projected onto the free nodes like every other term
     raw = deep_merge(coarse_config_dict(), {"mesh": {"edge_refine_levels": 1}})
-    change = {"materials": {"aluminium": {"youngs_modulus_Pa": 6.0e10, "density_kg_per_m3": 1350.0}},
+    change = {"materials": {"aluminium": {"youngs_modulus_Pa": 6.0e10, "density_kg_per_m3": 1350.0,
+                                          "poisson_ratio": 0.25}},
               "rig": {"motors": {"mass_each_kg": 1.0}}}
     model = build_model(ModelSpec.from_config(load_config(raw)))
     cfg2 = load_config(deep_merge(raw, change))
+    assert add_lame_terms(ModelSpec.from_config(cfg2), model) == ["K_lambda_table"]
     own = build_model(ModelSpec.from_config(cfg2))
     assert model.n_dofs == own.n_dofs and "K_solid_table" in model.solids
     np.testing.assert_allclose(_freqs(model, *base_coefficients(ModelSpec.from_config(cfg2), model)),

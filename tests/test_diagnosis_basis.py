@@ -1,5 +1,7 @@
 """The run model's shared reduced basis (rule diagnosis_basis, jointid.stages.basis; issue 39: one
-basis built once, used by the hypotheses and the diagnosis).
+basis built once, used by the hypotheses and the diagnosis).  The hypothesis here has a steel table
+(another modulus, density and Poisson's ratio) and heavier motors: its system has the table's solid
+terms besides the run's, and the shared basis serves it once it projects them.
 
 A hypothesis on the run's model started from the shared basis must give the fit it gives when its
 reduced solver is built afresh: parameters to 1e-4 relative and AICc to 0.01 (issue 39 asks 1e-4 and
@@ -18,8 +20,8 @@ from jointid.fe.model import build_model, save_model
 from jointid.stages.basis import run_basis
 from jointid.stages.hypotheses import run_hypothesis
 
-HYPOTHESIS = {"description": "3 kg more on each motor (a coefficient of the run's model)",
-              "overrides": {"rig": {"motors": {"mass_each_kg": 6.0}}}}
+HYPOTHESIS = {"description": "a steel table and 3 kg more on each motor (coefficients of the run's model)",
+              "overrides": {"rig": {"table": {"material": "steel"}, "motors": {"mass_each_kg": 6.0}}}}
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +49,10 @@ def test_a_hypothesis_from_the_shared_basis_fits_as_from_its_own(case):
     _, _, _, basis, built = case
     assert any("diagnosis basis:" in m and "vectors" in m for m in built), built
     shared, lines = _fit(case, str(basis), "shared")
-    assert any("of the shared basis" in m for m in lines), lines
+    assert any("of the shared basis" in m and m.endswith("projecting the terms it was not kept with: "
+                                                         "K_lambda_table, K_solid_table, M_solid_table")
+               for m in lines), lines
+    assert not shared["own_model"]
     fresh, lines_fresh = _fit(case, None, "fresh")
     assert not any("shared basis" in m for m in lines_fresh)
     theta = {p["parameter"]: p["value"] for p in shared["parameters"]}

@@ -1,7 +1,7 @@
 """Coefficient-only hypotheses on the run's model (issue 41, items 3 and 6).
 
-A hypothesis that changes only a part's Young's modulus or density, or the motor mass, is a change of
-coefficients of the run's model (``diagnosis.hypotheses.needs_own_model``, ``fe.model.solid_coefficients``):
+A hypothesis that changes only a part's material (Young's modulus, density, Poisson's ratio), or the
+motor mass, is a change of coefficients of the run's model (``diagnosis.hypotheses.needs_own_model``, ``fe.model.solid_coefficients``):
 fitted on the run's model it must give the fit it gives on a model built with the change (chi-square to
 1e-6 relative, AICc to 0.1), on the paper's data and the coarse mesh.  An attraction given by a
 hypothesis reaches its fit in place of the dataset's.
@@ -25,6 +25,8 @@ from conftest import coarse_config_dict
 LIGHT = {"overrides": {"materials": {"aluminium_light": {"youngs_modulus_Pa": 6.0e10, "poisson_ratio": 0.33,
                                                          "density_kg_per_m3": 1350.0}},
                        "rig": {"table": {"material": "aluminium_light"}, "motors": {"mass_each_kg": 1.0}}}}
+# a steel table (E, density and Poisson's ratio 0.33 -> 0.30: the Lame split) and 1 kg motors
+STEEL = {"overrides": {"rig": {"table": {"material": "steel"}, "motors": {"mass_each_kg": 1.0}}}}
 
 
 def _cfg():
@@ -40,10 +42,10 @@ def test_which_overrides_need_a_model_of_their_own():
                         {"overrides": {"materials": {"steel": {"youngs_modulus_Pa": 2.1e11}}}},
                         {"overrides": {"rig": {"rails": {"fixing_stiffness_N_per_m3": 1.0e13}}}},
                         {"overrides": {"states": {"power_on": {"em_force_N": 3000.0}}}},
-                        {"effects": {"base_support": {}}}]
-    own = [{"overrides": {"rig": {"table": {"material": "steel"}}}},  # Poisson's ratio 0.33 -> 0.30
-           {"overrides": {"materials": {"aluminium": {"poisson_ratio": 0.30}}}},
-           {"overrides": {"rig": {"table": {"thickness_m": 0.030}}}},
+                        {"effects": {"base_support": {}}},
+                        STEEL,
+                        {"overrides": {"materials": {"aluminium": {"poisson_ratio": 0.30}}}}]
+    own = [{"overrides": {"rig": {"table": {"thickness_m": 0.030}}}},
            {"overrides": {"rig": {"rails": {"spacing_m": 0.25}}}},
            {"overrides": {"rig": {"support": {"kind": "mounts"}}}},
            {"overrides": {"mesh": {"max_cell_size_m": 0.1}}}]
@@ -61,21 +63,24 @@ def run_model():
 
 def test_a_coefficient_hypothesis_fits_as_on_its_own_model(run_model):
     cfg, model = run_model
-    cfg_h = load_config(hypothesis_config(cfg, "light", LIGHT))
+    cfg_h = load_config(hypothesis_config(cfg, "steel", STEEL))
     fits = {}
     for key, m in (("run", model), ("own", build_model(ModelSpec.from_config(cfg_h)))):
         system = build_system(m, cfg_h)
         data = measured_states(cfg_h, system)
         fits[key] = (fit_hypothesis(system, cfg_h, data, log=lambda msg: None), system)
     (run, s_run), (own, s_own) = fits["run"], fits["own"]
-    assert s_run.meta["solid_coefficients"] == {"K_solid_table": pytest.approx(6.0 / 7.0 - 1),
-                                                "M_solid_table": pytest.approx(-0.5)}
-    assert s_own.meta["solid_coefficients"] == {}
-    # carried mass: half the table's 2700 kg/m^3 x 0.32 x 0.32 x 0.04 m and 3 x 1 kg of motors instead of 3 x 3 kg
+    # the run's model with the table's solid terms as terms of their own; the own model has none
+    solid = {"K_solid_table", "K_lambda_table", "M_solid_table"}
+    assert solid <= set(s_run.stiffness) | set(s_run.mass)
+    assert not solid & (set(s_own.stiffness) | set(s_own.mass))
+    assert s_run.stiffness["K0"] is model.stiffness["K0"]  # the run's K0 as it is: its shared basis serves
+    # carried mass: the table at 7850 instead of 2700 kg/m^3 x 0.32 x 0.32 x 0.04 m and 3 x 1 kg of motors
+    # instead of 3 x 3 kg
     default = build_system(model, cfg).carried_mass_kg
-    table = 2700.0 * 0.32 * 0.32 * 0.04
+    volume = 0.32 * 0.32 * 0.04
     assert s_run.carried_mass_kg == pytest.approx(s_own.carried_mass_kg, rel=1e-9)
-    assert s_run.carried_mass_kg == pytest.approx(default - table / 2 - 6.0, rel=1e-9)
+    assert s_run.carried_mass_kg == pytest.approx(default + (7850.0 - 2700.0) * volume - 6.0, rel=1e-9)
     print(f"chi2 run {run['chi2']:.9g} own {own['chi2']:.9g}, AICc run {run['aicc']:.6f} own {own['aicc']:.6f}")
     assert run["chi2"] == pytest.approx(own["chi2"], rel=1e-6)
     assert abs(run["aicc"] - own["aicc"]) < 0.1

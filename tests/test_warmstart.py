@@ -62,7 +62,21 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     # other reference masses: the basis is orthonormalised afresh, the answers stay certified
     m2 = fem.Model(stiffness=m.stiffness, mass={"M0": m.mass["M0"], "M_b": m.mass["M0"]}, fixed=m.fixed,
                    probe=m.probe, doflocs=m.doflocs, dof_part=m.dof_part)
-    assert warmstart.load(tmp_path / "s.npz", m2, 29)[0] is None  # another model: its terms differ
+    # a model with one term more (a hypothesis's part of another density): the kept basis serves it,
+    # its solver projects the new term, and the answers are those of a solver built afresh
+    kept2, why = warmstart.load(tmp_path / "s.npz", m2, 29)
+    assert kept2 is not None and why.endswith("projecting the terms it was not kept with: M_b")
+    assert kept2.certified == {} and kept2.sturm == {}  # made on the other model: not taken
+    heavier = (point[0], {"M_b": 0.2})
+    grown = _solver(m2, {"M_b": 0.2}, kept2)
+    assert set(grown.Mr) == {"M0", "M_b"} and grown.n_full_solves == 0
+    sol2, exact = grown.solve(*heavier, 4), _solver(m2, {"M_b": 0.2}).solve(*heavier, 4)
+    assert sol2.error <= grown.tol and np.allclose(sol2.freqs_Hz, exact.freqs_Hz, rtol=1e-6)
+    assert not np.allclose(sol2.freqs_Hz, ref.freqs_Hz, rtol=1e-3)  # the added mass is seen
+    # a term of the kept model changed: another model
+    m3 = fem.Model(stiffness={**m.stiffness, "K_a": 2.0 * m.stiffness["K_a"]}, mass=m2.mass, fixed=m.fixed,
+                   probe=m.probe, doflocs=m.doflocs, dof_part=m.dof_part)
+    assert "another model" in warmstart.load(tmp_path / "s.npz", m3, 29)[1]
     moved = _solver(m, {"M0": 0.1}, warmstart.load(tmp_path / "s.npz", m, 29)[0])
     sol = moved.solve(*point, 4)
     assert sol.error <= moved.tol and np.allclose(sol.freqs_Hz, ref.freqs_Hz, rtol=1e-6)

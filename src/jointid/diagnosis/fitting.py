@@ -37,7 +37,7 @@ from scipy.optimize import least_squares, linear_sum_assignment
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis.results import Evaluation, Fit
 from jointid.diagnosis.shape_residuals import ShapeTerms
-from jointid.diagnosis.terms import System, term_component
+from jointid.diagnosis.terms import System, is_solid_term, term_component
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
 from jointid.progress import stamp
@@ -329,9 +329,8 @@ class Diagnoser:
 
 
 def term_directions(system: System) -> list[tuple[dict, dict]]:
-    """Seed directions of the reduced solver: the joint layers of all carriages per direction, the
-    rail fixing, the foundation, the mounts and each added-mass layer (per-carriage detail is
-    added by the refinement when a point needs it)."""
+    """Seed directions of the reduced solver: the joint layers of all carriages per direction, the rail fixing,
+    the foundation, the mounts and each added-mass layer, not the parts' solids (:func:`is_solid_term`)."""
     groups = {}
     for name in system.stiffness:
         if "@" in name:
@@ -342,9 +341,10 @@ def term_directions(system: System) -> list[tuple[dict, dict]]:
         if name in system.stiffness:
             out.append(({name: 1.0}, {}))
     for name in system.mass:
-        if name != "M0":
+        if name != "M0" and not is_solid_term(name):
             out.append(({}, {name: 1.0}))
     return out
+
 
 
 def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:

@@ -52,8 +52,8 @@ unless it changes coefficients of the run's model only (:func:`needs_own_model`)
 COEFFICIENT_KEYS = (("rig", "motors", "mass_each_kg"), ("rig", "motors", "count"),
                     ("rig", "rails", "fixing_stiffness_N_per_m3"), ("rig", "support", "k_mount_N_per_m"))
 """Rig keys that are coefficients of the run's model (``M_motor``, ``K_railfix``, ``K_mount``);
-materials are too, through their Young's modulus and density (``K_solid_<part>``, ``M_solid_<part>``,
-:mod:`jointid.fe.model`), as long as Poisson's ratio of every part stays."""
+materials are too (``K_solid_<part>``, ``M_solid_<part>``, :mod:`jointid.fe.model`; a part of another
+Poisson's ratio adds ``K_lambda_<part>``, :mod:`jointid.fe.lame`)."""
 
 
 @dataclass(frozen=True)
@@ -107,10 +107,10 @@ def needs_own_model(hyp: dict, cfg: dict | None = None) -> bool:
     """Whether the hypothesis changes the FE model itself, not only coefficients of the run's model.
 
     With the run's configuration ``cfg``: whether its overrides change what a coefficient cannot —
-    geometry (thickness, spacing, positions), the support kind, the mesh, a mesh file, a part's
-    Poisson's ratio.  A changed Young's modulus or density of a part (``materials``, or another
-    material of the same Poisson's ratio), motor mass or count, rail-fixing or mount stiffness is a
-    coefficient change of the run's model (:func:`jointid.fe.model.base_coefficients`).  Without
+    geometry (thickness, spacing, positions), the support kind, the mesh, a mesh file.  A part's
+    material (``materials``, or another material: Young's modulus, density and Poisson's ratio, the
+    last by the Lamé split of :mod:`jointid.fe.lame`), motor mass or count, rail-fixing or mount
+    stiffness is a coefficient change of the run's model (:func:`jointid.fe.model.base_coefficients`).  Without
     ``cfg``: whether it overrides any of :data:`MODEL_SECTIONS` at all."""
     over = hyp.get("overrides") or {}
     if not any(k in MODEL_SECTIONS for k in over):
@@ -121,18 +121,16 @@ def needs_own_model(hyp: dict, cfg: dict | None = None) -> bool:
 
 
 def _model_shape(cfg: dict) -> dict:
-    """What of the model sections of ``cfg`` no coefficient can change: the sections with every
-    part's material replaced by its Poisson's ratio and :data:`COEFFICIENT_KEYS` left out (a mesh
-    file's model: the sections as they are)."""
+    """What of the model sections of ``cfg`` no coefficient can change: the sections without the
+    materials, the parts' choice of material and :data:`COEFFICIENT_KEYS` (a mesh file's model: the
+    sections as they are)."""
     shape = {k: copy.deepcopy(cfg.get(k)) for k in MODEL_SECTIONS}
     if (shape["model"] or {}).get("kind", "rig") == "mesh":
         return shape
-    materials = shape.pop("materials") or {}
+    shape.pop("materials")
     rig = shape["rig"] or {}
     for section in ("base", "rails", "carriages", "table"):
-        part = rig.get(section) or {}
-        if "material" in part:
-            part["material"] = {"poisson_ratio": (materials.get(part["material"]) or {}).get("poisson_ratio")}
+        (rig.get(section) or {}).pop("material", None)
     for sec, sub, key in COEFFICIENT_KEYS:
         ((shape.get(sec) or {}).get(sub) or {}).pop(key, None)
     return shape

@@ -11,9 +11,11 @@ The system of terms (:class:`System`)
   base support can be softened continuously; the bonded layer reproduces the clamped frequencies to
   better than 1e-4 (checked in ``tests/test_effects.py``);
 * the solids at the configuration's materials: where they differ from the model's own (a hypothesis
-  with a steel table on the run's model), ``K0`` and ``M0`` of the system are the model's with the
-  solid terms' coefficients folded in (:func:`jointid.fe.model.solid_coefficients`), so the solvers
-  see the same terms as ever; at the model's own materials they are the model's arrays themselves.
+  with a steel table on the run's model), the parts' solid terms join the system as terms of their
+  own (``K_solid_<part>``, ``M_solid_<part>``, and ``K_lambda_<part>`` for another Poisson's ratio,
+  :mod:`jointid.fe.lame`) with their coefficients (:func:`jointid.fe.model.solid_coefficients`).
+  ``K0`` and ``M0`` stay the model's, so a reduced basis of the run's model serves the system too:
+  it only projects the added terms (:func:`jointid.fe.warmstart.load`).
 
 See docs/effects.md; the effects themselves are in :mod:`jointid.diagnosis.effects`.
 """
@@ -29,6 +31,7 @@ import scipy.sparse as sp
 from jointid.errors import ModelError
 from jointid.fe.fem import Model
 from jointid.config.typed import ModelSpec
+from jointid.fe.lame import add_lame_terms
 from jointid.fe.model import (JOINT_FACES, RAIL_BONDED_N_PER_M3, base_coefficients, joint_layer_terms,
                               motor_mass_kg, solid_coefficients)
 from jointid.geometry.points import dof_labels
@@ -160,6 +163,12 @@ def term_component(name: str) -> str:
     return name.split("@")[0].rsplit("_", 1)[1]
 
 
+def is_solid_term(name: str) -> bool:
+    """Whether ``name`` is a part's solid term (``K_solid_<part>``, ``M_solid_<part>``, ``K_lambda_<part>``):
+    a constant coefficient of a configuration's materials, not a direction the fits move in."""
+    return "_solid_" in name or name.startswith("K_lambda_")
+
+
 def build_system(model: Model, cfg: dict) -> System:
     """Diagnosis system of ``model``: joint terms per carriage and the clamped support as springs.
 
@@ -176,10 +185,9 @@ def build_system(model: Model, cfg: dict) -> System:
     d2 = ((loc[:, None, :] - xz[None, :, :]) ** 2).sum(axis=2)
     owner = np.repeat(np.argmin(d2, axis=1), 3)
     spec = ModelSpec.from_config(cfg)
+    add_lame_terms(spec, model)  # a part of another Poisson's ratio: its volumetric term
     ks, ms = solid_coefficients(spec, model)  # the configuration's materials against the model's
-    K0 = model.K(ks) if ks else model.stiffness["K0"]
-    M0 = model.M(ms) if ms else model.mass["M0"]
-    stiffness = {"K0": K0}
+    stiffness = {"K0": model.stiffness["K0"]}
     layers = joint_layer_terms(model)
     for name, A in model.stiffness.items():
         if name in layers:
@@ -191,13 +199,14 @@ def build_system(model: Model, cfg: dict) -> System:
     fixed = np.asarray(model.fixed, dtype=np.int64)
     if support == "clamped":
         fixed = np.array([], dtype=np.int64)  # bonded foundation layer instead (see module doc)
+    stiffness.update({name: model.solid_term(name) for name in ks})
     pts = pd.DataFrame(model.meta["points"])
-    mass = {**model.mass, "M0": M0}
+    mass = {**model.mass, **{name: model.solid_term(name) for name in ms}}
     motors = None if spec.is_mesh_file else motor_mass_kg(spec.rig)
+    M0 = model.M(ms) if ms else model.mass["M0"]  # at the configuration's densities
     return System(stiffness=stiffness, mass=mass, fixed=fixed, probe=model.probe,
                   labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model, M0, motors),
-                  support=support, model=model, meta={"points": pts, "solid_coefficients": {**ks, **ms}},
-                  layers=layers)
+                  support=support, model=model, meta={"points": pts}, layers=layers)
 
 
 def baseline_coefficients(system: System, spec: ModelSpec, theta: dict | None = None) -> tuple[dict, dict]:
@@ -208,12 +217,8 @@ def baseline_coefficients(system: System, spec: ModelSpec, theta: dict | None = 
     bonded foundation layer.  Returns ``(kc, mc)`` for :meth:`System.K` / :meth:`System.M`.
     """
     kc0, mc = base_coefficients(spec, system.model, theta)
-    folded = system.meta.get("solid_coefficients") or {}  # in the system's K0 and M0 already
-    mc = {name: v for name, v in mc.items() if name not in folded}
     kc = {}
     for name, v in kc0.items():
-        if name in folded:
-            continue
         if name in system.layers:
             for c in range(system.n_carriages):
                 kc[f"{name}@{c}"] = float(v)

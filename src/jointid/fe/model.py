@@ -25,8 +25,9 @@ carry them), the solids per part of :data:`jointid.geometry.rig.PART_IDS`: ``K_s
     K = K0 + sum_b c_b K_solid_b + ...  = sum_b (E_b / E_b,ref) K_solid_b + sum_i theta_i K_i
     M = M0 + sum_b m_b M_solid_b + ...  = sum_b (rho_b / rho_b,ref) M_solid_b + sum_a m_a M_a
 
-Poisson's ratio of each part is fixed at its reference (then K_solid_b scales linearly with E_b); a
-change of it needs a model of its own.  The largest part (``meta['solids']['complement']``, the base)
+At each part's reference Poisson's ratio K_solid_b scales linearly with E_b; another Poisson's ratio
+adds the part's volumetric term ``K_lambda_b`` (the Lamé split, :mod:`jointid.fe.lame`, assembled
+when a configuration asks for it, not kept in the file).  The largest part (``meta['solids']['complement']``, the base)
 is not stored: it is ``K0`` minus the other parts, formed when asked (:meth:`Model.solid_term`), so
 the model file grows by the smaller parts only (about a quarter of ``K0`` and ``M0``), and ``K0`` and
 ``M0`` stay the mapped, shared arrays they were.  :func:`jointid.fe.solids.solid_coefficients` gives

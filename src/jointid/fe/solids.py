@@ -56,8 +56,11 @@ def solid_coefficients(spec: ModelSpec, model: fem.Model) -> tuple[dict[str, flo
     """Coefficients of the solid terms at the rig's materials of ``spec``: ``K_solid_<part>``:
     ``E / E_ref - 1`` and ``M_solid_<part>``: ``rho / rho_ref - 1``, the reference being the material
     the model was built with (``model.meta['solids']``); only the non-zero ones (none at the
-    reference).  :class:`ModelError` on a changed Poisson's ratio (the model is affine in E and rho
-    only).  A model without solid terms (a mesh file's, or one written before them) gives none."""
+    reference).  A part of another Poisson's ratio takes the Lamé split of :mod:`jointid.fe.lame`
+    (``K_solid_<part>``: ``mu / mu_ref - 1``, ``K_lambda_<part>``: ``lambda / lambda_ref - mu / mu_ref``)
+    when the model holds its volumetric term (:func:`jointid.fe.lame.add_lame_terms`), else
+    :class:`ModelError`.  A model without solid terms (a mesh file's, or one written before them)
+    gives none."""
     kc: dict[str, float] = {}
     mc: dict[str, float] = {}
     if spec.is_mesh_file:
@@ -69,11 +72,17 @@ def solid_coefficients(spec: ModelSpec, model: fem.Model) -> tuple[dict[str, flo
         name = spec.rig.part_materials[part]
         m = spec.materials[name]
         r = parts[part]
-        if float(m.poisson_ratio) != r["poisson_ratio"]:
-            raise ModelError(f"rig.{section}.material: {name} has Poisson's ratio {m.poisson_ratio:g}, the "
-                             f"model was built with {r['poisson_ratio']:g} ({r['material']}) — the model is affine "
-                             "in Young's modulus and density only; build a model of this configuration")
         c = float(m.youngs_modulus_Pa) / r["youngs_modulus_Pa"] - 1.0
+        if float(m.poisson_ratio) != r["poisson_ratio"]:
+            if f"K_lambda_{part}" not in model.solids:
+                raise ModelError(f"rig.{section}.material: {name} has Poisson's ratio {m.poisson_ratio:g}, the "
+                                 f"model was built with {r['poisson_ratio']:g} ({r['material']}) — its volumetric "
+                                 "term is not assembled (jointid.fe.lame.add_lame_terms), or build a model of "
+                                 "this configuration")
+            lam, mu = fem.lame(float(m.youngs_modulus_Pa), float(m.poisson_ratio))
+            lam0, mu0 = fem.lame(r["youngs_modulus_Pa"], r["poisson_ratio"])
+            c = mu / mu0 - 1.0
+            kc[f"K_lambda_{part}"] = lam / lam0 - mu / mu0
         d = float(m.density_kg_per_m3) / r["density_kg_per_m3"] - 1.0
         if c != 0.0:
             kc[f"K_solid_{part}"] = c

@@ -40,19 +40,23 @@ MAX_SAVED = 600
 """Most basis vectors kept (the first ones; beyond it a solver would soon restart anyway)."""
 
 
-def fingerprint(system) -> str:
-    """Short hash of a model's terms (names, sizes, a stride of their entries) and fixed DOFs."""
+def fingerprint(system) -> dict[str, str]:
+    """Short hashes of a model: ``"#dofs"`` of its size and fixed DOFs, and one per term (its name,
+    size and a stride of its entries).  A basis kept for one model serves another that has the same
+    size, fixed DOFs and terms plus more (:func:`load`)."""
     h = hashlib.sha256(f"{system.n_dofs}".encode())
     h.update(np.ascontiguousarray(system.fixed, dtype=np.int64).tobytes())
+    out = {"#dofs": h.hexdigest()[:20]}
     for group in (system.stiffness, system.mass):
         for name in sorted(group):
             A = group[name].tocsr()
             step = max(1, A.nnz // 4096)
-            h.update(name.encode())
+            h = hashlib.sha256(name.encode())
             h.update(np.array([A.nnz, *A.shape], dtype=np.int64).tobytes())
             h.update(np.ascontiguousarray(A.data[::step], dtype=np.float64).tobytes())
             h.update(np.ascontiguousarray(A.indices[::step], dtype=np.int64).tobytes())
-    return h.hexdigest()[:20]
+            out[name] = h.hexdigest()[:20]
+    return out
 
 
 @dataclass
@@ -99,7 +103,7 @@ def save(path: str | Path, solver, system, fits: dict | None = None, products: t
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     r = min(solver.V.shape[1], MAX_SAVED)
-    arrays = {"V": np.asfortranarray(solver.V[:, :r]), "fingerprint": np.array(fingerprint(system)),
+    arrays = {"V": np.asfortranarray(solver.V[:, :r]), "terms": np.array(json.dumps(fingerprint(system), sort_keys=True)),
               "mc_ref": np.array(json.dumps(solver.mc_ref, sort_keys=True)),
               "sturm": np.array(json.dumps(solver.sturm_counts, sort_keys=True)),
               "fits": np.array(json.dumps(fits or {})),
@@ -143,17 +147,27 @@ def _square(a: np.ndarray) -> np.ndarray:
 
 def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
     """The basis kept for ``system`` at ``path`` and a line saying what was found: ``(None, why)`` when
-    there is none, it belongs to another model or it cannot be read."""
+    there is none, it belongs to another model or it cannot be read.
+
+    A basis kept for a model whose terms ``system`` has too, unchanged, serves ``system`` even when it
+    has more terms (a hypothesis's part of another material on the run's model): the solver projects
+    those on the basis when it starts (:meth:`jointid.fe.reduced.ReducedSolver._start_from`).  The
+    fit records and certificates are then left out: they were made on the other model."""
     path = Path(path)
     if not path.exists():
         return None, "no subspace kept from an earlier run: starting afresh"
     try:
         with np.load(path) as f:
-            if str(f["fingerprint"]) != fingerprint(system):
+            if "terms" not in f.files:
+                return None, f"{path}: kept by an earlier version: starting afresh"
+            kept_terms, here = json.loads(str(f["terms"])), fingerprint(system)
+            if any(here.get(name) != h for name, h in kept_terms.items()):
                 return None, f"{path}: kept for another model: starting afresh"
+            added = sorted(set(here) - set(kept_terms))
             V = f["V"]
             red = {g: {k.split(":", 1)[1]: _square(f[k]) for k in f.files if k.startswith(g + "r:")} for g in "KM"}
-            extra = {k: json.loads(str(f[k])) if k in f.files else {} for k in ("sturm", "fits", "certified")}
+            extra = {k: json.loads(str(f[k])) if k in f.files and not added else {}
+                     for k in ("sturm", "fits", "certified")}
             sturm = {k: [(float(a), int(c)) for a, c in v] for k, v in extra["sturm"].items()}
             kept = Kept(V, red["K"], red["M"], json.loads(str(f["mc_ref"])), sturm, extra["fits"], extra["certified"])
             kept.KV, kept.MV = (f[k] if k in f.files and f[k].shape == V.shape else None for k in ("KV", "MV"))
@@ -163,4 +177,5 @@ def load(path: str | Path, system, n_free: int) -> tuple[Kept | None, str]:
     if V.ndim != 2 or V.shape[0] != n_free or not np.isfinite(V).all() or \
             any(A.shape != (r, r) for red in (kept.Kr, kept.Mr) for A in red.values()):
         return None, f"{path}: not a basis of this model's {n_free} free DOFs: starting afresh"
-    return kept, f"starting from the {r} vectors kept from the last run ({path})"
+    more = f"; projecting the terms it was not kept with: {', '.join(added)}" if added else ""
+    return kept, f"starting from the {r} vectors kept from the last run ({path}){more}"

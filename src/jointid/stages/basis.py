@@ -7,8 +7,9 @@ This rule builds it once, as the diagnosis would at its first step, and keeps it
 :func:`jointid.fe.warmstart.save`.  A job that starts from it enriches it where its own questions
 lead, and every answer is still certified in the full space (a residual check at each point, a
 Sturm count at each reported optimum), so the answers are the same to the solver tolerance (1e-6
-relative in each eigenvalue).  A job whose model differs (another geometry, other model terms: the
-file's fingerprint) starts afresh and says so.
+relative in each eigenvalue).  A hypothesis with another material of a part has the run's terms plus
+that part's solid terms: it projects those on the basis and goes on from it.  A job whose model differs
+(another geometry, a changed term: :func:`jointid.fe.warmstart.fingerprint`) starts afresh and says so.
 """
 
 from __future__ import annotations

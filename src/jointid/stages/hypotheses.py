@@ -43,9 +43,9 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
 
     The hypothesis's configuration is validated like config.yaml (its problems name the
     hypothesis).  It reuses the run's model (``matrices``) unless it changes the model beyond its
-    coefficients (geometry, support kind, mesh, a Poisson's ratio:
-    :func:`~jointid.diagnosis.hypotheses.needs_own_model`); then it builds its own.  A material's
-    Young's modulus or density, the motor mass and the like are coefficients of the run's model.
+    coefficients (geometry, support kind, mesh: :func:`~jointid.diagnosis.hypotheses.needs_own_model`);
+    then it builds its own.  A part's material (Young's modulus, density, Poisson's ratio), the motor
+    mass and the like are coefficients of the run's model.
     An override of ``states.<state>.em_force_N`` is the hypothesis's attraction in that state and
     wins over the dataset's ``conditions.yaml`` (which otherwise gives the force).  ``basis``: the
     run model's shared reduced basis (rule ``diagnosis_basis``, :mod:`jointid.stages.basis`), the start
