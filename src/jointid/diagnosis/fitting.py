@@ -346,7 +346,6 @@ def term_directions(system: System) -> list[tuple[dict, dict]]:
     return out
 
 
-
 def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
     """Start values of a one-parameter candidate: its linearised estimate, a bracket above it
     (effects saturate, so the linearised estimate tends to be low), inside the bounds, and the
