@@ -216,7 +216,7 @@ def test_yaml_file_exponents_duplicates_and_syntax(tmp_path):
 BAD = [
     # (id, change, exact line after 'config.yaml: ')
     ("misspelt key", lambda c: c["mesh"].update(elemnt=c["mesh"].pop("element")),
-     "mesh.elemnt: unknown key — did you mean 'element'? (allowed: element, max_cell_size_m, height_cell_fraction, joint_cell_fraction, refine, edge_refine_levels, extrapolate_edges)"),
+     "mesh.elemnt: unknown key — did you mean 'element'? (allowed: element, max_cell_size_m, height_cell_fraction, joint_cell_fraction, refine, edge_refine_levels, extrapolate_edges, edge_ratio)"),
     ("negative length", lambda c: c["rig"]["base"].update(length_m=-1.1),
      "rig.base.length_m: -1.1 must be > 0 — give the base length in metres"),
     ("inverted bounds", lambda c: c["joints"]["parameters"]["k_normal_N_per_m3"].update(lower=2e12, upper=1e11),

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jointid.fe.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit
+from jointid.fe.extrapolate import FrequencyCorrection, aitken, aitken_weights, edge_limit, geometric_limit
 from jointid.identification.polish import corrected as _corrected
 from jointid.identification.polish import log_jacobian
 from test_localrefine import _cantilever_freqs
@@ -36,6 +36,35 @@ def test_aitken_refuses_sequences_outside_the_asymptotic_range():
         warnings.simplefilter("error")
         w = aitken_weights(np.array([1.0, 0.5, np.nan]), np.array(["not asymptotic", "extrapolated", "converged"]))
     np.testing.assert_allclose(w, [[0, 0, 1], [1, -4, 4], [0, 0, 1]])
+
+
+@settings(max_examples=100, deadline=None)
+@given(limit=st.floats(50.0, 5000.0), drop=st.floats(1e-4, 0.05), r=st.floats(0.05, 0.79))
+def test_a_given_ratio_recovers_the_limit_from_two_meshes(limit, drop, r):
+    f0, f1 = (limit * (1 + drop * r**k) for k in range(2))
+    lim, ratio, status = geometric_limit(np.array([f0]), np.array([f1]), r)
+    assert status[0] == "extrapolated" and ratio[0] == r
+    assert lim[0] == pytest.approx(limit, rel=1e-9)
+
+
+def test_a_given_ratio_refuses_a_rising_mode_and_its_weights_are_the_derivatives():
+    f0, f1 = np.array([100.0, 100.0, 100.0]), np.array([99.0, 100.5, 100.0 - 1e-9])
+    lim, ratio, status = geometric_limit(f0, f1, 0.45)
+    assert list(status) == ["extrapolated", "not asymptotic", "converged"]
+    assert lim[0] == pytest.approx(99.0 - 0.45 / 0.55) and lim[1] == 100.5 and lim[2] == f1[2]
+    w = aitken_weights(ratio, status, n_levels=2)
+    h = 1e-6  # the weights are d lim / d (f0, f1): central differences of the limit
+    num = [(geometric_limit(f0 + h * (k == 0), f1 + h * (k == 1), 0.45)[0][0]
+            - geometric_limit(f0 - h * (k == 0), f1 - h * (k == 1), 0.45)[0][0]) / (2 * h) for k in range(2)]
+    np.testing.assert_allclose(w[0], num, rtol=1e-6)
+    np.testing.assert_allclose(w[1:], [[0, 1], [0, 1]])
+    # edge_limit on two meshes with the ratio given: the same limits, and two meshes without one refused
+    rng = np.random.default_rng(5)
+    s = _shapes(rng, 12, 3)
+    solves = [(f0, s, 100), (f1, s, 200)]
+    np.testing.assert_allclose(edge_limit(solves, ratio=0.45).limit_Hz, lim)
+    with pytest.raises(ValueError, match="needs 3 meshes, got 2"):
+        edge_limit(solves)
 
 
 def _shapes(rng, n_labels, n_modes):

@@ -109,6 +109,13 @@ class MeshOptions:
     refine: int = 1
     edge_refine_levels: int = 0
     extrapolate_edges: bool = False
+    edge_ratio: float | None = None
+
+    @property
+    def edge_extra_levels(self) -> tuple[int, ...]:
+        """The edge levels beyond this mesh that the extrapolation solves: one with a given
+        ``edge_ratio``, two (Aitken, the ratio estimated per mode) without."""
+        return (1,) if self.edge_ratio else (1, 2)
 
     @classmethod
     def from_section(cls, section: Mapping) -> MeshOptions:

@@ -119,10 +119,12 @@ def edge_level_model(spec: ModelSpec, extra: int, progress=None):
     return model
 
 
-def edge_level_builders(spec: ModelSpec, levels=(1, 2), progress=None) -> list:
+def edge_level_builders(spec: ModelSpec, levels=None, progress=None) -> list:
     """Functions that each build the model with one of ``levels`` more edge levels
-    (:func:`edge_level_model`), called when its turn comes, so that only one is held at a time."""
-    return [partial(edge_level_model, spec, k, progress) for k in levels]
+    (:func:`edge_level_model`; default: those the extrapolation solves,
+    :attr:`jointid.config.typed.MeshOptions.edge_extra_levels`), called when its turn comes, so that
+    only one is held at a time."""
+    return [partial(edge_level_model, spec, k, progress) for k in (levels or spec.mesh.edge_extra_levels)]
 
 
 def build_model(spec: ModelSpec, *, refine: int | None = None, halve: tuple[str, ...] = (), rig=None,

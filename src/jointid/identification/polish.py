@@ -351,7 +351,7 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
                   sensitivities: bool = False, sizes: list[int] | None = None):
     """:class:`jointid.fe.extrapolate.EdgeLimit` of the modes of ``models[0]`` at ``theta`` (N/m^3);
     ``spec``: the model's description (coefficients, solver options; the same for every mesh); ``models``:
-    the base mesh and the meshes with one and two more edge levels (a few more modes are solved on
+    the base mesh and the meshes with one (two) more edge levels (a few more modes are solved on
     those, so that the highest base modes find their partner), each a model or a function that
     builds one (built when its turn comes and dropped after its solve); ``base``: the base mesh's
     ``(freqs_Hz, shapes)`` at ``theta`` when already solved (with ``sensitivities``: ``(freqs_Hz,
@@ -380,7 +380,7 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
         if log:
             log(f"edge level +{k}: {model.n_dofs} DOFs solved {work.done()}")
         del model
-    return edge_limit(solves)
+    return edge_limit(solves, ratio=spec.mesh.edge_ratio)
 
 
 def certified_base(spec: ModelSpec, names: list[str], matrices, theta: np.ndarray):

@@ -46,14 +46,14 @@ def _default_mesh(spec, theta_d, names, theta, matrices, edge_models, say):
 
 
 def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
-    """Solve of the mesh with the ``halve`` cells halved (and its two more edge levels with
+    """Solve of the mesh with the ``halve`` cells halved (and its edge levels with
     ``extrapolate``); returns ``(frequencies, its own frequencies, shapes, number of DOFs)``."""
     from jointid.fe.model import build_model
     from jointid.identification.polish import edge_limit_at, solve_point
 
-    if extrapolate:  # and with one and two more edge levels, each built in turn
+    if extrapolate:  # and with the edge levels the extrapolation solves, each built in turn
         lim_f = edge_limit_at(spec, [partial(build_model, spec.with_edge_levels(k), halve=halve, progress=say)
-                                    for k in range(3)], theta_d, log=say)
+                                    for k in (0, *spec.mesh.edge_extra_levels)], theta_d, log=say)
         return lim_f.limit_Hz, lim_f.levels_Hz[0], lim_f.shapes, lim_f.n_dofs[0]
     fine = build_model(spec, halve=halve, progress=say)
     _, shapes_f, _, modes_f = solve_point(spec, fine, theta_d, describe=False)

@@ -19,11 +19,12 @@ def input_files(config: dict) -> list[str]:
 
 
 def config_keys(config: dict) -> tuple[str, ...]:
-    """Config keys of rule ``mesh``: the mesh, not whether identify and verify extrapolate over its
-    edge levels (``mesh.extrapolate_edges``)."""
+    """Config keys of rule ``mesh``: the mesh, not whether and how identify extrapolates over its
+    edge levels (``mesh.extrapolate_edges``, ``mesh.edge_ratio``)."""
     if (config.get("model") or {}).get("kind") == "mesh":
         return ("materials", "model")
-    return ("materials", "rig", "model", *(f"mesh.{k}" for k in config["mesh"] if k != "extrapolate_edges"))
+    return ("materials", "rig", "model",
+            *(f"mesh.{k}" for k in config["mesh"] if k not in ("extrapolate_edges", "edge_ratio")))
 
 
 def run_mesh(cfg: dict, matrices: str, points_csv: str, vtu: str | None = None,
