@@ -389,7 +389,7 @@ def test_overrides_dotted_nested_and_strings(default):
     with pytest.raises(ConfigError) as info:
         load_config(CONFIG, overrides=["mesh.refin=2"])
     assert info.value.problems == [
-        f"{CONFIG}: mesh.refin: unknown key — did you mean 'refine'? (allowed: element, max_cell_size_m, height_cell_fraction, joint_cell_fraction, refine, edge_refine_levels, extrapolate_edges)"
+        f"{CONFIG}: mesh.refin: unknown key — did you mean 'refine'? (allowed: element, max_cell_size_m, height_cell_fraction, joint_cell_fraction, refine, edge_refine_levels, extrapolate_edges, edge_ratio)"
     ]
 
 
