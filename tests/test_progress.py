@@ -34,13 +34,14 @@ def test_edge_levels_report_the_time_left_weighted_by_their_size(monkeypatch):
 
     lines = []
     monkeypatch.setattr(polish, "solve_point", lambda spec, model, theta, n_modes, describe: (None, None, None, None))
-    monkeypatch.setattr(polish, "edge_limit", lambda solves: solves)
+    monkeypatch.setattr(polish, "edge_limit", lambda solves, ratio=None: solves)
 
     class Model:
         def __init__(self, n):
             self.n_dofs, self.stiffness = n, {}
 
-    spec = SimpleNamespace(joints=None, mesh_file=None, solver=SimpleNamespace(n_modes=4))
+    spec = SimpleNamespace(joints=None, mesh_file=None, solver=SimpleNamespace(n_modes=4),
+                           mesh=SimpleNamespace(edge_ratio=None))
     monkeypatch.setattr(polish, "joint_terms", lambda joints, mesh_file: {})
     polish.edge_limit_at(spec, [Model(100), Model(200), Model(300)], {}, log=lines.append, base=("f", "s"),
                          sizes=[100, 200, 300])
