@@ -109,7 +109,7 @@ class MeshOptions:
     refine: int = 1
     edge_refine_levels: int = 0
     extrapolate_edges: bool = False
-    edge_ratio: float | None = None
+    edge_ratio: float | None = 0.45
 
     @property
     def edge_extra_levels(self) -> tuple[int, ...]:
