@@ -64,9 +64,10 @@ EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
 # Scheduling on few cores: the chain to Tables 1-3 (mesh -> DOE -> surfaces -> identify -> verify ->
 # harmonic -> tables) goes first whenever one of its jobs is ready, so the tables land as early as the
-# chain allows; the diagnosis (the longest job off that chain) next; then the hypotheses, so that their
-# ranking (one job after all of them) runs beside the mesh checks and carriage tests, which fill the
-# rest, instead of alone at the end.
+# chain allows; the diagnosis (the longest job off that chain) and the mesh checks next; then the
+# hypotheses, longest first (rules/hypotheses.smk), so that the run ends on short jobs; the carriage
+# tests (priority 0) fill the core beside the hypotheses' ranking (one job after all of them) instead
+# of leaving it idle at the end.
 # Priorities only order ready jobs: the results are the same, and a run of one target is unaffected.
 PRIORITY_TABLES = 20
 PRIORITY_DIAGNOSIS = 10

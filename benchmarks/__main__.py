@@ -29,7 +29,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report", action="store_true",
                     help="print the table from the saved results in benchmarks/out (run nothing)")
     ap.add_argument("--compare", metavar="COMMIT",
-                    help="(c) also run the workflow of COMMIT (its own code) and give the ratio old / new")
+                    help="(c) also run the workflow of COMMIT (its own code), then this one again, and give the "
+                         "ratio old / new (new: the mean of the runs before and after the old)")
     ap.add_argument("--blas-threads", type=int, default=1,
                     help="OPENBLAS/OMP threads per worker process (0 = library default; default 1)")
     a = ap.parse_args(argv)

@@ -24,6 +24,16 @@ def _hypothesis_basis(wc):
     return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
 
 
+def _hypothesis_priority(wildcards, input):
+    """Longest job first among the hypotheses (the list schedule on few cores ends with short jobs):
+    one that builds its own model, or fits an effect's parameters (a basis grown for them), starts
+    before one that only changes coefficients.  Stays below the diagnosis's priority."""
+    from jointid.diagnosis.hypotheses import needs_own_model
+
+    hyp = config["hypotheses"][wildcards.name]
+    return PRIORITY_HYPOTHESES + int(needs_own_model(hyp, config)) + int(bool(hyp.get("effects")))
+
+
 if HYPOTHESES:
 
     rule hypothesis:
@@ -41,7 +51,7 @@ if HYPOTHESES:
             "logs/hypotheses/{name}.log",
         benchmark:
             "benchmarks/out/hypotheses/{name}.tsv"
-        priority: PRIORITY_HYPOTHESES
+        priority: _hypothesis_priority
         threads: 1
         resources:
             mem_mb=4500,
