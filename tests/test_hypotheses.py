@@ -76,6 +76,22 @@ def test_an_unknown_effect_of_a_hypothesis_is_named_before_any_job():
     assert check_hypotheses(cfg) == ["ok", "soft"]
 
 
+def test_cost_rank_puts_own_models_and_fitted_effects_first():
+    """The scheduling rank of rule ``hypothesis``: a coefficient change 0, a fitted effect or an own
+    model (another geometry) 1, both 2."""
+    from jointid.stages.hypotheses import cost_rank
+
+    cfg = load_config(coarse_config_dict())
+    thick = cfg["rig"]["table"]["thickness_m"] * 0.75
+    cfg["hypotheses"] = {"steel": {"overrides": {"rig": {"table": {"material": "steel"}}}},
+                         "soft": {"effects": {"base_support": {}}},
+                         "thin": {"overrides": {"rig": {"table": {"thickness_m": thick}}}},
+                         "thin_soft": {"overrides": {"rig": {"table": {"thickness_m": thick}}},
+                                       "effects": {"base_support": {}}},
+                         "plain": None}
+    assert [cost_rank(cfg, n) for n in ("steel", "soft", "thin", "thin_soft", "plain")] == [0, 1, 1, 2, 0]
+
+
 def test_linked_law_from_config():
     law = LinkedLaw.from_config({"linked": {"preload_classes_N": [0, 700.0], "directions": ["y"]}})
     assert law.preload_classes_N == (0.0, 700.0) and law.directions == ("y",)

@@ -25,13 +25,9 @@ def _hypothesis_basis(wc):
 
 
 def _hypothesis_priority(wildcards, input):
-    """Longest job first among the hypotheses (the list schedule on few cores ends with short jobs):
-    one that builds its own model, or fits an effect's parameters (a basis grown for them), starts
-    before one that only changes coefficients.  Stays below the diagnosis's priority."""
-    from jointid.diagnosis.hypotheses import needs_own_model
-
-    hyp = config["hypotheses"][wildcards.name]
-    return PRIORITY_HYPOTHESES + int(needs_own_model(hyp, config)) + int(bool(hyp.get("effects")))
+    """Longest job first among the hypotheses (:func:`jointid.stages.hypotheses.cost_rank`), below the
+    diagnosis's priority."""
+    return PRIORITY_HYPOTHESES + hyp_stage.cost_rank(config, wildcards.name)
 
 
 if HYPOTHESES:

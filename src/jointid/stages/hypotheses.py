@@ -212,6 +212,15 @@ def check_hypotheses(cfg: dict) -> list[str]:
     return names
 
 
+def cost_rank(cfg: dict, name: str) -> int:
+    """0, 1 or 2: how much work hypothesis ``name`` makes beyond a coefficient change of the run's
+    model (one for building its own model, one for fitting an effect's parameters, which grows the
+    shared basis).  Rule ``hypothesis`` adds it to its priority, so that on few cores the longer jobs
+    start first and the run ends on short ones."""
+    hyp = cfg["hypotheses"][name] or {}
+    return int(needs_own_model(hyp, cfg)) + int(bool(hyp.get("effects")))
+
+
 def hypothesis_names(cfg: dict) -> list[str]:
     """The configured hypotheses, in config order (an entry set to null in a later config file is
     switched off)."""
