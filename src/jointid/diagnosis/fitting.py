@@ -194,7 +194,7 @@ class Diagnoser:
         """
         x = np.asarray(x, float)
         sols = self.solve_states(variant, x, refine=refine)
-        r, J, rows, new_index, fmod, mis = [], [], [], [], [], []
+        r, J, rows, new_index, fmod, mis, sig, kn = [], [], [], [], [], [], [], []
         for si, (d, sol) in enumerate(zip(self.data, sols)):
             idx = np.array(index[si])
             if track is not None and track[si] is not None:
@@ -211,9 +211,13 @@ class Diagnoser:
             bad = np.flatnonzero(idx < 0)
             f = sol.freqs_Hz[idx[ok]]
             fm = d.f_meas[ok]
-            r.append(np.log(f / fm) / d.sigma_rel)
-            r.append(np.full(len(bad), np.log1p(UNPAIRED_ERROR) / d.sigma_rel))
-            r.append(np.log(sol.freqs_Hz[cols] / tgt) / d.sigma_rel)
+            near = d.nearest_mode(tgt)  # a misfit row takes the uncertainty of the measured mode it is held to
+            s_row = np.concatenate([d.mode_sigma()[ok], d.mode_sigma()[bad], d.mode_sigma()[near]])
+            sig.append(s_row)
+            kn.append(np.concatenate([d.mode_known()[ok], d.mode_known()[bad], d.mode_known()[near]]))
+            e_row = np.concatenate([np.log(f / fm), np.full(len(bad), np.log1p(UNPAIRED_ERROR)),
+                                    np.log(sol.freqs_Hz[cols] / tgt)])
+            r.append(e_row / s_row)
             fm_all = np.full(len(d.f_meas), np.nan)
             fm_all[ok] = f
             fmod.append(fm_all)
@@ -226,10 +230,12 @@ class Diagnoser:
             at = np.concatenate([np.arange(len(ok)), len(ok) + len(bad) + np.arange(len(cols))]).astype(int)
             for j, (dkc, dmc) in enumerate(dc):
                 dlam = self.solver.sensitivity(sub, dkc, dmc)
-                Jb[at, j] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
-            J.append(Jb)
+                Jb[at, j] = dlam / (2 * np.maximum(sub.lam, 1e-9))
+            J.append(Jb / s_row[:, None])
             rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad] + [(si, 0)] * len(cols)
-        ev = Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis)
+        known = np.concatenate(kn)
+        ev = Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis,
+                        sigma=np.concatenate(sig), known=known if known.any() else None)
         return self.shapes.extend(ev, self.solver, [variant.dcoefficients(x, d.info) for d in self.data])
 
     def _follow(self, sol: Solution, ref_Y: np.ndarray, idx: np.ndarray) -> np.ndarray:

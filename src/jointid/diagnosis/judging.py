@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointid.diagnosis.results import Fit, chi2_at, frequency_rows
-from jointid.identification.model_error import ModelError, akaike_weights, estimate, qaicc, support_text
+from jointid.diagnosis.results import Fit, block_error, chi2_at
+from jointid.identification.model_error import ModelError, akaike_weights, qaicc, support_text
 
 __all__ = ["SUPPORTED", "fit_label", "judge_fits", "model_error_of", "qaicc_of", "supported"]
 
@@ -32,11 +32,17 @@ def fit_label(label: str) -> str:
     return "the refit with " + " + ".join(label[1:].split("+"))
 
 
+def lack_of_fit(f: Fit) -> float:
+    """The sum over the blocks of chi-square per degree of freedom (one block: ``chi2 / dof``)."""
+    return sum(c / d for _, c, d in f.block_chi2())
+
+
 def model_error_of(fits: dict, data) -> ModelError:
-    """The model error of the diagnosis, from its fit of least chi-square per degree of freedom."""
-    label = min(fits, key=lambda k: (fits[k].chi2 / fits[k].dof, k))
+    """The model error of the diagnosis, from its fit of least lack of fit (:func:`lack_of_fit`: chi-square
+    per degree of freedom, summed over the frequency and shape blocks); each block's own error."""
+    label = min(fits, key=lambda k: (lack_of_fit(fits[k]), k))
     f = fits[label]
-    return estimate(f.ev.r[frequency_rows(f.ev)], f.row_sigma(data), f.k, reference=fit_label(label))
+    return block_error(f.ev, data, f.k, reference=fit_label(label))
 
 
 def qaicc_of(f: Fit, data, me: ModelError, n_params: int | None = None) -> float:

@@ -10,14 +10,16 @@ Produced by :class:`jointid.diagnosis.fitting.Diagnoser`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from jointid.diagnosis.statistics import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
+from jointid.identification.model_error import ModelError, estimate
 
-__all__ = ["Evaluation", "Fit", "chi2_at", "frequency_rows", "refit_row", "row_sigma", "row_weights"]
+__all__ = ["Evaluation", "Fit", "chi2_at", "frequency_rows", "refit_row", "row_known", "row_sigma", "row_weights",
+           "block_error"]
 
 
 @dataclass
@@ -33,6 +35,9 @@ class Evaluation:
     f_model: list  # per state: model frequency per measured mode (NaN unpaired)
     misfits: list = None  # per state: (model modes, nearest measured Hz, model Hz) of the unpaired visible modes
     n_scales: int = 0  # best scales of the shape rows (one per measured shape: nuisance parameters)
+    sigma: np.ndarray | None = None  # per row: its stated uncertainty (frequency rows relative, shape rows
+    # as a fraction of the mode's RMS); r = error / sigma
+    known: np.ndarray | None = None  # per row: its known error (the mesh's, relative; 0 for shape rows)
 
 
 def frequency_rows(ev: Evaluation) -> np.ndarray:
@@ -41,28 +46,58 @@ def frequency_rows(ev: Evaluation) -> np.ndarray:
     return np.array([mode >= 0 for _, mode in ev.rows], bool)
 
 
-def row_sigma(ev: Evaluation, data: list[StateData]) -> np.ndarray:
+def row_sigma(ev: Evaluation, data: list[StateData] | None = None) -> np.ndarray:
     """Stated relative frequency uncertainty of every frequency row of an evaluation (the rows of
     :func:`frequency_rows`; all rows without shape rows)."""
+    f = frequency_rows(ev)
+    if ev.sigma is not None:
+        return np.asarray(ev.sigma, float)[f]
     return np.array([data[si].sigma_rel for si, mode in ev.rows if mode >= 0], float)
 
 
-def chi2_at(ev: Evaluation, data: list[StateData], me) -> float:
-    """Chi-square at the total uncertainty of :class:`ModelError` ``me``: the frequency rows at their
-    stated noise plus the model error, the shape rows at their stated (or estimated) shape noise."""
+def row_known(ev: Evaluation) -> np.ndarray:
+    """Known error (the mesh's, relative) of every frequency row (zeros where none is known)."""
     f = frequency_rows(ev)
+    return np.zeros(int(f.sum())) if ev.known is None else np.asarray(ev.known, float)[f]
+
+
+def _shape_sigma(ev: Evaluation) -> np.ndarray:
+    f = frequency_rows(ev)
+    return np.ones(int((~f).sum())) if ev.sigma is None else np.asarray(ev.sigma, float)[~f]
+
+
+def block_error(ev: Evaluation, data: list[StateData] | None, n_params: int, *, reference: str = "") -> ModelError:
+    """The model error of one evaluation, each block on its own (:func:`estimate`): the frequency rows
+    with their known errors and ``n_params`` fitted parameters, the shape rows (if any) with one best
+    scale per measured shape.  The shape block is :attr:`ModelError.shape`."""
+    f = frequency_rows(ev)
+    me = estimate(ev.r[f], row_sigma(ev, data), n_params, known_rel=row_known(ev), reference=reference)
     if f.all():
-        return me.chi2_total(ev.r, row_sigma(ev, data))
-    rs = ev.r[~f]
-    return me.chi2_total(ev.r[f], row_sigma(ev, data)) + float(rs @ rs)
+        return me
+    shape = estimate(ev.r[~f], _shape_sigma(ev), ev.n_scales, reference=reference)
+    return replace(me, shape=shape)
 
 
-def row_weights(ev: Evaluation, data: list[StateData], me) -> np.ndarray:
+def chi2_at(ev: Evaluation, data: list[StateData], me: ModelError) -> float:
+    """Chi-square at the total uncertainty of :class:`ModelError` ``me``: the frequency rows at their
+    stated noise, known error and the model error, the shape rows at their shape noise plus the shape
+    block's model error (``me.shape``; none: their noise alone)."""
+    f = frequency_rows(ev)
+    out = me.chi2_total(ev.r[f], row_sigma(ev, data), row_known(ev))
+    if not f.all():
+        rs = ev.r[~f]
+        out += float(rs @ rs) if me.shape is None else me.shape.chi2_total(rs, _shape_sigma(ev))
+    return out
+
+
+def row_weights(ev: Evaluation, data: list[StateData], me: ModelError) -> np.ndarray:
     """Per residual row, the weight of its chi-square contribution at the total uncertainty of ``me``
-    (:meth:`ModelError.row_weights` for the frequency rows, 1 for the shape rows)."""
+    (:meth:`ModelError.row_weights` for the frequency rows, and for the shape rows with ``me.shape``)."""
     f = frequency_rows(ev)
     w = np.ones(len(ev.r))
-    w[f] = me.row_weights(row_sigma(ev, data))
+    w[f] = me.row_weights(row_sigma(ev, data), row_known(ev))
+    if not f.all() and me.shape is not None:
+        w[~f] = me.shape.row_weights(_shape_sigma(ev))
     return w
 
 
@@ -100,10 +135,32 @@ class Fit:
         """Degrees of freedom ``n - k`` (at least 1)."""
         return max(self.n - self.k, 1)
 
+    def block_chi2(self, extra_params: int = 0) -> list[tuple[str, float, int]]:
+        """Per block ``(name, chi-square at the stated noise, degrees of freedom)``: the frequency rows
+        (the fitted parameters, and ``extra_params`` profiled outside ``x``, counted off them) and, where
+        shapes are fitted, the shape rows (their best scales counted off)."""
+        f = frequency_rows(self.ev)
+        rf = self.ev.r[f]
+        out = [("frequency", float(rf @ rf), max(int(f.sum()) - self.k - extra_params, 1))]
+        if not f.all():
+            rs = self.ev.r[~f]
+            out.append(("shape", float(rs @ rs), max(int((~f).sum()) - self.ev.n_scales, 1)))
+        return out
+
+    def p_value_at(self, extra_params: int = 0) -> float:
+        """The least of the blocks' chi-square p-values at the stated noise: the fit is consistent with
+        the noise only when every block is (a block that fits well cannot hide one that does not)."""
+        return min(chi2_p_value(c, d) for _, c, d in self.block_chi2(extra_params))
+
     @property
     def p_value(self) -> float:
-        """Probability of a chi-square at least this large if the variant were true (noise only)."""
-        return chi2_p_value(self.chi2, self.dof)
+        """Probability of a chi-square at least this large if the variant were true (noise only), the
+        least over the blocks (:meth:`p_value_at`)."""
+        return self.p_value_at()
+
+    def own_error(self, extra_params: int = 0) -> ModelError:
+        """The model error this fit leaves, each block from its own moment equation (:func:`block_error`)."""
+        return block_error(self.ev, None, self.k + extra_params)
 
     @property
     def aicc(self) -> float:
@@ -117,18 +174,60 @@ class Fit:
         return np.linalg.pinv(J.T @ J)
 
     def interval_scale(self, extra_params: int = 0) -> float:
-        """``max(1, sqrt(chi2 / dof))``: how much wider than the noise alone the intervals are taken.
-        A fit worse than the measurement uncertainty misses something the noise does not cover, and
-        its local curvature then understates how far the parameters could move (in a flat valley
-        far above the noise, by the same factor).  ``extra_params`` counts parameters chosen
-        outside ``x`` (e.g. a profiled preload): they take degrees of freedom too."""
-        dof = max(self.n - self.k - extra_params, 1)
-        return max(1.0, math.sqrt(self.chi2 / dof))
+        """``max(1, sqrt(chi2 / dof))`` of the frequency rows: how much wider than the noise alone the
+        frequency rows are taken.  A fit worse than the measurement uncertainty misses something the
+        noise does not cover, and its local curvature then understates how far the parameters could
+        move (in a flat valley far above the noise, by the same factor).  ``extra_params`` counts
+        parameters chosen outside ``x`` (e.g. a profiled preload): they take degrees of freedom too."""
+        _, chi2, dof = self.block_chi2(extra_params)[0]
+        return max(1.0, math.sqrt(chi2 / dof))
 
     def scaled_covariance(self, extra_params: int = 0) -> np.ndarray:
-        """:meth:`covariance` times :meth:`interval_scale` squared: the covariance every reported
-        95 % interval of the diagnosis comes from (as the identification's and the hypotheses')."""
-        return self.covariance() * self.interval_scale(extra_params) ** 2
+        """``(J^T W J)^+``, each row weighted by its stated over its total variance (the noise, the
+        known error and the model error the fit leaves in its block, :meth:`own_error`): the covariance
+        every reported 95 % interval of the diagnosis comes from.  With one block, one noise and no
+        known error this is :meth:`covariance` times :meth:`interval_scale` squared (the identification's
+        and the hypotheses' rule); with shapes, each block is widened by its own model error."""
+        if self.one_noise():
+            return self.covariance() * self.interval_scale(extra_params) ** 2
+        w = row_weights(self.ev, None, self.own_error(extra_params))
+        J = self.ev.J * np.sqrt(w)[:, None]
+        cov = np.linalg.pinv(J.T @ J)
+        if frequency_rows(self.ev).all():
+            return cov
+        return cov * self._cluster_factor(cov, w, extra_params)
+
+    def _cluster_factor(self, cov: np.ndarray, w: np.ndarray, extra_params: int) -> float:
+        """How much wider the cluster-robust (sandwich) variances are than ``cov``, at least 1.
+
+        A model error of a mode shape is not noise: it moves all the mode's displacements together, so
+        its rows are not independent.  With every measured mode of a state a cluster (its frequency row
+        and its shape rows; a misfit row a cluster of its own), the sandwich ``cov M cov`` with
+        ``M = G/(G - p) sum_g u_g u_g^T``, ``u_g = J_g^T W_g r_g`` (Liang and Zeger 1986), allows any
+        correlation inside a mode.  The intervals take the larger of the two: the whole covariance is
+        scaled by the largest ratio of the sandwich's variance to ``cov``'s."""
+        keys = [(si, abs(m)) if m != 0 else (si, -1 - k) for k, (si, m) in enumerate(self.ev.rows)]
+        groups: dict = {}
+        for k, g in enumerate(keys):
+            groups.setdefault(g, []).append(k)
+        p = self.k + extra_params
+        G = len(groups)
+        if G <= p:
+            return 1.0
+        wr = w * self.ev.r
+        U = np.array([self.ev.J[rows].T @ wr[rows] for rows in groups.values()])
+        M = U.T @ U * G / (G - p)
+        robust = cov @ M @ cov
+        d = np.diag(cov)
+        ok = d > 0
+        return float(max(1.0, np.max(np.diag(robust)[ok] / d[ok]))) if ok.any() else 1.0
+
+    def one_noise(self) -> bool:
+        """One block (no shape rows), one stated noise and no known error."""
+        ev = self.ev
+        if not frequency_rows(ev).all() or (ev.known is not None and np.any(ev.known)):
+            return False
+        return ev.sigma is None or bool(np.all(np.asarray(ev.sigma) == ev.sigma[0]))
 
     def row_sigma(self, data: list[StateData]) -> np.ndarray:
         """Stated relative frequency uncertainty of every residual row (:func:`row_sigma`)."""
@@ -183,7 +282,7 @@ def refit_row(f: Fit, current: Fit, data: list[StateData], alpha: float, extra_p
     vals = sorted([p0.from_t(lo_t) if lo_t != 0 else p0.null, p0.from_t(hi_t)])
     summ = [s for s in f.state_summary(data) if np.isfinite(s["max_abs_error_pct"])]
     k = f.k + extra_params
-    p_value = chi2_p_value(f.chi2, max(f.n - k, 1))
+    p_value = f.p_value_at(extra_params)
     return {"delta_aicc": aicc(f.chi2, f.n, k) - current.aicc, "fit_chi2": f.chi2, "fit_p_value": p_value,
             "fit_n_data": f.n, "fit_n_params": k,
             "explains": bool(p_value >= alpha), "estimate": p0.from_t(t), "ci95_low": vals[0],

@@ -171,8 +171,11 @@ class ShapeTerms:
             return ev
         blk = self.block(solver, ev.solutions, ev.index, directions)
         rs, Js = blk.arrays()
+        eps = np.array([self.eps[si] for si, _ in blk.rows], float)
+        sigma = None if ev.sigma is None else np.concatenate([ev.sigma, eps])
+        known = None if ev.known is None else np.concatenate([ev.known, np.zeros(len(rs))])
         return replace(ev, r=np.concatenate([ev.r, rs]), J=np.vstack([ev.J, Js]), rows=list(ev.rows) + blk.rows,
-                       n_scales=blk.n_scales)
+                       n_scales=blk.n_scales, sigma=sigma, known=known)
 
     def note(self) -> list[str]:
         """One sentence for the notes of the diagnosis: the shape rows and their uncertainty (empty when

@@ -78,8 +78,10 @@ def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -
         Jb = np.zeros((len(idx) + len(mis), len(cols)))
         for k, j in enumerate(cols):
             dlam = diag.solver.sensitivity(sub, *dc[j])
-            Jb[at, k] = dlam / (2 * np.maximum(sub.lam, 1e-9)) / d.sigma_rel
+            Jb[at, k] = dlam / (2 * np.maximum(sub.lam, 1e-9))
         out.append(Jb)
+    n_f = sum(len(b) for b in out)
+    out = [np.vstack(out) / np.asarray(ev.sigma, float)[:n_f, None]] if out else out
     if diag.shapes.active:  # the shape rows follow every frequency row (jointid.diagnosis.shape_residuals)
         dirs = [[dc[j] for j in cols] for dc in (variant.dcoefficients(x, d.info) for d in diag.data)]
         out.append(diag.shapes.block(diag.solver, ev.solutions, ev.index, dirs).arrays()[1])

@@ -34,9 +34,27 @@ class StateData:
     info: StateInfo
     f_meas: np.ndarray
     shapes: np.ndarray | None
-    sigma_rel: float
+    sigma_rel: float | np.ndarray  # relative frequency uncertainty: one for all modes, or one per measured mode
     rule: object = None  # VisibilityRule of the test (None: unpaired model modes are skipped free)
     shape_sigma_rel: float | None = None  # stated shape uncertainty (shape_uncertainty_pct / 100); None: estimated
+    known_rel: np.ndarray | None = None  # known model error per measured mode (the mesh's, relative); None: none
+
+    def mode_sigma(self) -> np.ndarray:
+        """The relative frequency uncertainty of each measured mode ``(n_modes,)``."""
+        return np.broadcast_to(np.asarray(self.sigma_rel, float), self.f_meas.shape).astype(float)
+
+    def mode_known(self) -> np.ndarray:
+        """The known error of each measured mode ``(n_modes,)`` (zeros where none is known)."""
+        if self.known_rel is None:
+            return np.zeros(len(self.f_meas))
+        return np.asarray(self.known_rel, float)
+
+    def nearest_mode(self, freqs_Hz) -> np.ndarray:
+        """The measured mode nearest to each frequency (index, for the rows of unpaired model modes)."""
+        f = np.asarray(freqs_Hz, float)
+        if not len(f):
+            return np.zeros(0, int)
+        return np.abs(np.log(f[:, None] / self.f_meas[None, :])).argmin(axis=1)
 
     @property
     def pairing_shapes(self) -> np.ndarray | None:

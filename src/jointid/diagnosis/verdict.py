@@ -67,14 +67,27 @@ def _max_error(summary: list[dict]) -> float:
     return max(vals) if vals else float("nan")
 
 
+def chi2_text(fit: Fit) -> str:
+    """``chi2 = .. for .. degrees of freedom, p = ..`` per block (frequencies; shapes where fitted)."""
+    blocks = fit.block_chi2()
+    if len(blocks) == 1:
+        return f"chi2 = {fit.chi2:.1f} for {fit.dof} degrees of freedom, p = {fit.p_value:.2g}"
+    from jointid.diagnosis.statistics import chi2_p_value
+
+    return "; ".join(f"{ {'frequency': 'frequencies'}.get(name, name + 's')} chi2 = {c:.1f} for {d} degrees of freedom, p = {chi2_p_value(c, d):.2g}"
+                     for name, c, d in blocks)
+
+
 def verdict_text(f: Findings, data) -> tuple[str, str]:
-    """The verdict in words and its short form (see the module doc)."""
+    """The verdict in words and its short form (see the module doc).  Its first sentence is the
+    answer: the missing effect with its value and interval, or that the model fits within the noise,
+    or the supported effect that leaves a model error, or that nothing is supported and by what
+    factor the misfit exceeds the stated noise."""
     summ = f.current.state_summary(data)
     cur_txt = state_errors_text(summ)
     if f.current.p_value >= f.alpha:
         verdict = (f"The current model ({f.current.variant.name}) explains the data within the noise "
-                   f"(chi2 = {f.current.chi2:.1f} for {f.current.dof} degrees of freedom, "
-                   f"p = {f.current.p_value:.2g}; {cur_txt}); no effect is needed to explain them.")
+                   f"({chi2_text(f.current)}; {cur_txt}); no effect is needed to explain them.")
         if f.absorbed:
             verdict += " But " + "; and ".join(f.absorbed) + "."
         return verdict + _identifiable(f, ["current"]), "none needed"
@@ -93,7 +106,7 @@ def verdict_text(f: Findings, data) -> tuple[str, str]:
         best = combos[combos["explains"]].iloc[0]
         verdict = combination_text(best, combos, _max_error(summ), f.ranking)
         return verdict + _identifiable(f, ["+" + str(best["effects"])]), str(best["effects"])
-    verdict = unexplained_text(f.current, f.ranking, cur_txt, combos, f.max_effects)
+    verdict = lead_sentence(f) + " " + unexplained_text(f.current, f.ranking, cur_txt, combos, f.max_effects)
     verdict += partial_text(f)
     return (verdict + between_states_text(f.ranking, f.between_share)
             + _identifiable(f, ["current"]), "unexplained")
@@ -195,8 +208,34 @@ def unexplained_text(current: Fit, ranking: pd.DataFrame, cur_txt: str, combos: 
             why = f"; pairs on top would exceed diagnosis.max_effects = {max_effects} effects in one model"
     return (f"No listed effect explains the residual to the noise "
             f"({tried} tried{why}; "
-            f"{cur_txt}; chi2 = {current.chi2:.1f} for {current.dof} degrees of freedom, "
-            f"p = {current.p_value:.2g})." + part)
+            f"{cur_txt}; {chi2_text(current)})." + part)
+
+
+def lead_sentence(f: Findings) -> str:
+    """The answer when nothing brings the model to the noise: the best supported candidate with its value,
+    interval and the model error it leaves; or that nothing is supported, and the misfit against the
+    stated noise."""
+    me = f.model_error
+    judged = _judged(f)
+    sup = judged[judged["support"].isin(SUPPORTED)]
+    if not len(sup):
+        return (f"Nothing is supported: no listed effect or pair removes a part of the misfit that the data "
+                f"support, and the misfit is {np.sqrt(max(me.c_hat, 0.0)):.1f} times the stated noise of "
+                f"{100 * me.sigma_noise_rel:.2g} % per mode (chi2/dof = {me.c_hat:.1f}).")
+    b = sup.iloc[0]
+    name = str(b["name"])
+    value = ""
+    if " + " not in name and name in set(f.ranking["effect"]):
+        r = f.ranking.set_index("effect").loc[name]
+        unit = "" if r["unit"] in ("-", "") else f" {r['unit']}"
+        value = (f", {r['parameter']} = {r['estimate']:.3g}{unit} (95 % interval {r['ci95_low']:.3g} .. "
+                 f"{r['ci95_high']:.3g})")
+    elif " + " in name and len(f.combinations):
+        c = f.combinations[f.combinations["effects"].astype(str) == name.replace(" + ", "+")]
+        value = f" ({c.iloc[0]['estimates']})" if len(c) else ""
+    return (f"Supported effect: {name}{value}, {b['support']} supported (ΔQAICc {daicc(b['delta_qaicc'])}), "
+            f"removing {100 * b['removed_fraction']:.0f} % of the misfit; a model error of about "
+            f"{100 * me.sigma_model_rel:.2g} % per mode remains.")
 
 
 def _judged(f: Findings) -> pd.DataFrame:

@@ -61,6 +61,11 @@ class ModelError:
         The reference's chi-square at the stated noise and its degrees of freedom.
     sigma_known_rel : float
         Root mean square of the known part (the mesh error) over the reference's rows.
+    shape : ModelError or None
+        The model error of the mode-shape rows, a block of its own (same fields; the uncertainties are
+        fractions of each measured mode's RMS displacement).  None: no shape rows.  Each block gets its
+        own ``sigma_m`` so that many well-fitting shape rows cannot hide an understated frequency
+        noise (docs/effects.md, "Shapes in the fit").
     """
 
     sigma_model_rel: float = 0.0
@@ -70,6 +75,7 @@ class ModelError:
     chi2: float = 0.0
     dof: int = 1
     sigma_known_rel: float = 0.0
+    shape: "ModelError | None" = None
 
     @property
     def inflation(self) -> float:
@@ -104,22 +110,41 @@ class ModelError:
         return s ** 2 / self.variances(s, known_rel)
 
     def record(self) -> dict:
-        """JSON-ready summary (percentages, as reported)."""
-        return {"sigma_model_pct": 100 * self.sigma_model_rel, "sigma_noise_pct": 100 * self.sigma_noise_rel,
-                "sigma_known_pct": 100 * self.sigma_known_rel, "c_hat": self.c_hat,
-                "inflation": self.inflation, "reference": self.reference, "reference_chi2": self.chi2,
-                "reference_dof": int(self.dof)}
+        """JSON-ready summary (percentages, as reported); the shape block's under ``shape_*`` keys."""
+        out = {"sigma_model_pct": 100 * self.sigma_model_rel, "sigma_noise_pct": 100 * self.sigma_noise_rel,
+               "sigma_known_pct": 100 * self.sigma_known_rel, "c_hat": self.c_hat,
+               "inflation": self.inflation, "reference": self.reference, "reference_chi2": self.chi2,
+               "reference_dof": int(self.dof)}
+        if self.shape is not None:
+            out.update({"shape_sigma_model_pct": 100 * self.shape.sigma_model_rel,
+                        "shape_sigma_noise_pct": 100 * self.shape.sigma_noise_rel,
+                        "shape_c_hat": self.shape.c_hat, "shape_reference_dof": int(self.shape.dof)})
+        return out
 
     def sentence(self) -> str:
-        """The headline: the model's remaining error per mode against the noise."""
+        """The headline: the model's remaining error per mode against the noise (and the shapes')."""
+        noise = 100 * self.sigma_noise_rel
+        known = (f", beside a known error of {100 * self.sigma_known_rel:.2g} % (the mesh)"
+                 if self.sigma_known_rel > 0 else "")
+        if not self.above_noise:
+            txt = (f"The best model fits within the stated noise of {noise:.2g} % per mode{known} "
+                   f"(chi2/dof = {self.c_hat:.2f}); no model error is estimated.")
+        else:
+            txt = (f"The model's remaining error is about {100 * self.sigma_model_rel:.2g} % per mode, "
+                   f"{self.sigma_model_rel / self.sigma_noise_rel:.1f} times the stated measurement noise of "
+                   f"{noise:.2g} %{known} (chi2/dof = {self.c_hat:.1f} for {self.reference}; either the model "
+                   f"misses something or the noise is understated by a factor of about "
+                   f"{math.sqrt(self.c_hat):.1f}).")
+        return txt + (" " + self.shape.shape_sentence() if self.shape is not None else "")
+
+    def shape_sentence(self) -> str:
+        """The shape block's model error in one sentence (this object being the shape block)."""
         noise = 100 * self.sigma_noise_rel
         if not self.above_noise:
-            return (f"The best model fits within the stated noise of {noise:.2g} % per mode "
-                    f"(chi2/dof = {self.c_hat:.2f}); no model error is estimated.")
-        return (f"The model's remaining error is about {100 * self.sigma_model_rel:.2g} % per mode, "
-                f"{self.sigma_model_rel / self.sigma_noise_rel:.1f} times the stated measurement noise of "
-                f"{noise:.2g} % (chi2/dof = {self.c_hat:.1f} for {self.reference}; either the model misses "
-                f"something or the noise is understated by a factor of about {math.sqrt(self.c_hat):.1f}).")
+            return (f"The mode shapes fit within their noise of {noise:.2g} % of each mode's RMS "
+                    f"(chi2/dof = {self.c_hat:.2f}).")
+        return (f"The mode shapes carry a model error of about {100 * self.sigma_model_rel:.2g} % of each mode's "
+                f"RMS beside their noise of {noise:.2g} % (chi2/dof = {self.c_hat:.1f}).")
 
 
 NO_MODEL_ERROR = ModelError()
@@ -155,7 +180,9 @@ def estimate(r, sigma_rel, n_params: int, *, known_rel=None, reference: str = ""
         return float(np.sum(e2 / (base + var_m))) - dof
 
     var_m = 0.0
-    if len(r) and excess(0.0) > 0:
+    if len(r) and not k.any() and np.all(s == s[0]) and chi2 > dof:
+        var_m = float(s[0]) ** 2 * (chi2 / dof - 1.0)  # one noise, no known part: the closed form
+    elif len(r) and excess(0.0) > 0:
         hi = max(float(np.max(e2)), 1e-30)
         while excess(hi) > 0:
             hi *= 4
