@@ -374,11 +374,12 @@ def test_unexplained_verdict_says_what_was_tried_on_top_of_the_enabled_effects()
 
     lead = pd.DataFrame([{"effect": "base_support", "score": 1.0, "explained_fraction": 0.13,
                           "fit_p_value": 1e-43, "max_abs_error_pct_after": 7.29}])
-    on_top = NS(variant=NS(effects=[NS(effect=NS(name="em_preload"))]), chi2=289.3, dof=12, p_value=8e-55)
+    on_top = NS(variant=NS(effects=[NS(effect=NS(name="em_preload"))]), chi2=289.3, dof=12, p_value=8e-55,
+                block_chi2=lambda: [("frequency", 289.3, 12)])
     txt = unexplained_text(on_top, lead, "power_off max 6.64 %", pd.DataFrame(), 2)
     assert "(single effects on top of em_preload tried; pairs on top would exceed diagnosis.max_effects = 2" in txt
     pairs = pd.DataFrame([{"effects": "a+b", "max_abs_error_pct_after": 7.3, "fit_p_value": 1e-43}])
-    base = NS(variant=NS(effects=[]), chi2=543.9, dof=13, p_value=1e-100)
+    base = NS(variant=NS(effects=[]), chi2=543.9, dof=13, p_value=1e-100, block_chi2=lambda: [("frequency", 543.9, 13)])
     txt = unexplained_text(base, lead, "power_off max 11.4 %", pairs, 2)
     assert "(up to 2 effects at once tried; power_off" in txt and "on top of" not in txt
 

@@ -66,6 +66,9 @@ def test_a_understated_noise_alone_names_no_effect(rig, tmp_path):
     me = res.model_error
     # the misfit is about twice the stated noise: c_hat near 4 (dof about 18: 2.2 .. 7 holds 95 %)
     assert 2.0 < me.c_hat < 8.0, me
+    # the first sentence is the answer: nothing is supported, and by what factor the misfit exceeds the noise
+    lead = re.match(r"Nothing is supported: .* the misfit is ([0-9.]+) times the stated noise", res.verdict)
+    assert lead and float(lead.group(1)) == pytest.approx(me.c_hat ** 0.5, abs=0.051), res.verdict
     ratio = float(re.search(r"The misfit is about ([0-9.]+) times the stated noise", res.verdict).group(1))
     assert ratio == pytest.approx(me.c_hat ** 0.5, abs=0.051)
     assert "either the noise is understated by that factor" in res.verdict

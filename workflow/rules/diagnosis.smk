@@ -22,7 +22,8 @@ def _diagnosis_inputs(wc):
 
 
 def _diagnosis_cfg(wc):
-    cfg = sections(config, "materials", "rig", "model", "joints", "solver", "identify", "effects", "diagnosis", "states", "harmonic")
+    cfg = sections(config, "materials", "rig", "model", "mesh", "mesh_check", "joints", "solver", "identify", "effects",
+                   "diagnosis", "states", "harmonic")
     cfg["dataset"] = {"name": wc.dataset, **DIAG_DATASETS[wc.dataset]}
     return cfg
 

@@ -215,8 +215,9 @@ class Diagnoser:
             s_row = np.concatenate([d.mode_sigma()[ok], d.mode_sigma()[bad], d.mode_sigma()[near]])
             sig.append(s_row)
             kn.append(np.concatenate([d.mode_known()[ok], d.mode_known()[bad], d.mode_known()[near]]))
-            e_row = np.concatenate([np.log(f / fm), np.full(len(bad), np.log1p(UNPAIRED_ERROR)),
-                                    np.log(sol.freqs_Hz[cols] / tgt)])
+            c = d.mode_shift()  # the mesh's correction (jointid.diagnosis.mesh_error), zero without one
+            e_row = np.concatenate([np.log(f / fm) + c[ok], np.full(len(bad), np.log1p(UNPAIRED_ERROR)),
+                                    np.log(sol.freqs_Hz[cols] / tgt) + c[near]])
             r.append(e_row / s_row)
             fm_all = np.full(len(d.f_meas), np.nan)
             fm_all[ok] = f

@@ -35,6 +35,7 @@ import numpy as np
 
 from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
+from jointid.diagnosis.results import frequency_rows
 from jointid.diagnosis.statistics import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.errors import ConfigError
@@ -211,11 +212,15 @@ def _starts(var: Variant) -> list[np.ndarray]:
 def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile: list, *, n_choices: int) -> dict:
     """The JSON-ready record of a fitted hypothesis (see :func:`fit_hypothesis`)."""
     n_data = sum(len(d.f_meas) for d in data)
-    k = fit.k + (1 if n_choices > 1 else 0)  # the preload class chosen from the data counts
-    chi2 = fit.chi2
+    extra = 1 if n_choices > 1 else 0  # the preload class chosen from the data counts
+    k = fit.k + extra
+    blocks = fit.block_chi2(extra)  # the frequency rows, and the shape rows where shapes are fitted
+    chi2 = blocks[0][1]
     dof = max(n_data - k, 1)
     scale = max(1.0, math.sqrt(chi2 / dof))
-    cov = fit.covariance() * scale ** 2
+    # one block: the covariance at the stated noise widened by the frequency rows' lack of fit; with shape
+    # rows, each block at its own model error and the per-mode (cluster-robust) check (Fit.scaled_covariance)
+    cov = fit.covariance() * scale ** 2 if len(blocks) == 1 else fit.scaled_covariance(extra)
     params = []
     for j, label in enumerate(fit.variant.labels):
         value = fit.variant.physical(fit.x)[label]
@@ -246,7 +251,10 @@ def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile
                   for s in fit.ev.solutions if len(s.lam_all)), default=float("nan"))
     return {"chi2": chi2, "n_data": n_data, "n_params": k, "aicc": aicc(chi2, n_data, k),
             "dof": dof, "interval_scale": scale, "preload_N": preload_N, "preload_profile": profile,
-            "residuals": [float(v) for v in fit.ev.r], "residual_sigma_rel": [float(v) for v in fit.row_sigma(data)],
+            "residuals": [float(v) for v in fit.ev.r[frequency_rows(fit.ev)]],
+            "residual_sigma_rel": [float(v) for v in fit.row_sigma(data)],
+            "shape_chi2": blocks[1][1] if len(blocks) > 1 else 0.0,
+            "shape_dof": blocks[1][2] if len(blocks) > 1 else 0,
             "lowest_freq_Hz": lowest,
             "parameters": params, "states": states, "unpaired_visible": fit.unpaired_visible(data),
             "variant": fit.variant.name}

@@ -9,10 +9,11 @@ held fixed while all are judged (docs/reconstruction.md, "Hypotheses").
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from jointid.identification.model_error import ModelError, akaike_weights, estimate, qaicc
+from jointid.identification.model_error import ModelError, akaike_weights, estimate, from_chi2, qaicc
 
 __all__ = ["REJECT_ERROR_PCT", "RIGID_HZ", "hypotheses_model_error", "rank_hypotheses", "reconstruction_ranges",
            "rejection"]
@@ -59,7 +60,17 @@ def hypotheses_model_error(records: dict) -> ModelError:
         r, sig = [math.sqrt(rec["chi2"] / max(rec["n_data"], 1))] * rec["n_data"], 1.0
     else:
         sig = rec["residual_sigma_rel"]
-    return estimate(r, sig, rec["n_params"], reference=f"hypothesis {name}")
+    me = estimate(r, sig, rec["n_params"], reference=f"hypothesis {name}")
+    if rec.get("shape_dof"):  # the shape rows: a block with its own model error (in units of their noise)
+        me = replace(me, shape=from_chi2(rec["shape_chi2"], rec["shape_dof"], 1.0, reference=f"hypothesis {name}"))
+    return me
+
+
+def shape_chi2_total(rec: dict, me: ModelError) -> float:
+    """The shape rows' chi-square of a hypothesis record at their noise plus the shape block's model error."""
+    if not rec.get("shape_dof"):
+        return 0.0
+    return float(rec["shape_chi2"]) / (me.shape.inflation if me.shape is not None else 1.0)
 
 
 def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], list[dict], ModelError]:
@@ -82,7 +93,8 @@ def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], l
         if not reasons[n]:
             r = rec.get("residuals")
             chi2_m = rec["chi2"] / me.inflation if r is None else me.chi2_total(r, rec["residual_sigma_rel"])
-            q[n] = qaicc(chi2_m, rec["n_data"], rec["n_params"])
+            q[n] = qaicc(chi2_m + shape_chi2_total(rec, me), rec["n_data"] + int(rec.get("shape_dof") or 0),
+                         rec["n_params"])
     names = sorted(q, key=lambda n: (q[n], n))
     best = q[names[0]] if names else float("nan")
     w = akaike_weights([q[n] for n in names])

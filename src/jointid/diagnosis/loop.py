@@ -129,6 +129,8 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     base = Variant(system, cfg, [])
     check_enough_data(data, base)
     x0, tables = compare_reference(diag, base, reference_state, compare, notes, log)
+    if opt.get("mesh_error", True):
+        mesh_budget(diag, base, x0, notes, log)
     log("diagnosis: calibrating the baseline on all states")
     fit_base = diag.fit(base, x0, verify=not enabled)
     compare_tab, mac_mats, shape_res = tables or compare_tables(diag, base, fit_base.x)
@@ -189,6 +191,26 @@ def compare_reference(diag: Diagnoser, base: Variant, reference_state: str | Non
     log(f"diagnosis: calibrating the baseline on {ref}")
     fit_ref = sub.fit(base, x0)
     return fit_ref.x, compare_tables(diag, base, fit_ref.x)
+
+
+def mesh_budget(diag: Diagnoser, base: Variant, x0, notes: list, log) -> None:
+    """Step 1b: each measured mode's mesh correction and known error at ``x0``
+    (:mod:`jointid.diagnosis.mesh_error`), set on the diagnoser's states; a note says what was done."""
+    from jointid.config.typed import ModelSpec
+    from jointid.diagnosis.mesh_error import estimate_mesh_errors
+
+    spec = ModelSpec.from_config(diag.cfg)
+    if spec.is_mesh_file:
+        notes.append("the mesh error is not in the budget: a mesh file cannot be refined here (the model error "
+                     "sigma_m holds it)")
+        return
+    sols = diag.solve_states(base, x0)
+    index = [p.model_index for p in diag.pair(sols)]
+    halve = tuple((diag.cfg.get("mesh_check") or {}).get("halve") or ("thickness",))
+    errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
+                                  n_modes=diag.n_modes, log=log)
+    errors.apply(diag.data)
+    notes.append(errors.note(diag.data))
 
 
 def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log) -> tuple[dict, Fit, list]:

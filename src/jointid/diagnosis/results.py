@@ -42,7 +42,9 @@ class Evaluation:
 
 def frequency_rows(ev: Evaluation) -> np.ndarray:
     """Which residual rows are frequency rows (shape rows, :mod:`jointid.diagnosis.shape_residuals`,
-    carry a negative mode number): the model error weights these only."""
+    carry a negative mode number).  An evaluation without row labels has frequency rows only."""
+    if len(ev.rows) != len(ev.r):
+        return np.ones(len(ev.r), bool)
     return np.array([mode >= 0 for _, mode in ev.rows], bool)
 
 

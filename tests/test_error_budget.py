@@ -1,0 +1,116 @@
+"""The error budget of the diagnosis's fits (docs/effects.md, "Every known error counted", "Blocks"):
+frequency and shape rows judged as two blocks, each with its own model error; known errors beside the
+noise; cluster-robust intervals where shapes are fitted. Analytic references on linear models."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from jointid.diagnosis.results import Evaluation, Fit, block_error, chi2_at, row_weights
+from jointid.diagnosis.statistics import chi2_p_value
+from jointid.identification.model_error import NO_MODEL_ERROR, estimate
+
+
+def _fit(r, J, rows, sigma, known=None, n_scales=0):
+    r, J = np.asarray(r, float), np.asarray(J, float)
+    ev = Evaluation(x=np.zeros(J.shape[1]), r=r, J=J, solutions=[], index=[], rows=rows, f_model=[],
+                    n_scales=n_scales, sigma=np.asarray(sigma, float),
+                    known=None if known is None else np.asarray(known, float))
+    return Fit(variant=SimpleNamespace(n_params=J.shape[1]), ev=ev, pairings=[])
+
+
+def _two_blocks(freq_r, shape_r, s=0.01, eps=0.05):
+    """A fit with frequency rows (state 0, modes 1..) and one shape row per displacement of mode 1."""
+    nf, ns = len(freq_r), len(shape_r)
+    rows = [(0, m + 1) for m in range(nf)] + [(0, -1)] * ns
+    J = np.zeros((nf + ns, 1))
+    J[:nf, 0] = 1.0
+    return _fit(np.concatenate([freq_r, shape_r]), J, rows, [s] * nf + [eps] * ns, n_scales=1)
+
+
+def test_each_block_gets_its_own_model_error():
+    # frequencies 3x their stated noise (chi2/dof 9), shapes at their noise: the shape block cannot hide it
+    rng = np.random.default_rng(1)
+    freq = np.array([3.0, -3.0, 3.0, -3.0, 3.0, -3.0, 3.0])  # chi2 63 for 7 - 1 = 6 dof
+    shape = rng.standard_normal(400)
+    f = _two_blocks(freq, shape)
+    me = f.own_error()
+    assert me.c_hat == pytest.approx(63.0 / 6.0)
+    # sigma_m from the closed form of one noise, no known part: s sqrt(c_hat - 1)
+    assert me.sigma_model_rel == pytest.approx(0.01 * np.sqrt(63.0 / 6.0 - 1.0), rel=1e-12)
+    assert me.shape is not None and me.shape.c_hat == pytest.approx(float(shape @ shape) / 399)
+    # one chi-square over all rows would call this consistent with the noise; the blocks do not
+    all_rows = chi2_p_value(f.chi2, len(f.ev.r) - 1 - 1)
+    assert all_rows > 0.01
+    assert f.p_value == pytest.approx(chi2_p_value(63.0, 6)) and f.p_value < 1e-9
+
+
+def test_chi2_at_the_total_uncertainty_sums_the_blocks_at_their_own_errors():
+    freq = np.array([2.0, -2.0, 2.0, -2.0, 2.0])  # chi2 20 for 4 dof: c_hat 5
+    shape = np.array([1.5, -1.5] * 50)  # chi2 225 for 99 dof
+    f = _two_blocks(freq, shape)
+    me = f.own_error()
+    # at its own model error each block's chi-square equals its degrees of freedom
+    assert chi2_at(f.ev, None, me) == pytest.approx(4.0 + 99.0, rel=1e-9)
+    w = row_weights(f.ev, None, me)
+    np.testing.assert_allclose(w[:5], 1 / 5.0, rtol=1e-9)
+    np.testing.assert_allclose(w[5:], 99.0 / 225.0, rtol=1e-9)
+    # without a model error the shape rows count at their noise
+    assert chi2_at(f.ev, None, NO_MODEL_ERROR) == pytest.approx(20.0 + 225.0)
+
+
+def test_a_known_error_enters_the_moment_equation_beside_the_noise():
+    # e = 2 % on every row, noise 1 %, known 1 %: sigma_m^2 = e^2 n/(n-k) - s^2 - k^2
+    n, k = 8, 1
+    r = np.full(n, 2.0)
+    est = estimate(r, 0.01, k, known_rel=np.full(n, 0.01))
+    assert est.sigma_model_rel ** 2 == pytest.approx(0.02 ** 2 * n / (n - k) - 0.01 ** 2 - 0.01 ** 2, rel=1e-9)
+    assert est.sigma_known_rel == pytest.approx(0.01)
+    # a known error as large as the misfit leaves no model error
+    assert estimate(r, 0.01, k, known_rel=np.full(n, 0.02)).sigma_model_rel == 0.0
+
+
+def test_frequency_only_intervals_are_the_birge_rule():
+    J = np.vstack([np.eye(2) * [2.0, 0.5], np.zeros((4, 2))])
+    f = _fit([3.0, 4.0, 0, 0, 0, 0], J, [(0, m) for m in range(1, 7)], [0.01] * 6)
+    np.testing.assert_allclose(f.scaled_covariance(), np.diag([0.25, 4.0]) * 25.0 / 4.0, rtol=1e-12)
+    # with a per-row known error the rows are weighted by their total variance
+    g = _fit([3.0, 4.0, 0, 0, 0, 0], J, [(0, m) for m in range(1, 7)], [0.01] * 6, known=[0.01, 0, 0, 0, 0, 0])
+    me = g.own_error()
+    w = row_weights(g.ev, None, me)
+    Jw = J * np.sqrt(w)[:, None]
+    np.testing.assert_allclose(g.scaled_covariance(), np.linalg.inv(Jw.T @ Jw), rtol=1e-10)
+
+
+def test_correlated_shape_rows_widen_the_interval_by_the_cluster_robust_variance():
+    """One parameter moves every displacement of a mode alike.  Independent residuals: the sandwich
+    agrees with the weighted covariance (factor near 1).  The same residuals made coherent within each
+    mode (a shape model error, not noise): the sandwich is wider by about the cluster size."""
+    rng = np.random.default_rng(7)
+    n_modes, n_dof = 30, 20
+    rows, sig = [], []
+    for m in range(n_modes):
+        rows += [(0, -(m + 1))] * n_dof
+        sig += [0.05] * n_dof
+    J = np.ones((n_modes * n_dof, 1))
+    indep = rng.standard_normal(n_modes * n_dof)
+    f = _fit(indep, J, rows, sig)
+    base = np.linalg.pinv((J * np.sqrt(row_weights(f.ev, None, f.own_error()))[:, None]).T
+                          @ (J * np.sqrt(row_weights(f.ev, None, f.own_error()))[:, None]))
+    ratio_indep = float(f.scaled_covariance()[0, 0] / base[0, 0])
+    assert 1.0 <= ratio_indep < 2.0
+    coherent = np.repeat(rng.standard_normal(n_modes), n_dof)  # each mode's rows move together
+    g = _fit(coherent, J, rows, sig)
+    wg = np.sqrt(row_weights(g.ev, None, g.own_error()))[:, None]
+    base_g = np.linalg.pinv((J * wg).T @ (J * wg))
+    ratio = float(g.scaled_covariance()[0, 0] / base_g[0, 0])
+    assert ratio > 0.4 * n_dof, ratio
+
+
+def test_block_error_reports_the_three_parts():
+    f = _two_blocks(np.array([2.0, -2.0, 2.0, -2.0]), np.ones(30))
+    rec = block_error(f.ev, None, 1, reference="test").record()
+    for key in ("sigma_noise_pct", "sigma_known_pct", "sigma_model_pct", "shape_sigma_model_pct", "shape_c_hat"):
+        assert key in rec
+    assert rec["sigma_noise_pct"] == pytest.approx(1.0)
