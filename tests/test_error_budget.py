@@ -114,3 +114,27 @@ def test_block_error_reports_the_three_parts():
     for key in ("sigma_noise_pct", "sigma_known_pct", "sigma_model_pct", "shape_sigma_model_pct", "shape_c_hat"):
         assert key in rec
     assert rec["sigma_noise_pct"] == pytest.approx(1.0)
+
+
+def test_the_shape_block_counts_less_when_its_rows_move_together():
+    """Rao and Scott's first-order correction: coherent rows within each mode carry about one row's
+    evidence per mode (design effect near the cluster size); independent rows keep their count."""
+    rng = np.random.default_rng(11)
+    n_modes, n_dof = 30, 20
+    rows = [(0, m + 1) for m in range(n_modes)] + [(0, -(m + 1)) for m in range(n_modes) for _ in range(n_dof)]
+    sig = [0.01] * n_modes + [0.05] * (n_modes * n_dof)
+    J = np.ones((len(rows), 1))
+    freq = rng.standard_normal(n_modes)
+    indep = _fit(np.concatenate([freq, rng.standard_normal(n_modes * n_dof)]), J, rows, sig, n_scales=n_modes)
+    assert 0.9 <= indep.shape_design_effect() < 1.6
+    coherent = _fit(np.concatenate([freq, np.repeat(rng.standard_normal(n_modes), n_dof)]), J, rows, sig,
+                    n_scales=n_modes)
+    assert coherent.shape_design_effect() > 0.4 * n_dof
+    # and the chi-square at the total uncertainty divides the shape block by it
+    from dataclasses import replace
+    me = coherent.own_error()
+    de = coherent.shape_design_effect()
+    me2 = replace(me, shape=replace(me.shape, design_effect=de))
+    f_rows = np.arange(n_modes)
+    chi_f = me.chi2_total(coherent.ev.r[f_rows], 0.01)
+    assert chi2_at(coherent.ev, None, me2) - chi_f == pytest.approx((chi2_at(coherent.ev, None, me) - chi_f) / de)

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import replace
+
 from jointid.diagnosis.results import Fit, block_error, chi2_at
 from jointid.identification.model_error import ModelError, akaike_weights, qaicc, support_text
 
@@ -42,7 +44,10 @@ def model_error_of(fits: dict, data) -> ModelError:
     per degree of freedom, summed over the frequency and shape blocks); each block's own error."""
     label = min(fits, key=lambda k: (lack_of_fit(fits[k]), k))
     f = fits[label]
-    return block_error(f.ev, data, f.k, reference=fit_label(label))
+    me = block_error(f.ev, data, f.k, reference=fit_label(label))
+    if me.shape is not None:  # shape rows that move together within a mode count as fewer rows
+        me = replace(me, shape=replace(me.shape, design_effect=f.shape_design_effect()))
+    return me
 
 
 def qaicc_of(f: Fit, data, me: ModelError, n_params: int | None = None) -> float:

@@ -199,6 +199,39 @@ class Fit:
             return cov
         return cov * self._cluster_factor(cov, w, extra_params)
 
+    def _clusters(self) -> dict:
+        """Row numbers of each measured mode of each state (its frequency and shape rows); a misfit row
+        is a cluster of its own."""
+        groups: dict = {}
+        for k, (si, m) in enumerate(self.ev.rows):
+            groups.setdefault((si, abs(m)) if m != 0 else (si, -1 - k), []).append(k)
+        return groups
+
+    def shape_design_effect(self) -> float:
+        """How many times less evidence the shape rows carry than independent rows would: the mean, over
+        the parameters the shapes are sensitive to, of the cluster-robust (one cluster per measured mode
+        and state) over the weighted variance from the shape rows alone; at least 1 (1 without shapes)."""
+        f = frequency_rows(self.ev)
+        if f.all():
+            return 1.0
+        w = np.zeros(len(self.ev.r))
+        w[~f] = self.own_error().shape.row_weights(_shape_sigma(self.ev))
+        J = self.ev.J
+        norms = np.linalg.norm(J[~f], axis=0)
+        use = norms > 1e-6 * norms.max() if norms.max() > 0 else np.zeros(len(norms), bool)
+        groups = [g for g in self._clusters().values() if not f[g[-1]]]
+        G, p = len(groups), int(use.sum())
+        if not use.any() or G <= p:
+            return 1.0
+        Js = J[:, use] * np.sqrt(w)[:, None]
+        cov = np.linalg.pinv(Js.T @ Js)
+        wr = w * self.ev.r
+        U = np.array([J[g][:, use].T @ wr[g] for g in groups])
+        robust = cov @ (U.T @ U * G / (G - p)) @ cov
+        d = np.diag(cov)
+        ok = d > 0
+        return float(max(1.0, np.mean(np.diag(robust)[ok] / d[ok]))) if ok.any() else 1.0
+
     def _cluster_factor(self, cov: np.ndarray, w: np.ndarray, extra_params: int) -> float:
         """How much wider the cluster-robust (sandwich) variances are than ``cov``, at least 1.
 
@@ -208,10 +241,7 @@ class Fit:
         ``M = G/(G - p) sum_g u_g u_g^T``, ``u_g = J_g^T W_g r_g`` (Liang and Zeger 1986), allows any
         correlation inside a mode.  The intervals take the larger of the two: the whole covariance is
         scaled by the largest ratio of the sandwich's variance to ``cov``'s."""
-        keys = [(si, abs(m)) if m != 0 else (si, -1 - k) for k, (si, m) in enumerate(self.ev.rows)]
-        groups: dict = {}
-        for k, g in enumerate(keys):
-            groups.setdefault(g, []).append(k)
+        groups = self._clusters()
         p = self.k + extra_params
         G = len(groups)
         if G <= p:

@@ -66,6 +66,11 @@ class ModelError:
         fractions of each measured mode's RMS displacement).  None: no shape rows.  Each block gets its
         own ``sigma_m`` so that many well-fitting shape rows cannot hide an understated frequency
         noise (docs/effects.md, "Shapes in the fit").
+    design_effect : float
+        Rows that are not independent (a shape's model error moves all of the mode's displacements
+        together) carry less evidence than their number says: every total variance is multiplied by
+        this factor (>= 1), which divides their chi-square as Rao and Scott's first-order correction
+        does (J. Amer. Statist. Assoc. 76, 1981).  1 for independent rows.
     """
 
     sigma_model_rel: float = 0.0
@@ -76,13 +81,15 @@ class ModelError:
     dof: int = 1
     sigma_known_rel: float = 0.0
     shape: "ModelError | None" = None
+    design_effect: float = 1.0
 
     @property
     def inflation(self) -> float:
         """``(s^2 + k^2 + sigma_m^2) / s^2`` at the root-mean-square noise: the factor a chi-square at the
         stated noise is divided by (``max(1, c_hat)`` without a known part)."""
         s2 = self.sigma_noise_rel ** 2
-        return (s2 + self.sigma_known_rel ** 2 + self.sigma_model_rel ** 2) / s2 if s2 > 0 else 1.0
+        total = (s2 + self.sigma_known_rel ** 2 + self.sigma_model_rel ** 2) * self.design_effect
+        return total / s2 if s2 > 0 else 1.0
 
     @property
     def above_noise(self) -> bool:
@@ -90,10 +97,10 @@ class ModelError:
         return self.sigma_model_rel > 0.0
 
     def variances(self, sigma_rel, known_rel=None) -> np.ndarray:
-        """Total variance per residual row: ``s_i^2 + k_i^2 + sigma_m^2``."""
+        """Total variance per residual row: ``(s_i^2 + k_i^2 + sigma_m^2)`` times :attr:`design_effect`."""
         s = np.asarray(sigma_rel, float)
         k = np.zeros_like(s) if known_rel is None else np.asarray(known_rel, float)
-        return s ** 2 + k ** 2 + self.sigma_model_rel ** 2
+        return (s ** 2 + k ** 2 + self.sigma_model_rel ** 2) * self.design_effect
 
     def chi2_total(self, r, sigma_rel, known_rel=None) -> float:
         """Chi-square at the total uncertainty of sigma-normalised residuals ``r`` (``r_i = e_i / s_i``)."""
@@ -118,7 +125,8 @@ class ModelError:
         if self.shape is not None:
             out.update({"shape_sigma_model_pct": 100 * self.shape.sigma_model_rel,
                         "shape_sigma_noise_pct": 100 * self.shape.sigma_noise_rel,
-                        "shape_c_hat": self.shape.c_hat, "shape_reference_dof": int(self.shape.dof)})
+                        "shape_c_hat": self.shape.c_hat, "shape_reference_dof": int(self.shape.dof),
+                        "shape_design_effect": self.shape.design_effect})
         return out
 
     def sentence(self) -> str:
@@ -143,8 +151,10 @@ class ModelError:
         if not self.above_noise:
             return (f"The mode shapes fit within their noise of {noise:.2g} % of each mode's RMS "
                     f"(chi2/dof = {self.c_hat:.2f}).")
+        corr = (f"; their rows move together within a mode, so they count {self.design_effect:.1f} times less"
+                if self.design_effect > 1.0 else "")
         return (f"The mode shapes carry a model error of about {100 * self.sigma_model_rel:.2g} % of each mode's "
-                f"RMS beside their noise of {noise:.2g} % (chi2/dof = {self.c_hat:.1f}).")
+                f"RMS beside their noise of {noise:.2g} % (chi2/dof = {self.c_hat:.1f}{corr}).")
 
 
 NO_MODEL_ERROR = ModelError()
