@@ -77,6 +77,11 @@ class Diagnoser:
         self.shapes = ShapeTerms(cfg, data)  # shape rows where shapes are measured (diagnosis.shape_residuals)
         self._context = None
 
+    def context_digest(self) -> str:
+        """Digest of what every fit of this diagnoser depends on (:meth:`FitMemo.context`), at the data
+        as they are now."""
+        return self.memo.context(self.cfg, self.data, self.n_modes, self._tol, self.mac_threshold)
+
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):
         """Set up the reduced solver at ``x`` of ``variant`` (first state's coefficients) unless there is one."""
@@ -265,7 +270,7 @@ class Diagnoser:
         key = rec = None
         if self.memo is not None:
             if self._context is None:
-                self._context = self.memo.context(self.cfg, self.data, self.n_modes, self._tol, self.mac_threshold)
+                self._context = self.context_digest()
             key = self.memo.key(self._context, variant, x0, index, max_loops)
             rec = self.memo.get(key)
         if rec is not None:

@@ -124,6 +124,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     opt.update({k: v for k, v in (("n_refit", n_refit), ("alpha", alpha)) if v is not None})
     alpha = float(opt["alpha"])
     enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
+    data = list(data)  # the mesh's errors replace its states by copies (step 1b); the caller's list stays
     diag = Diagnoser(system, cfg, data, solver=solver, start_basis=start_basis, memo=memo, log=log)
     notes = []
     base = Variant(system, cfg, [])
@@ -204,11 +205,23 @@ def mesh_budget(diag: Diagnoser, base: Variant, x0, notes: list, log) -> None:
         notes.append("the mesh error is not in the budget: a mesh file cannot be refined here (the model error "
                      "sigma_m holds it)")
         return
-    sols = diag.solve_states(base, x0)
-    index = [p.model_index for p in diag.pair(sols)]
+    from jointid.diagnosis.mesh_error import MeshErrors
+
     halve = tuple((diag.cfg.get("mesh_check") or {}).get("halve") or ("thickness",))
-    errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
-                                  n_modes=diag.n_modes, log=log)
+    key = rec = None
+    if diag.memo is not None:  # asked before at the same point of the same model and data: recorded
+        key = diag.memo.value_key(diag.context_digest(), "mesh_errors", np.asarray(x0, float), list(halve))
+        rec = diag.memo.get_value(key)
+    if rec is not None:
+        errors = MeshErrors.from_json(rec)
+        log("diagnosis: the mesh error as recorded by an earlier run at the same point")
+    else:
+        sols = diag.solve_states(base, x0)
+        index = [p.model_index for p in diag.pair(sols)]
+        errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
+                                      n_modes=diag.n_modes, log=log)
+        if key is not None:
+            diag.memo.put_value(key, errors.to_json())
     errors.apply(diag.data)
     notes.append(errors.note(diag.data))
 
@@ -321,6 +334,10 @@ def combine_and_judge(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt
     ranking = ranking_frame([r[0] for r in rows])
     ranking.attrs["tie_delta_aicc"] = float(opt["tie_delta_aicc"])
     ranking.attrs["model_error"] = me
+    # the error budget every row was judged at: stated noise, known (mesh) error and model error, per mode
+    ranking["sigma_noise_pct"] = 100 * me.sigma_noise_rel
+    ranking["sigma_known_pct"] = 100 * me.sigma_known_rel
+    ranking["sigma_model_pct"] = 100 * me.sigma_model_rel
     ranking["indistinguishable_from"] = tie_groups(ranking, float(opt["tie_delta_aicc"]))
     return combination_frame(combos), ranking, me, current_weight
 

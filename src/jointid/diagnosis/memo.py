@@ -106,6 +106,7 @@ class FitMemo:
         _feed(h, {k: v for k, v in cfg.items() if k not in ("diagnosis", "dataset", "effects")})
         _feed(h, list(data))
         _feed(h, bool((cfg.get("diagnosis") or {}).get("shape_residuals", True)))  # shape rows in the fits
+        _feed(h, bool((cfg.get("diagnosis") or {}).get("mesh_error", True)))  # the mesh's correction in the fits
         _feed(h, [int(n_modes), float(tol), float(mac_threshold)])
         return h.hexdigest()
 
@@ -118,6 +119,24 @@ class FitMemo:
         _feed(h, None if index is None else [np.asarray(i, np.int64) for i in index])
         _feed(h, int(max_loops))
         return h.hexdigest()
+
+    @staticmethod
+    def value_key(context: str, name: str, *parts) -> str:
+        """Digest of a value computed once per context (e.g. the mesh errors at one parameter point)."""
+        h = hashlib.sha256(context.encode())
+        _feed(h, name)
+        for p in parts:
+            _feed(h, p)
+        return "value:" + h.hexdigest()
+
+    def get_value(self, key: str):
+        """A value recorded with :meth:`put_value` (None when there is none)."""
+        return self.records.get(key)
+
+    def put_value(self, key: str, value) -> None:
+        """Record a JSON-ready ``value`` under ``key`` (kept with the fits, :mod:`jointid.fe.warmstart`)."""
+        self.records.pop(key, None)
+        self.records[key] = value
 
     def get(self, key: str) -> dict | None:
         rec = self.records.get(key)

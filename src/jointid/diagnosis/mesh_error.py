@@ -43,10 +43,12 @@ class MeshErrors:
     n_dofs: tuple = (0, 0)  # the mesh's and the refined mesh's DOFs
     seconds: float = 0.0
 
-    def apply(self, data) -> None:
-        """Set the correction and the known error of every state of ``data`` (aligned with this)."""
-        for d, c, k in zip(data, self.shift, self.known):
-            d.mesh_shift, d.known_rel = c, k
+    def apply(self, data: list) -> None:
+        """Replace every state of the list ``data`` (aligned with this) by a copy with its correction and
+        known error (the caller's state objects are left as they were)."""
+        from dataclasses import replace
+
+        data[:] = [replace(d, mesh_shift=c, known_rel=k) for d, c, k in zip(data, self.shift, self.known)]
 
     def note(self, data) -> str:
         """One sentence for the notes of the diagnosis."""
@@ -55,6 +57,19 @@ class MeshErrors:
                 f"halved ({self.n_dofs[0]} -> {self.n_dofs[1]} DOFs, {self.seconds:.0f} s); every measured "
                 f"mode's model frequency is corrected by its change (at most {100 * worst:.2f} %) and the same "
                 f"amount is counted as a known error beside the noise (the refined mesh's own error)")
+
+    def to_json(self) -> dict:
+        """Exact JSON form (floats as hex), for :meth:`jointid.diagnosis.memo.FitMemo.put_value`."""
+        return {"halved": list(self.halved), "n_dofs": list(self.n_dofs), "seconds": float(self.seconds),
+                "shift": [[float(v).hex() for v in c] for c in self.shift],
+                "known": [[float(v).hex() for v in k] for k in self.known]}
+
+    @classmethod
+    def from_json(cls, rec: dict) -> "MeshErrors":
+        """The inverse of :meth:`to_json`."""
+        return cls(tuple(rec["halved"]), [np.array([float.fromhex(v) for v in c]) for c in rec["shift"]],
+                   [np.array([float.fromhex(v) for v in k]) for k in rec["known"]], tuple(rec["n_dofs"]),
+                   float(rec["seconds"]))
 
     def record(self, data) -> list[dict]:
         """Rows ``state, mode, mesh_correction_pct, mesh_known_error_pct`` for a table."""

@@ -218,10 +218,12 @@ def lead_sentence(f: Findings) -> str:
     me = f.model_error
     judged = _judged(f)
     sup = judged[judged["support"].isin(SUPPORTED)]
+    known = (f"; beside the mesh's known error of {100 * me.sigma_known_rel:.2g} %, a model error of about "
+             f"{100 * me.sigma_model_rel:.2g} % per mode remains" if me.sigma_known_rel > 0 else "")
     if not len(sup):
         return (f"Nothing is supported: no listed effect or pair removes a part of the misfit that the data "
                 f"support, and the misfit is {np.sqrt(max(me.c_hat, 0.0)):.1f} times the stated noise of "
-                f"{100 * me.sigma_noise_rel:.2g} % per mode (chi2/dof = {me.c_hat:.1f}).")
+                f"{100 * me.sigma_noise_rel:.2g} % per mode (chi2/dof = {me.c_hat:.1f}{known}).")
     b = sup.iloc[0]
     name = str(b["name"])
     value = ""
