@@ -45,6 +45,7 @@ from jointid.progress import stamp
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
 START_DIGITS = 3  # significant digits of a refit's start taken from a linearised estimate
 TIE_RTOL = 1e-6  # fits from several starts within this relative chi-square are one optimum (best_fit)
+EIGEN_RTOL = 1e-6  # the reduced solver's relative eigenvalue tolerance (Diagnoser's default tol): best_fit's ties
 
 
 def print_log(msg: str) -> None:
@@ -381,16 +382,31 @@ def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
     return out
 
 
+def chi2_resolution(f: Fit, eig_rtol: float = EIGEN_RTOL) -> float:
+    """How far the chi-square of ``f`` can move with the solver's accuracy alone: each frequency is
+    certified to a relative eigenvalue error ``eig_rtol``, so a frequency row moves by up to
+    ``eig_rtol / (2 sigma_i)`` and the chi-square by ``sum |r_i| eig_rtol / sigma_i`` (first order)."""
+    ev = f.ev
+    if ev.sigma is None:
+        return 0.0
+    from jointid.diagnosis.results import frequency_rows
+
+    rows = frequency_rows(ev)
+    return float(np.sum(np.abs(ev.r[rows]) * eig_rtol / np.asarray(ev.sigma, float)[rows]))
+
+
 def best_fit(fits: list[Fit]) -> Fit:
-    """The fit of least chi-square over several starts; fits within :data:`TIE_RTOL` of it are one
-    optimum reached twice, and the first start's is taken.  Each chi-square is certified to the
-    solver tolerance only, so a strict minimum would pick between such twins by round-off, and an
-    identical question in another run could be answered from the other twin."""
+    """The fit of least chi-square over several starts; fits within :data:`TIE_RTOL` of it, or within
+    what the solver's accuracy alone can move a chi-square (:func:`chi2_resolution`), are one optimum
+    reached twice, and the first start's is taken.  Each chi-square is certified to the solver
+    tolerance only, so a strict minimum would pick between such twins by round-off, and an identical
+    question in another run (on another subspace) could be answered from the other twin."""
     finite = [f for f in fits if np.isfinite(f.chi2)]
     if not finite:
         return fits[0]
     low = min(f.chi2 for f in finite)
-    return next(f for f in finite if f.chi2 <= low + TIE_RTOL * abs(low) + 1e-9)
+    return next(f for f in finite
+                if f.chi2 <= low + max(TIE_RTOL * abs(low), chi2_resolution(f)) + 1e-9)
 
 
 def rounded_start(t: float) -> float:
