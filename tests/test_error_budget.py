@@ -138,3 +138,21 @@ def test_the_shape_block_counts_less_when_its_rows_move_together():
     f_rows = np.arange(n_modes)
     chi_f = me.chi2_total(coherent.ev.r[f_rows], 0.01)
     assert chi2_at(coherent.ev, None, me2) - chi_f == pytest.approx((chi2_at(coherent.ev, None, me) - chi_f) / de)
+
+
+def test_twins_within_the_solver_accuracy_are_one_optimum():
+    """Two starts whose chi-squares differ by less than the eigenvalue tolerance can move them are one
+    optimum: the first start's is taken, whichever is lower by round-off."""
+    from jointid.diagnosis.fitting import EIGEN_RTOL, best_fit, chi2_resolution
+
+    n = 16
+    rows = [(0, m + 1) for m in range(n)]
+    J = np.ones((n, 1))
+    r = np.full(n, np.sqrt(14.094 / n))
+    a = _fit(r * np.sqrt(14.094003 / 14.094), J, rows, [0.002] * n)
+    b = _fit(r * np.sqrt(14.0939423 / 14.094), J, rows, [0.002] * n)
+    # sum |r_i| eig_rtol / sigma_i: 16 rows of |r| 0.94 at sigma 0.2 % move chi2 by about 7.5e-3
+    assert chi2_resolution(a) == pytest.approx(np.sum(np.abs(a.ev.r)) * EIGEN_RTOL / 0.002)
+    assert best_fit([a, b]) is a and best_fit([b, a]) is b
+    far = _fit(r * np.sqrt(14.2 / 14.094), J, rows, [0.002] * n)
+    assert best_fit([far, b]) is b

@@ -386,8 +386,8 @@ def chi2_resolution(f: Fit, eig_rtol: float = EIGEN_RTOL) -> float:
     """How far the chi-square of ``f`` can move with the solver's accuracy alone: each frequency is
     certified to a relative eigenvalue error ``eig_rtol``, so a frequency row moves by up to
     ``eig_rtol / (2 sigma_i)`` and the chi-square by ``sum |r_i| eig_rtol / sigma_i`` (first order)."""
-    ev = f.ev
-    if ev.sigma is None:
+    ev = getattr(f, "ev", None)
+    if ev is None or ev.sigma is None:
         return 0.0
     from jointid.diagnosis.results import frequency_rows
 
