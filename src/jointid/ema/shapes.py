@@ -51,14 +51,11 @@ def mpc(u) -> float:
 
 def _matrix(rows: pd.DataFrame, values: np.ndarray):
     """``(dofs, refs, M)``: ``values`` per row as a DOF x reference matrix (NaN where not measured)."""
-    dofs = list(dict.fromkeys(zip(rows["point"], rows["direction"])))
-    refs = list(dict.fromkeys(zip(rows["ref_point"], rows["ref_direction"])))
+    dof_codes, dofs = pd.factorize(pd.MultiIndex.from_arrays([rows["point"], rows["direction"]]))
+    ref_codes, refs = pd.factorize(pd.MultiIndex.from_arrays([rows["ref_point"], rows["ref_direction"]]))
     M = np.full((len(dofs), len(refs)), np.nan, dtype=values.dtype)
-    di = {d: i for i, d in enumerate(dofs)}
-    ri = {r: j for j, r in enumerate(refs)}
-    for k, (p, d, rp, rd) in enumerate(zip(rows["point"], rows["direction"], rows["ref_point"], rows["ref_direction"])):
-        M[di[(p, d)], ri[(rp, rd)]] = values[k]
-    return dofs, refs, M
+    M[dof_codes, ref_codes] = values
+    return list(dofs), list(refs), M
 
 
 def real_shape(rows: pd.DataFrame, A, sigma_A) -> ModeShape:
