@@ -10,7 +10,6 @@ writes atomically.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +18,7 @@ import pandas as pd
 from jointid.ema.frfs import FrfSet
 from jointid.ema.options import EmaOptions
 from jointid.ema.poles import PoleChart, Residues, lscf_chart, lsfd, pole_from
+from jointid.ema.refine import Refined, refine_all
 from jointid.ema.shapes import ModeShape, real_shape
 from jointid.ema.stability import ChartPoint, Cluster, classify, select_physical
 from jointid.ema.uncertainty import Bootstrap, bootstrap
@@ -39,6 +39,7 @@ class StateEma:
     chart: PoleChart
     points: list[ChartPoint]
     clusters: list[Cluster]
+    refined: list[Refined]
     residues: Residues
     shapes: list[ModeShape]
     boot: Bootstrap | None
@@ -51,19 +52,6 @@ def default_band(freq_Hz) -> tuple[float, float]:
     """The FRFs' band, 2 % of its width in from each end."""
     lo, hi = float(freq_Hz[0]), float(freq_Hz[-1])
     return lo + 0.02 * (hi - lo), hi - 0.02 * (hi - lo)
-
-
-def _order_shape_scatter(cluster: Cluster, fs: FrfSet, shape: ModeShape) -> float:
-    """RMS over DOFs of the scatter of the members' real shapes (aligned on ``shape``)."""
-    vals = []
-    for m in cluster.members:
-        sh = real_shape(fs.rows, m.residues, np.zeros(len(m.residues)))
-        if len(sh.value) == len(shape.value):
-            den = sh.value @ sh.value
-            vals.append(sh.value * (shape.value @ sh.value / den) if den > 0 else sh.value)
-    if len(vals) < 2:
-        return 0.0
-    return float(np.sqrt(np.mean(np.var(np.array(vals), axis=0, ddof=1))))
 
 
 def extract_state(fs: FrfSet, options: EmaOptions, log=print, stream: int = 0) -> StateEma:
@@ -82,28 +70,27 @@ def extract_state(fs: FrfSet, options: EmaOptions, log=print, stream: int = 0) -
                         "ema.max_order, or widen ema.band_Hz")
     log(f"state {fs.state}: {len(clusters)} physical poles from {n_stable} stable of {len(points)}: "
         + ", ".join(f"{c.freq_Hz:.1f} Hz" for c in clusters))
-    poles = pole_from([c.freq_Hz for c in clusters], [c.zeta for c in clusters])
-    res = lsfd(fs.freq_Hz, fs.H, poles, band)
+    refined = refine_all(fs.freq_Hz, fs.H, [c.freq_Hz for c in clusters], [c.zeta for c in clusters], band)
+    f_ref = np.array([r.freq_Hz for r in refined])
+    z_ref = np.array([r.zeta for r in refined])
+    log(f"state {fs.state}: refined: " + ", ".join(f"{f:.2f} Hz" for f in f_ref))
+    res = lsfd(fs.freq_Hz, fs.H, pole_from(f_ref, z_ref), band)
     shapes = [real_shape(fs.rows, res.A[:, m], res.sigma_A[:, m]) for m in range(len(clusters))]
     boot = None
     if options.n_bootstrap > 0:
         every = max(1, options.n_bootstrap // 4)
         tick = lambda b: (b + 1) % every == 0 and log(  # noqa: E731
             f"state {fs.state}: bootstrap over response rows {b + 1}/{options.n_bootstrap}")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            boot = bootstrap(fs, clusters, shapes, band, options, stream=stream, progress=tick)
-    f_sc = np.array([c.freq_scatter_Hz for c in clusters])
-    z_sc = np.array([c.zeta_scatter for c in clusters])
+        boot = bootstrap(fs, refined, shapes, band, options, stream=stream, progress=tick)
+    fit_f = np.array([r.sigma_freq_Hz for r in refined])
+    fit_z = np.array([r.sigma_zeta for r in refined])
     sh_noise = np.array([np.sqrt(np.mean(s.sigma**2)) for s in shapes])
-    sh_order = np.array([_order_shape_scatter(c, fs, s) for c, s in zip(clusters, shapes)])
-    b_f = np.zeros(len(clusters)) if boot is None else np.nan_to_num(boot.freq_Hz)
-    b_z = np.zeros(len(clusters)) if boot is None else np.nan_to_num(boot.zeta)
-    b_s = np.zeros(len(clusters)) if boot is None else np.nan_to_num(boot.shape)
+    b_f = fit_f * 0 if boot is None else np.nan_to_num(boot.freq_Hz)
+    b_z = fit_z * 0 if boot is None else np.nan_to_num(boot.zeta)
+    b_s = sh_noise * 0 if boot is None else np.nan_to_num(boot.shape)
     rms = np.array([np.sqrt(np.mean(s.value**2)) for s in shapes])
-    return StateEma(fs, tuple(band), chart, points, clusters, res, shapes, boot,
-                    np.hypot(f_sc, b_f), np.hypot(z_sc, b_z),
-                    100 * np.sqrt(sh_noise**2 + sh_order**2 + b_s**2) / rms)
+    return StateEma(fs, tuple(band), chart, points, clusters, refined, res, shapes, boot,
+                    np.fmax(fit_f, b_f), np.fmax(fit_z, b_z), 100 * np.hypot(sh_noise, b_s) / rms)
 
 
 def _pct(sigma, value) -> np.ndarray:
@@ -115,20 +102,22 @@ def pole_table(result: StateEma) -> pd.DataFrame:
     fs = result.frfs
     sel = (fs.freq_Hz >= result.band_Hz[0]) & (fs.freq_Hz <= result.band_Hz[1])
     rows = []
-    for m, (c, sh) in enumerate(zip(result.clusters, result.shapes)):
+    for m, (c, r, sh) in enumerate(zip(result.clusters, result.refined, result.shapes)):
         boot = result.boot
         rows.append({
-            "state": fs.state, "mode": m + 1, "freq_Hz": c.freq_Hz, "damping_ratio": c.zeta,
-            "freq_uncertainty_pct": _pct(result.freq_sigma_Hz[m], c.freq_Hz),
-            "damping_uncertainty_pct": _pct(result.zeta_sigma[m], c.zeta),
+            "state": fs.state, "mode": m + 1, "freq_Hz": r.freq_Hz, "damping_ratio": r.zeta,
+            "freq_uncertainty_pct": _pct(result.freq_sigma_Hz[m], r.freq_Hz),
+            "damping_uncertainty_pct": _pct(result.zeta_sigma[m], r.zeta),
             "shape_uncertainty_pct": max(float(result.shape_sigma_pct[m]), UNCERTAINTY_FLOOR_PCT),
-            "freq_scatter_orders_Hz": c.freq_scatter_Hz,
-            "freq_bootstrap_Hz": np.nan if boot is None else boot.freq_Hz[m],
-            "damping_scatter_orders": c.zeta_scatter,
-            "damping_bootstrap": np.nan if boot is None else boot.zeta[m],
+            "freq_fit_sigma_Hz": r.sigma_freq_Hz,
+            "freq_bootstrap_sigma_Hz": np.nan if boot is None else boot.freq_Hz[m],
+            "damping_fit_sigma": r.sigma_zeta,
+            "damping_bootstrap_sigma": np.nan if boot is None else boot.zeta[m],
+            "bootstrap_kept": "" if boot is None else f"{int(boot.found[m])}/{boot.n}",
+            "freq_lscf_Hz": c.freq_Hz, "freq_scatter_orders_Hz": c.freq_scatter_Hz,
+            "damping_lscf": c.zeta, "damping_scatter_orders": c.zeta_scatter,
             "n_stable_orders": len(c.members), "orders": f"{c.orders[0]}-{c.orders[-1]}",
-            "bootstrap_found": "" if boot is None else f"{int(boot.found[m])}/{boot.n}",
-            "mpc": sh.mpc, "real_share": sh.real_share,
+            "n_lines_fit": r.n_lines, "mpc": sh.mpc, "real_share": sh.real_share,
         })
     table = pd.DataFrame(rows)
     err = np.linalg.norm(result.residues.synth[:, sel] - fs.H[:, sel]) / np.linalg.norm(fs.H[:, sel])

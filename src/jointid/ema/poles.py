@@ -13,6 +13,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from jointid.errors import DataError
 
@@ -108,11 +109,14 @@ def _basis(w, poles) -> np.ndarray:
     return np.hstack([g1, g2, low, 1j * low, one, 1j * one])
 
 
-def lsfd(freq_Hz, H, poles, band_Hz) -> Residues:
-    """Residues of ``poles`` in each FRF of ``H`` (n_rows, n_f), fitted on the band's lines."""
+def lsfd(freq_Hz, H, poles, band_Hz, max_lines: int | None = None) -> Residues:
+    """Residues of ``poles`` in each FRF of ``H`` (n_rows, n_f), fitted on the band's lines (every k-th
+    line when the band has more than ``max_lines``, for a quick fit)."""
     freq = np.asarray(freq_Hz, float)
     poles = np.asarray(poles, complex)
-    sel = (freq >= band_Hz[0]) & (freq <= band_Hz[1])
+    sel = np.flatnonzero((freq >= band_Hz[0]) & (freq <= band_Hz[1]))
+    if max_lines and sel.size > max_lines:
+        sel = sel[:: int(np.ceil(sel.size / max_lines))]
     w = 2 * np.pi * freq[sel]
     G = _basis(w, poles)
     P = np.vstack([G.real, G.imag])
@@ -120,11 +124,13 @@ def lsfd(freq_Hz, H, poles, band_Hz) -> Residues:
     scale[scale == 0] = 1.0
     Ps = P / scale
     Y = np.vstack([H[:, sel].real.T, H[:, sel].imag.T])
-    coef, *_ = np.linalg.lstsq(Ps, Y, rcond=None)
+    Q, R = np.linalg.qr(Ps)
+    Rinv = scipy.linalg.pinv(R)                                      # R is small: (n_par, n_par)
+    coef = Rinv @ (Q.T @ Y)
     fit = Ps @ coef
     dof = max(Y.shape[0] - Ps.shape[1], 1)
     s2 = np.sum((Y - fit) ** 2, axis=0) / dof                       # per row
-    cov_diag = np.diag(np.linalg.pinv(Ps.T @ Ps)) / scale**2         # per parameter, unit noise
+    cov_diag = np.sum(Rinv**2, axis=1) / scale**2                    # diag((P^T P)^-1), unit noise
     coef = coef / scale[:, None]
     n = poles.size
     A = (coef[:n] + 1j * coef[n:2 * n]).T

@@ -17,17 +17,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from jointid.ema.poles import pole_from
+from jointid.ema.poles import lsfd, pole_from
 
-__all__ = ["Refined", "refine_pole", "local_lines", "modal_terms"]
+__all__ = ["Refined", "refine_pole", "refine_all", "local_lines", "modal_terms"]
 
+MAX_HALF_LINES = 50
+"""At most this many lines either side of the peak are fitted (the far lines say little about the pole)."""
 WEIGHT_FLOOR = 0.05
 """Weights are 1 / max(|H_synth|, this x RMS of the FRF in the local band)."""
 
 
 @dataclass(frozen=True)
 class Refined:
-    """A refined pole: frequency (Hz), damping ratio, their 1-sigma, and the lines used."""
+    """A refined pole: frequency (Hz), damping ratio, their 1-sigma, the lines used, and per FRF row the
+    Gauss-Newton blocks ``J_i^T J_i`` (n_rows, 2, 2) and ``J_i^T r_i`` (n_rows, 2) at the solution (for the
+    bootstrap over rows)."""
 
     freq_Hz: float
     zeta: float
@@ -35,13 +39,16 @@ class Refined:
     sigma_zeta: float
     n_lines: int
     success: bool
+    row_jtj: np.ndarray | None = None
+    row_jtr: np.ndarray | None = None
 
 
 def local_lines(freq_Hz, f0: float, zeta0: float, band_Hz) -> np.ndarray:
-    """Indices of the lines within three half-power bandwidths of ``f0`` (at least eight lines)."""
+    """Indices of the lines within three half-power bandwidths of ``f0`` (at least 4, at most
+    ``MAX_HALF_LINES`` lines either side)."""
     freq = np.asarray(freq_Hz, float)
     df = freq[1] - freq[0]
-    half = max(3 * 2 * zeta0 * f0, 4 * df)
+    half = max(min(3 * 2 * zeta0 * f0, MAX_HALF_LINES * df), 4 * df)
     sel = (freq >= max(f0 - half, band_Hz[0])) & (freq <= min(f0 + half, band_Hz[1]))
     return np.flatnonzero(sel)
 
@@ -99,11 +106,14 @@ def refine_pole(freq_Hz, H, H_synth, f0: float, zeta0: float, others, band_Hz) -
         sig = np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
         sig = np.array([np.nan, np.nan])
-    return Refined(float(sol.x[0]), float(sol.x[1]), float(sig[0]), float(sig[1]), int(idx.size), bool(sol.success))
+    J = sol.jac.reshape(n_rows, -1, 2)
+    r = sol.fun.reshape(n_rows, -1)
+    return Refined(float(sol.x[0]), float(sol.x[1]), float(sig[0]), float(sig[1]), int(idx.size), bool(sol.success),
+                   np.einsum("rki,rkj->rij", J, J), np.einsum("rki,rk->ri", J, r))
 
 
-def refine_all(freq_Hz, H, freqs_Hz, zetas, band_Hz, n_pass: int = 3, lsfd=None) -> list[Refined]:
-    # many parameters: the FRFs, the start poles, the band, the passes and the LSFD to use
+def refine_all(freq_Hz, H, freqs_Hz, zetas, band_Hz, n_pass: int = 3) -> list[Refined]:
+    # many parameters: the FRFs, the start poles, the band and the passes
     """Refine every pole in turn, ``n_pass`` times: each pass subtracts the other poles' terms of a global
     LSFD at the latest poles (Gauss-Seidel over the poles)."""
     f = np.array(freqs_Hz, float)

@@ -19,6 +19,9 @@ from jointid.ema.poles import PoleChart, lsfd, pole_freq_damping
 
 __all__ = ["ChartPoint", "Cluster", "classify", "select_physical", "mac"]
 
+QUICK_LINES = 600
+"""The residues that compare shapes across orders are fitted on at most this many lines."""
+
 
 def mac(a, b) -> float:
     """Modal assurance criterion of two (complex) vectors."""
@@ -63,7 +66,7 @@ def classify(chart: PoleChart, freq_Hz, H, options: EmaOptions) -> list[ChartPoi
         if poles.size == 0:
             previous = []
             continue
-        res = lsfd(freq_Hz, H, poles, chart.band_Hz).A
+        res = lsfd(freq_Hz, H, poles, chart.band_Hz, max_lines=QUICK_LINES).A
         f, z = pole_freq_damping(poles)
         current = []
         for j in range(poles.size):
