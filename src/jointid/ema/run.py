@@ -43,6 +43,7 @@ def run_ema(source, out, *, report=None, options: EmaOptions | None = None, stat
     Parameters
     ----------
     source : path
+        frf.csv, hammer time histories (CSV with ``time_s``), UFF 58 or a dataset folder with frf.csv.
     out : path
         Dataset folder to write (replaced atomically when it is a dataset folder already).
     report : path, optional
@@ -63,7 +64,8 @@ def run_ema(source, out, *, report=None, options: EmaOptions | None = None, stat
     (Dataset, list of StateEma)
     """
     options = options or EmaOptions.from_section()
-    frfs, conditions = load_frfs(source, state=state)
+    frfs, conditions = load_frfs(source, state=state, coherence_min=options.coherence_min,
+                                 max_low_fraction=options.max_low_coherence_fraction, log=log)
     log(f"read {sum(fs.H.shape[0] for fs in frfs.values())} FRFs of {len(frfs)} state(s) from {source}")
     results = ema_of(frfs, options, log=log)
     tables = dataset_tables(results, conditions, Path(source).name)
