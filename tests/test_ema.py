@@ -18,7 +18,6 @@ import pytest
 
 from jointid.data.dataset import read_dataset, validate_dataset
 from jointid.ema.extract import extract_state, pole_table
-from jointid.ema.frfs import read_frf_csv
 from jointid.ema.options import EmaOptions
 from jointid.ema.poles import lsfd, pole_from
 from jointid.ema.run import run_ema

@@ -20,7 +20,7 @@ import yaml
 from jointid.data.validate import DIRECTIONS, Problems
 from jointid.errors import DataError
 
-__all__ = ["FrfSet", "load_frfs", "read_frf_csv", "read_frf_uff", "read_frf_folder", "check_grid"]
+__all__ = ["FrfSet", "read_frf_csv", "read_frf_uff", "read_frf_folder", "check_grid"]
 
 _KIND = {8: 0, 11: 1, 12: 2}  # UFF ordinate type -> powers of (i w) to divide by: displacement, velocity, acceleration
 CSV_COLUMNS = ("state", "point", "direction", "freq_Hz", "re", "im")
@@ -244,29 +244,3 @@ def read_frf_uff(path, *, state: str = "measured", node_map: dict | None = None)
     if problems:
         raise DataError(problems.condensed())
     return {state: fs}
-
-
-def load_frfs(source, *, state: str = "measured", coherence_min: float = 0.9, max_low_fraction: float = 0.2,
-              log=print) -> tuple[dict[str, FrfSet], dict]:
-    # many parameters: the source, a UFF file's state name, the time data's coherence rule, log
-    """FRFs of ``source`` (a dataset folder, a frf.csv, a time-history CSV, or a .uff/.unv file) and the
-    conditions it carries (a dataset folder's conditions.yaml, else empty).  A CSV with a ``time_s``
-    column holds hammer time histories: they become H1 FRFs (:mod:`jointid.ema.timedata`)."""
-    source = Path(source)
-    if source.is_dir():
-        return read_frf_folder(source)
-    if not source.exists():
-        raise DataError(f"{source}: FRF source does not exist — give a frf.csv, a UFF file or a dataset folder")
-    if source.suffix.lower() == ".csv":
-        with open(source, encoding="utf-8-sig") as fh:
-            header = fh.readline()
-        if "time_s" in [c.strip() for c in header.split(",")]:
-            from jointid.ema.timedata import h1_frfs, read_time_csv  # noqa: PLC0415
-
-            fs = h1_frfs(read_time_csv(source), state=state, source=source.name, coherence_min=coherence_min,
-                         max_low_fraction=max_low_fraction, log=log)
-            return {state: fs}, {}
-        return read_frf_csv(source), {}
-    if source.suffix.lower() in (".uff", ".unv"):
-        return read_frf_uff(source, state=state), {"frequencies_in_Hz_confirmed": True}
-    raise DataError(f"{source}: unknown FRF file type {source.suffix!r} — give a .csv, .uff or .unv file")

@@ -1,6 +1,6 @@
 """The EMA from an FRF source to a dataset folder and the engineer's files.
 
-:func:`run_ema` reads the FRFs (:func:`jointid.ema.frfs.load_frfs`), runs the EMA of every state
+:func:`run_ema` reads the FRFs (:func:`jointid.ema.sources.load_frfs`), runs the EMA of every state
 (:func:`jointid.ema.extract.extract_state`), and only then writes: the dataset folder (atomically, by
 :func:`jointid.data.dataset.write_dataset`, validated before it appears) and, in the report folder,
 ``poles.csv`` (the pole table of every state), ``stabilisation_<state>.png`` and ``frf_<state>.png``.
@@ -16,7 +16,8 @@ import pandas as pd
 from jointid.data.dataset import Dataset, write_dataset
 from jointid.ema.extract import StateEma, dataset_tables, extract_state, pole_table
 from jointid.ema.figures import frf_overlay, stabilisation_chart
-from jointid.ema.frfs import FrfSet, load_frfs
+from jointid.ema.frfs import FrfSet
+from jointid.ema.sources import load_frfs
 from jointid.ema.options import EmaOptions
 from jointid.io import write_csv
 
