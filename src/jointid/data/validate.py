@@ -166,10 +166,11 @@ def _float(problems, where, col, raw):
 
 
 def _uncertainty(problems, where, col, raw):
-    """A per-mode uncertainty in percent: a positive finite number (None and a problem otherwise)."""
+    """A per-mode uncertainty in percent: a positive finite number (None and a problem otherwise).  It may
+    exceed 100: an EMA can measure a damping ratio that poorly."""
     value = _float(problems, where, col, raw)
-    if value is not None and not 0 < value < 100:
-        problems.add(where, f"{col} = {raw} is not in (0, 100)",
+    if value is not None and not value > 0:
+        problems.add(where, f"{col} = {raw} is not positive",
                      "give the 1-sigma uncertainty of this mode in percent, a positive number such as 0.05")
         return None
     return value

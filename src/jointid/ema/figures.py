@@ -66,7 +66,7 @@ def frf_overlay(result, path) -> None:
     point of one state."""
     plt = _plt()
     fs = result.frfs
-    rows = (fs.drive_rows()[:1] or [0]) + [cross_row(fs)]
+    rows = list(dict.fromkeys((fs.drive_rows()[:1] or [0]) + [cross_row(fs)]))
     sel = (fs.freq_Hz >= result.band_Hz[0]) & (fs.freq_Hz <= result.band_Hz[1])
     fig, axes = plt.subplots(2, len(rows), figsize=(5 * len(rows), 6), sharex=True, squeeze=False)
     for k, i in enumerate(rows):
