@@ -269,3 +269,13 @@ def test_a_real_measured_frf_goes_through_the_ema(tmp_path):
     assert len(poles) >= 8 and (poles.freq_uncertainty_pct > 0).all()
     assert poles.synth_error_pct.iloc[0] < 20  # the synthesised FRF follows the measured one
     assert (Path(str(out) + "_ema") / "stabilisation_impact.png").stat().st_size > 10_000
+
+
+def test_a_refit_that_runs_away_keeps_the_lscf_pole_with_the_distance_as_sigma():
+    from jointid.ema.refine import Refined, guarded
+
+    fits = [Refined(1000.5, 0.010, 0.01, 1e-5, 40, True), Refined(2040.0, 0.012, 0.02, 1e-5, 40, True)]
+    out = guarded(fits, [1000.0, 2000.0], [0.011, 0.013], [0.2, 0.3], [1e-4, 1e-4], tol_pct=1.0)
+    assert out[0] is fits[0]  # moved 0.05 %: the refit stands
+    assert (out[1].freq_Hz, out[1].zeta, out[1].sigma_freq_Hz) == (2000.0, 0.013, 40.0)
+    assert out[1].row_jtj is None and "refit moved 2.00 %: LSCF pole kept" == out[1].note

@@ -18,7 +18,7 @@ import pandas as pd
 from jointid.ema.frfs import FrfSet
 from jointid.ema.options import EmaOptions
 from jointid.ema.poles import PoleChart, Residues, lscf_chart, lsfd, pole_from
-from jointid.ema.refine import Refined, refine_all
+from jointid.ema.refine import Refined, guarded, refine_all
 from jointid.ema.shapes import ModeShape, real_shape
 from jointid.ema.stability import ChartPoint, Cluster, classify, select_physical
 from jointid.ema.uncertainty import Bootstrap, bootstrap
@@ -70,7 +70,12 @@ def extract_state(fs: FrfSet, options: EmaOptions, log=print, stream: int = 0) -
                         "ema.max_order, or widen ema.band_Hz")
     log(f"state {fs.state}: {len(clusters)} physical poles from {n_stable} stable of {len(points)}: "
         + ", ".join(f"{c.freq_Hz:.1f} Hz" for c in clusters))
-    refined = refine_all(fs.freq_Hz, fs.H, [c.freq_Hz for c in clusters], [c.zeta for c in clusters], band)
+    f0, z0 = [c.freq_Hz for c in clusters], [c.zeta for c in clusters]
+    refined = guarded(refine_all(fs.freq_Hz, fs.H, f0, z0, band), f0, z0, [c.freq_scatter_Hz for c in clusters],
+                      [c.zeta_scatter for c in clusters], options.freq_tol_pct)
+    for r in refined:
+        if r.note != "refitted":
+            log(f"state {fs.state}: {r.freq_Hz:.1f} Hz: {r.note}")
     f_ref = np.array([r.freq_Hz for r in refined])
     z_ref = np.array([r.zeta for r in refined])
     log(f"state {fs.state}: refined: " + ", ".join(f"{f:.2f} Hz" for f in f_ref))
@@ -117,7 +122,7 @@ def pole_table(result: StateEma) -> pd.DataFrame:
             "freq_lscf_Hz": c.freq_Hz, "freq_scatter_orders_Hz": c.freq_scatter_Hz,
             "damping_lscf": c.zeta, "damping_scatter_orders": c.zeta_scatter,
             "n_stable_orders": len(c.members), "orders": f"{c.orders[0]}-{c.orders[-1]}",
-            "n_lines_fit": r.n_lines, "mpc": sh.mpc, "real_share": sh.real_share,
+            "n_lines_fit": r.n_lines, "refit": r.note, "mpc": sh.mpc, "real_share": sh.real_share,
         })
     table = pd.DataFrame(rows)
     err = np.linalg.norm(result.residues.synth[:, sel] - fs.H[:, sel]) / np.linalg.norm(fs.H[:, sel])

@@ -19,7 +19,7 @@ from scipy.optimize import least_squares
 
 from jointid.ema.poles import lsfd, pole_from
 
-__all__ = ["Refined", "refine_pole", "refine_all", "local_lines", "modal_terms"]
+__all__ = ["Refined", "refine_pole", "refine_all", "guarded", "local_lines", "modal_terms"]
 
 MAX_HALF_LINES = 50
 """At most this many lines either side of the peak are fitted (the far lines say little about the pole)."""
@@ -31,7 +31,7 @@ WEIGHT_FLOOR = 0.05
 class Refined:
     """A refined pole: frequency (Hz), damping ratio, their 1-sigma, the lines used, and per FRF row the
     Gauss-Newton blocks ``J_i^T J_i`` (n_rows, 2, 2) and ``J_i^T r_i`` (n_rows, 2) at the solution (for the
-    bootstrap over rows)."""
+    bootstrap over rows); ``note`` says whether the refit was kept."""
 
     freq_Hz: float
     zeta: float
@@ -41,6 +41,7 @@ class Refined:
     success: bool
     row_jtj: np.ndarray | None = None
     row_jtr: np.ndarray | None = None
+    note: str = "refitted"
 
 
 def local_lines(freq_Hz, f0: float, zeta0: float, band_Hz) -> np.ndarray:
@@ -129,4 +130,20 @@ def refine_all(freq_Hz, H, freqs_Hz, zetas, band_Hz, n_pass: int = 3) -> list[Re
             out.append(r)
         f = np.array([r.freq_Hz for r in out])
         z = np.array([r.zeta for r in out])
+    return out
+
+
+def guarded(refined: list[Refined], freqs_Hz, zetas, scatter_Hz, scatter_zeta, tol_pct: float) -> list[Refined]:
+    # many parameters: the refits, the LSCF poles and their scatter over orders, the tolerance
+    """The refits, each replaced by its LSCF pole when it moved more than ``tol_pct`` in frequency (a mode
+    the LSCF did not resolve pulls the local fit away).  Such a pole's sigma is the larger of the
+    distance between the two estimates and its scatter over orders."""
+    out = []
+    for r, f, z, sf, sz in zip(refined, freqs_Hz, zetas, scatter_Hz, scatter_zeta):
+        moved = abs(r.freq_Hz - f) / f
+        if moved <= tol_pct / 100:
+            out.append(r)
+            continue
+        out.append(Refined(float(f), float(z), max(abs(r.freq_Hz - f), sf), max(abs(r.zeta - z), sz), r.n_lines,
+                           False, None, None, f"refit moved {100 * moved:.2f} %: LSCF pole kept"))
     return out

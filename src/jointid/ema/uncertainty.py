@@ -59,6 +59,8 @@ def bootstrap(fs: FrfSet, refined: list[Refined], shapes, band_Hz, options: EmaO
     for b in range(n):
         counts = np.bincount(rng.integers(0, n_rows, n_rows), minlength=n_rows).astype(float)
         for m, r in enumerate(refined):
+            if r.row_jtj is None:  # an LSCF pole kept in place of its refit: no local fit to step
+                continue
             jtj = np.einsum("r,rij->ij", counts, r.row_jtj)
             jtr = counts @ r.row_jtr
             try:
