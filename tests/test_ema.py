@@ -143,6 +143,15 @@ def test_uff58_frfs_go_through_the_ema(tmp_path):
                     log=lambda *_: None)
     assert np.allclose(ds.freqs("measured"), f, rtol=1e-3)
     assert validate_dataset(tmp_path / "ds") == []
+    assert set(ds.shapes["point"]) == {str(k) for k in range(1, 19)}  # node numbers without the model's points
+    # with the model's points, the nodes are mapped (by name suffix, then coordinates) as the UFF importer does
+    mapped, _ = run_ema(tmp_path / "hammer.uff", tmp_path / "ds_mapped", measuring_points=pts,
+                        options=EmaOptions.from_section(n_bootstrap=2), log=lambda *_: None)
+    assert set(mapped.shapes["point"]) == set(POINTS)
+    with pytest.raises(DataError, match="UFF node 18 is not a measuring point of the model"):
+        run_ema(tmp_path / "hammer.uff", tmp_path / "ds_bad", measuring_points=pts.iloc[:-1],
+                options=EmaOptions.from_section(n_bootstrap=2), log=lambda *_: None)
+    assert not (tmp_path / "ds_bad").exists()
 
 
 # ------------------------------------------------------------------------------------------ bad input

@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--band-Hz", nargs=2, type=float, metavar=("LOW", "HIGH"), help="analysis band in Hz")
     ap.add_argument("--max-order", type=int, help="highest LSCF model order")
     ap.add_argument("--bootstrap", type=int, help="bootstrap replicates over response rows")
-    ap.add_argument("--points", help="measuring_points.csv of the model (checks point names)")
+    ap.add_argument("--points", help="measuring_points.csv of the model (checks point names; maps UFF nodes to points)")
     ap.add_argument("--em-force-N", type=float, help="motor attraction of every state (default 0 or the source's)")
     args = ap.parse_args(argv)
     from jointid.errors import JointidError  # noqa: PLC0415  (heavy imports after the arguments parse)

@@ -202,9 +202,28 @@ def _uff_units(sets) -> tuple[float, float]:
     return 1.0, 1.0
 
 
-def read_frf_uff(path, *, state: str = "measured", node_map: dict | None = None) -> dict[str, FrfSet]:
-    """FRFs (UFF 58, function type 4) of a Universal File as one state; point names are the node
-    numbers (or ``node_map[node]``).  Acceleration and velocity over force become receptance."""
+def _node_names(sets, frfs, to_m, node_map, measuring_points, tol_m) -> dict[int, str]:
+    """``{node: point name}`` of every node an FRF names (see :func:`read_frf_uff`)."""
+    ids = sorted({int(s[k]) for s in frfs for k in ("rsp_node", "ref_node")})
+    if measuring_points is None:
+        return {n: str((node_map or {}).get(n, n)) for n in ids}
+    from jointid.data.uff import map_nodes  # noqa: PLC0415  (the importer's node rule)
+
+    xyz = {int(n): (x * to_m, y * to_m, z * to_m) for s in sets if s.get("type") in (15, 2411)
+           for n, x, y, z in zip(s["node_nums"], s["x"], s["y"], s["z"])}
+    nodes = pd.DataFrame([(n, *xyz.get(n, (np.nan, np.nan, np.nan))) for n in ids], columns=["node", "x_m", "y_m", "z_m"])
+    mapping, _ = map_nodes(nodes, measuring_points, tol_m=tol_m, node_map=node_map)
+    return mapping
+
+
+def read_frf_uff(path, *, state: str = "measured", node_map: dict | None = None, measuring_points=None,
+                 tol_m: float = 0.005) -> dict[str, FrfSet]:
+    # many parameters: the file, the state name, and how nodes become points (map, the model's points, tolerance)
+    """FRFs (UFF 58, function type 4) of a Universal File as one state.  Acceleration and velocity over force
+    become receptance.  Point names: with ``measuring_points`` (the model's), each node is mapped as the UFF
+    importer maps it (:func:`jointid.data.uff.map_nodes`: ``node_map``, a name ending in the node's number,
+    coordinates within ``tol_m``), and an FRF at an unmapped node is an error; without, the node number
+    (or ``node_map[node]``)."""
     import pyuff  # noqa: PLC0415  (import on use)
 
     path = Path(path)
@@ -221,7 +240,8 @@ def read_frf_uff(path, *, state: str = "measured", node_map: dict | None = None)
     frfs = [s for s in sets if s.get("type") == 58 and s.get("func_type") == 4]
     if not frfs:
         raise DataError(f"{path}: no FRF (dataset 58, function type 4) — export the FRFs, not time data or spectra")
-    name = lambda node: str((node_map or {}).get(int(node), int(node)))  # noqa: E731
+    names = _node_names(sets, frfs, to_m, node_map, measuring_points, tol_m)
+    name = lambda node: names.get(int(node))  # noqa: E731
     for k, s in enumerate(frfs):
         where = f"{path}:dataset 58 #{k + 1} ({str(s.get('id1', '')).strip()})"
         rdir, ref_dir = int(s.get("rsp_dir", 0)), int(s.get("ref_dir", 0))
@@ -238,6 +258,12 @@ def read_frf_uff(path, *, state: str = "measured", node_map: dict | None = None)
         f, h = f[keep], h[keep]
         power = _KIND.get(s.get("ordinate_spec_data_type"), 0)
         h = h / (1j * 2 * np.pi * f) ** power
+        unmapped = [int(s[k]) for k in ("rsp_node", "ref_node") if name(s[k]) is None]
+        if unmapped:
+            problems.add(where, f"UFF node {unmapped[0]} is not a measuring point of the model (no node_map entry, "
+                         f"no point name ending in {unmapped[0]}, no point within tol_m = {tol_m:g} m)",
+                         "map it (node_map / --node-map), export the geometry (dataset 15) or check the units")
+            continue
         key = (name(s["rsp_node"]), DIRECTIONS[abs(rdir) - 1], name(s["ref_node"]), DIRECTIONS[abs(ref_dir) - 1])
         groups[key] = (where, f, h)
     fs = _assemble(groups, state, path.name, problems) if not problems else None

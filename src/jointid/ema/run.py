@@ -54,7 +54,8 @@ def run_ema(source, out, *, report=None, options: EmaOptions | None = None, stat
     state : str
         State name of a UFF file's FRFs (CSV and dataset folders name their states).
     measuring_points : DataFrame, optional
-        The model's measuring points; point names are checked against them before anything is written.
+        The model's measuring points; point names are checked against them before anything is written,
+        and a UFF file's nodes are mapped to them.
     em_force_N : float, optional
         Motor attraction of every state when the source does not give it (default 0.0).
     log : callable
@@ -66,7 +67,8 @@ def run_ema(source, out, *, report=None, options: EmaOptions | None = None, stat
     """
     options = options or EmaOptions.from_section()
     frfs, conditions = load_frfs(source, state=state, coherence_min=options.coherence_min,
-                                 max_low_fraction=options.max_low_coherence_fraction, log=log)
+                                 max_low_fraction=options.max_low_coherence_fraction,
+                                 measuring_points=measuring_points, log=log)
     log(f"read {sum(fs.H.shape[0] for fs in frfs.values())} FRFs of {len(frfs)} state(s) from {source}")
     results = ema_of(frfs, options, log=log)
     tables = dataset_tables(results, conditions, Path(source).name)

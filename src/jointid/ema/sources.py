@@ -12,11 +12,12 @@ __all__ = ["load_frfs"]
 
 
 def load_frfs(source, *, state: str = "measured", coherence_min: float = 0.9, max_low_fraction: float = 0.2,
-              log=print) -> tuple[dict[str, FrfSet], dict]:
+              measuring_points=None, log=print) -> tuple[dict[str, FrfSet], dict]:
     # many parameters: the source, a UFF file's state name, the time data's coherence rule, log
     """FRFs of ``source`` (a dataset folder, a frf.csv, a time-history CSV, or a .uff/.unv file) and the
     conditions it carries (a dataset folder's conditions.yaml, else empty).  A CSV with a ``time_s``
-    column holds hammer time histories: they become H1 FRFs (:mod:`jointid.ema.timedata`)."""
+    column holds hammer time histories: they become H1 FRFs (:mod:`jointid.ema.timedata`).  A UFF file's
+    nodes are mapped to ``measuring_points`` when given (:func:`jointid.ema.frfs.read_frf_uff`)."""
     source = Path(source)
     if source.is_dir():
         return read_frf_folder(source)
@@ -31,5 +32,6 @@ def load_frfs(source, *, state: str = "measured", coherence_min: float = 0.9, ma
             return {state: fs}, {}
         return read_frf_csv(source), {}
     if source.suffix.lower() in (".uff", ".unv"):
-        return read_frf_uff(source, state=state), {"frequencies_in_Hz_confirmed": True}
+        return (read_frf_uff(source, state=state, measuring_points=measuring_points),
+                {"frequencies_in_Hz_confirmed": True})
     raise DataError(f"{source}: unknown FRF file type {source.suffix!r} — give a .csv, .uff or .unv file")
