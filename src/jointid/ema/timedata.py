@@ -115,6 +115,10 @@ def h1_frfs(table: pd.DataFrame, *, state: str = "measured", source: str = "time
         with np.errstate(divide="ignore", invalid="ignore"):
             h1 = gfx / gff[:, None]
             coh = np.abs(gfx) ** 2 / (gff[:, None] * gxx)
+        if grid is not None and (grid.size != keep.sum() or not np.allclose(grid, freq[keep])):
+            problems.append(f"{source}: reference {ref}: other sampling (rate or record length) than the first "
+                            "reference — record every reference on the same grid")
+            continue
         w = 2 * np.pi * freq[keep]
         blocks.append((h1[keep] / -(w[:, None] ** 2)).T)
         coherence.append(coh[keep].T)
