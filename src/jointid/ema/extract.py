@@ -24,10 +24,15 @@ from jointid.ema.stability import ChartPoint, Cluster, classify, select_physical
 from jointid.ema.uncertainty import Bootstrap, bootstrap
 from jointid.errors import DataError
 
-__all__ = ["StateEma", "default_band", "extract_state", "pole_table", "dataset_tables", "UNCERTAINTY_FLOOR_PCT"]
+__all__ = ["StateEma", "default_band", "extract_state", "misfit_ratios", "pole_table", "dataset_tables",
+           "UNCERTAINTY_FLOOR_PCT", "MISFIT_RATIO"]
 
 UNCERTAINTY_FLOOR_PCT = 1e-6
 """Smallest uncertainty written (percent): below it a noise-free fit's scatter is rounding."""
+MISFIT_RATIO = 3.0
+"""A pole whose local fit leaves residuals this many times those of its state's best-fitted pole has a
+model error there (mostly a neighbour that LSCF did not resolve): its frequency and damping sigma are
+scaled by that ratio and cover the distance to the LSCF estimate."""
 
 
 @dataclass(frozen=True)
@@ -46,6 +51,7 @@ class StateEma:
     freq_sigma_Hz: np.ndarray
     zeta_sigma: np.ndarray
     shape_sigma_pct: np.ndarray
+    misfit: np.ndarray
 
 
 def default_band(freq_Hz) -> tuple[float, float]:
@@ -89,13 +95,28 @@ def extract_state(fs: FrfSet, options: EmaOptions, log=print, stream: int = 0) -
         boot = bootstrap(fs, refined, shapes, band, options, stream=stream, progress=tick)
     fit_f = np.array([r.sigma_freq_Hz for r in refined])
     fit_z = np.array([r.sigma_zeta for r in refined])
+    misfit = misfit_ratios(refined)
     sh_noise = np.array([np.sqrt(np.mean(s.sigma**2)) for s in shapes])
     b_f = fit_f * 0 if boot is None else np.nan_to_num(boot.freq_Hz)
     b_z = fit_z * 0 if boot is None else np.nan_to_num(boot.zeta)
     b_s = sh_noise * 0 if boot is None else np.nan_to_num(boot.shape)
     rms = np.array([np.sqrt(np.mean(s.value**2)) for s in shapes])
-    return StateEma(fs, tuple(band), chart, points, clusters, refined, res, shapes, boot,
-                    np.fmax(fit_f, b_f), np.fmax(fit_z, b_z), 100 * np.hypot(sh_noise, b_s) / rms)
+    sig_f, sig_z = np.fmax(fit_f, b_f), np.fmax(fit_z, b_z)
+    bad = (misfit > MISFIT_RATIO) & np.array([r.note == "refitted" for r in refined])  # a kept LSCF pole has its sigma
+    sig_f = np.where(bad, np.fmax(sig_f * misfit, np.abs(f_ref - f0)), sig_f)
+    sig_z = np.where(bad, np.fmax(sig_z * misfit, np.abs(z_ref - z0)), sig_z)
+    for m in np.flatnonzero(bad):
+        log(f"state {fs.state}: {f_ref[m]:.1f} Hz fits {misfit[m]:.1f} times worse than the state's best mode "
+            "(an unresolved neighbour?): its sigma is scaled by that and covers the LSCF estimate")
+    return StateEma(fs, tuple(band), chart, points, clusters, refined, res, shapes, boot, sig_f, sig_z,
+                    100 * np.hypot(sh_noise, b_s) / rms, misfit)
+
+
+def misfit_ratios(refined) -> np.ndarray:
+    """Each pole's local-fit residual rms over the smallest of its state (1: fits as well as the best)."""
+    rms = np.array([r.residual_rms for r in refined])
+    best = np.nanmin(rms) if np.any(np.isfinite(rms)) else np.nan
+    return np.where(np.isfinite(rms) & (best > 0), rms / best, 1.0)
 
 
 def _pct(sigma, value) -> np.ndarray:
@@ -122,7 +143,8 @@ def pole_table(result: StateEma) -> pd.DataFrame:
             "freq_lscf_Hz": c.freq_Hz, "freq_scatter_orders_Hz": c.freq_scatter_Hz,
             "damping_lscf": c.zeta, "damping_scatter_orders": c.zeta_scatter,
             "n_stable_orders": len(c.members), "orders": f"{c.orders[0]}-{c.orders[-1]}",
-            "n_lines_fit": r.n_lines, "refit": r.note, "mpc": sh.mpc, "real_share": sh.real_share,
+            "n_lines_fit": r.n_lines, "fit_residual_rms": r.residual_rms, "misfit_ratio": result.misfit[m],
+            "refit": r.note, "mpc": sh.mpc, "real_share": sh.real_share,
         })
     table = pd.DataFrame(rows)
     err = np.linalg.norm(result.residues.synth[:, sel] - fs.H[:, sel]) / np.linalg.norm(fs.H[:, sel])

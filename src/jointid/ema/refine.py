@@ -31,7 +31,8 @@ WEIGHT_FLOOR = 0.05
 class Refined:
     """A refined pole: frequency (Hz), damping ratio, their 1-sigma, the lines used, and per FRF row the
     Gauss-Newton blocks ``J_i^T J_i`` (n_rows, 2, 2) and ``J_i^T r_i`` (n_rows, 2) at the solution (for the
-    bootstrap over rows); ``note`` says whether the refit was kept."""
+    bootstrap over rows); ``note`` says whether the refit was kept; ``residual_rms`` is the rms of the weighted
+    residuals (relative to |H|: about the noise over |H| where the model fits)."""
 
     freq_Hz: float
     zeta: float
@@ -42,6 +43,7 @@ class Refined:
     row_jtj: np.ndarray | None = None
     row_jtr: np.ndarray | None = None
     note: str = "refitted"
+    residual_rms: float = float("nan")
 
 
 def local_lines(freq_Hz, f0: float, zeta0: float, band_Hz) -> np.ndarray:
@@ -110,7 +112,7 @@ def refine_pole(freq_Hz, H, H_synth, f0: float, zeta0: float, others, band_Hz) -
     J = sol.jac.reshape(n_rows, -1, 2)
     r = sol.fun.reshape(n_rows, -1)
     return Refined(float(sol.x[0]), float(sol.x[1]), float(sig[0]), float(sig[1]), int(idx.size), bool(sol.success),
-                   np.einsum("rki,rkj->rij", J, J), np.einsum("rki,rk->ri", J, r))
+                   np.einsum("rki,rkj->rij", J, J), np.einsum("rki,rk->ri", J, r), residual_rms=float(np.sqrt(s2)))
 
 
 def refine_all(freq_Hz, H, freqs_Hz, zetas, band_Hz, n_pass: int = 3) -> list[Refined]:
@@ -145,5 +147,5 @@ def guarded(refined: list[Refined], freqs_Hz, zetas, scatter_Hz, scatter_zeta, t
             out.append(r)
             continue
         out.append(Refined(float(f), float(z), max(abs(r.freq_Hz - f), sf), max(abs(r.zeta - z), sz), r.n_lines,
-                           False, None, None, f"refit moved {100 * moved:.2f} %: LSCF pole kept"))
+                           False, None, None, f"refit moved {100 * moved:.2f} %: LSCF pole kept", r.residual_rms))
     return out
