@@ -1,7 +1,7 @@
 """The hammer-test example (examples/hammer_test): FE FRFs with known joints -> EMA -> dataset -> the model.
 
 Runs the example as a user would and checks what it claims: the dataset passes the check against the
-model's measuring points, most modes hold the model at the true joints within 3 of their own sigma,
+model's measuring points, every paired mode holds the model at the true joints within 3 of its own sigma,
 the identified normal and lateral stiffness hold the truth in their 95 % intervals, all in under 3 minutes.
 """
 
@@ -28,7 +28,7 @@ def test_hammer_test_example_runs_and_recovers_the_joints():
     assert summary["seconds"] < 180
     assert summary["data_check"] == []
     z = summary["error_over_sigma"]
-    assert sum(abs(v) <= 3 for v in z) >= 4 and len(z) >= 5
+    assert len(z) >= 5 and all(abs(v) <= 3 for v in z)  # the merged modes too: their sigma says so
     for name in ("k_normal_N_per_m3", "k_lateral_N_per_m3"):
         fit = summary["identified"][name]
         assert fit["low"] <= fit["truth"] <= fit["high"], (name, fit)
