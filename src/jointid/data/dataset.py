@@ -108,13 +108,15 @@ class Dataset:
         pct = self.mode_uncertainty_pct(state, "freq")
         return None if pct is None else pct / 100.0
 
-    def frequency_variance(self, state: str) -> np.ndarray:
+    def frequency_variance(self, state: str, default_pct: float = 1.0) -> np.ndarray:
         """Per-mode variance of the relative frequency error of ``state``, ``(sigma_rel)^2``, shape
-        ``(n_modes,)``: from ``freq_uncertainty_pct`` where given, else the global
-        ``frequency_uncertainty_pct`` (default 1 %) for every mode."""
+        ``(n_modes,)``: from ``freq_uncertainty_pct`` where given, else conditions.yaml's
+        ``frequency_uncertainty_pct``, else ``default_pct`` (the config's ``identify.frequency_uncertainty_pct``
+        in the fits), the same for every mode."""
         rel = self.frequency_sigma_rel(state)
         if rel is None:
-            rel = np.full(len(self.freqs(state)), float(self.conditions.get("frequency_uncertainty_pct", 1.0)) / 100)
+            pct = float(self.conditions.get("frequency_uncertainty_pct", default_pct))
+            rel = np.full(len(self.freqs(state)), pct / 100)
         return rel**2
 
     def state_conditions(self, state: str) -> dict:
