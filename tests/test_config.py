@@ -137,9 +137,10 @@ def test_schema_is_valid_and_complete():
     schema = load_schema(SCHEMA)
     jsonschema.Draft202012Validator.check_schema(schema)
     # optional (absent unless given); damping_ratio has a model-dependent default (if/then); a catalogue
-    # class without lateral_N_per_um is compared laterally with its normal_N_per_um
+    # class without lateral_N_per_um is compared laterally with its normal_N_per_um; the ema section is
+    # absent unless given (its keys have defaults), so the paper's configuration and its hash stay as they were
     optional_without_default = {"alpha_per_s", "beta_s", "joint_loss_factor_s", "dataset", "damping_ratio",
-                                "lateral_N_per_um"}
+                                "lateral_N_per_um", "ema"}
     missing = []
 
     def walk(node, path, required):
@@ -302,7 +303,7 @@ BAD = [
      "use a negative shift, e.g. -10"),
     ("unknown top-level key", lambda c: c.update(reprot={}),
      "reprot: unknown key — did you mean 'report'? (allowed: materials, model, rig, mesh, mesh_check, carriage_rigidity, catalogue, joints, states, measurements, "
-     "datasets, doe, surface, identify, solver, harmonic, diagnosis, effects, linked, hypotheses, report)"),
+     "datasets, doe, surface, identify, solver, harmonic, diagnosis, effects, linked, hypotheses, ema, report)"),
     ("length in mm", lambda c: c["rig"]["base"].update(length_m=1100),
      "rig.base.length_m: 1100 m is not a plausible size of a machine-tool feed drive; the value looks like mm — "
      "write 1.1 (the unit of every *_m key is m)"),

@@ -5,6 +5,7 @@
     jointid config check config.yaml
     jointid diagnose --dataset data/rig --out results/diagnosis
     jointid checks --table1 results/tables
+    jointid data ema hammer.uff --out data/hammer     (the same as `jointid ema ...`)
 
 Only the chosen command's module is imported.  Exit status: the command's own (0 = fine), 1 for a
 :class:`~jointid.errors.JointidError` the command did not report itself, 2 for no or an unknown
@@ -25,6 +26,7 @@ MODULES = {
     "synth": "jointid.diagnosis.synth",
     "uff": "jointid.data.uff",
     "data": "jointid.data.__main__",
+    "ema": "jointid.ema.__main__",
     "export-mesh": "jointid.fe.meshexport",
 }
 COMMANDS = {
@@ -33,7 +35,8 @@ COMMANDS = {
     "checks": "acceptance checks on the reproduced tables (CI gate; --table1, --tables2-3)",
     "synth": "write a synthetic dataset from a truth YAML file (--truth FILE --out DIR)",
     "uff": "import a Universal File (.unv/.uff) into a dataset folder",
-    "data": "validate dataset folders before any run (check FOLDER ... [--points CSV])",
+    "data": "validate dataset folders (check FOLDER ...); modes from FRFs (ema FRF --out DIR, also `jointid ema`)",
+    "ema": "modes from measured FRFs: EMA into a dataset folder (FRF.uff|frf.csv|DATASET --out DIR)",
     "export-mesh": "write the rig as a mesh file with named groups and its model: config (--out DIR)",
 }
 
@@ -73,6 +76,8 @@ def main(argv: list[str] | None = None) -> int:
         what = f"unknown command {args[0]!r}" if args else "no command given"
         print(f"jointid: {what}; choose one of: {', '.join(COMMANDS)}\n\n{usage()}", file=sys.stderr)
         return 2
+    if args[:2] == ["data", "ema"]:  # `jointid data ema ...` is the EMA's command line (jointid.ema)
+        args = args[1:]
     module = importlib.import_module(MODULES[args[0]])
     try:
         return module.main(args[1:])

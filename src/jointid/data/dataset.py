@@ -2,8 +2,9 @@
 
 A dataset is a folder holding
 
-* ``modes.csv``       ``state,mode,freq_Hz[,damping_ratio]`` -- one row per measured mode,
-  modes numbered ``1..n`` per state in order of increasing frequency;
+* ``modes.csv``       ``state,mode,freq_Hz[,damping_ratio][,freq_uncertainty_pct,damping_uncertainty_pct,
+  shape_uncertainty_pct]`` -- one row per measured mode, modes numbered ``1..n`` per state in order of
+  increasing frequency; the optional per-mode 1-sigma uncertainties (percent) come from an EMA;
 * ``shapes.csv``      ``state,mode,point,direction,value`` (optional) -- real mode-shape values;
 * ``frf.csv``         ``state,point,direction,freq_Hz,re,im`` (optional) -- receptance in m/N,
   drive point given per state in ``conditions.yaml``;
@@ -47,7 +48,9 @@ class Dataset:
     name : str
         Folder name.
     modes : DataFrame
-        Columns ``state, mode, freq_Hz`` (+ ``damping_ratio``), sorted by state then mode.
+        Columns ``state, mode, freq_Hz`` (+ ``damping_ratio``, + the per-mode uncertainties
+        ``freq_uncertainty_pct``, ``damping_uncertainty_pct``, ``shape_uncertainty_pct`` where given),
+        sorted by state then mode.
     shapes : DataFrame or None
         Columns ``state, mode, point, direction, value``.
     frf : DataFrame or None
@@ -83,6 +86,38 @@ class Dataset:
         if "damping_ratio" not in self.modes.columns:
             return None
         return self._modes_of(state)["damping_ratio"].to_numpy(dtype=float)
+
+    def mode_uncertainty_pct(self, state: str, kind: str = "freq") -> np.ndarray | None:
+        """Per-mode 1-sigma uncertainty of ``state`` in percent, shape ``(n_modes,)``, mode order; None if
+        modes.csv has no ``<kind>_uncertainty_pct`` column (``kind``: ``freq``, ``damping`` or ``shape``).
+
+        The values are relative: of the frequency, of the damping ratio, or of the RMS of the mode's shape
+        values (as conditions.yaml's global keys).  An EMA writes them (jointid.ema).
+        """
+        if kind not in ("freq", "damping", "shape"):
+            raise DataError(f"uncertainty kind {kind!r} is not freq, damping or shape — use one of them")
+        col = f"{kind}_uncertainty_pct"
+        if col not in self.modes.columns:
+            return None
+        return self._modes_of(state)[col].to_numpy(dtype=float)
+
+    def frequency_sigma_rel(self, state: str) -> np.ndarray | None:
+        """Per-mode relative 1-sigma of the natural frequencies of ``state`` (0.01 = 1 %), shape
+        ``(n_modes,)``, mode order; None when modes.csv has no ``freq_uncertainty_pct`` (then the global
+        ``frequency_uncertainty_pct`` of conditions.yaml, default 1 %, applies)."""
+        pct = self.mode_uncertainty_pct(state, "freq")
+        return None if pct is None else pct / 100.0
+
+    def frequency_variance(self, state: str, default_pct: float = 1.0) -> np.ndarray:
+        """Per-mode variance of the relative frequency error of ``state``, ``(sigma_rel)^2``, shape
+        ``(n_modes,)``: from ``freq_uncertainty_pct`` where given, else conditions.yaml's
+        ``frequency_uncertainty_pct``, else ``default_pct`` (the config's ``identify.frequency_uncertainty_pct``
+        in the fits), the same for every mode."""
+        rel = self.frequency_sigma_rel(state)
+        if rel is None:
+            pct = float(self.conditions.get("frequency_uncertainty_pct", default_pct))
+            rel = np.full(len(self.freqs(state)), pct / 100)
+        return rel**2
 
     def state_conditions(self, state: str) -> dict:
         """The ``conditions.yaml`` entry of ``state`` (``em_force_N`` etc.)."""

@@ -1,3 +1,4 @@
+# over 400 lines: the checks of the three CSV files share their row helpers (_float, _point, ...); split them when a fourth file comes
 """Checks of a dataset's CSV files (modes.csv, shapes.csv, frf.csv) and the problem collector.
 
 Every check adds one line per problem to a :class:`Problems` list, formatted
@@ -18,15 +19,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["DIRECTIONS", "COLUMNS", "Problems", "read_table", "few", "CheckedModes", "check_modes",
+__all__ = ["DIRECTIONS", "COLUMNS", "MODE_UNCERTAINTY_COLUMNS", "Problems", "read_table", "few", "CheckedModes", "check_modes",
            "check_shapes", "check_frf"]
 
 DIRECTIONS = ("x", "y", "z")
 COLUMNS = {  # file -> (required columns, optional columns)
-    "modes.csv": (("state", "mode", "freq_Hz"), ("damping_ratio",)),
+    "modes.csv": (("state", "mode", "freq_Hz"), ("damping_ratio", "freq_uncertainty_pct", "damping_uncertainty_pct",
+                                                 "shape_uncertainty_pct")),
     "shapes.csv": (("state", "mode", "point", "direction", "value"), ()),
     "frf.csv": (("state", "point", "direction", "freq_Hz", "re", "im"), ()),
 }
+MODE_UNCERTAINTY_COLUMNS = ("freq_uncertainty_pct", "damping_uncertainty_pct", "shape_uncertainty_pct")
+"""Optional per-mode 1-sigma uncertainties of modes.csv, in percent (an EMA measures them: jointid.ema)."""
 KHZ_LIMIT_HZ = 20.0  # a dataset whose highest frequency is below this was written in kHz
 RECEPTANCE_LIMIT_M_PER_N = 1e-2  # median |H| above this is not a structural receptance in m/N
 _UNIT_HINTS = {  # misnamed column -> fix
@@ -161,6 +165,17 @@ def _float(problems, where, col, raw):
     return value
 
 
+def _uncertainty(problems, where, col, raw):
+    """A per-mode uncertainty in percent: a positive finite number (None and a problem otherwise).  It may
+    exceed 100: an EMA can measure a damping ratio that poorly."""
+    value = _float(problems, where, col, raw)
+    if value is not None and not value > 0:
+        problems.add(where, f"{col} = {raw} is not positive",
+                     "give the 1-sigma uncertainty of this mode in percent, a positive number such as 0.05")
+        return None
+    return value
+
+
 def _mode_number(problems, where, raw):
     value = _float(problems, where, "mode", raw)
     if value is None:
@@ -255,10 +270,12 @@ def check_modes(path, label, problems, hz_confirmed: bool = False):
                              "give the viscous damping ratio of critical, e.g. 0.02 for 2 %")
                 zeta = None
         named.append(row["state"])
-        if None in (state, mode, freq, zeta):
+        sigmas = tuple(_uncertainty(problems, where, col, row[col]) if col in header else np.nan
+                       for col in MODE_UNCERTAINTY_COLUMNS)
+        if None in (state, mode, freq, zeta) + sigmas:
             tainted.add(row["state"])
             continue
-        records.append((line, state, mode, freq, zeta))
+        records.append((line, state, mode, freq, zeta) + sigmas)
     if not n_rows:
         problems.add(f"{label}:2", "no modes", "add one row per measured mode below the header")
         return CheckedModes(None, [], set())
@@ -271,7 +288,7 @@ def check_modes(path, label, problems, hz_confirmed: bool = False):
                          "frequencies_in_Hz_confirmed: true to conditions.yaml)")
     by_state: dict[str, dict[int, tuple]] = {}
     for rec in records:
-        line, state, mode, freq, _ = rec
+        line, state, mode, freq = rec[:4]
         modes = by_state.setdefault(state, {})
         if mode in modes:
             problems.add(f"{label}:{line}", f"duplicate mode {mode} of state {state} (also on line "
@@ -294,9 +311,9 @@ def check_modes(path, label, problems, hz_confirmed: bool = False):
                 problems.add(f"{label}:{modes[m][0]}", f"mode {m} of state {state} "
                              f"({modes[m][3]:g} Hz) is below mode {m - 1} ({modes[m - 1][3]:g} Hz)",
                              "number the modes by increasing frequency")
-    cols = ["state", "mode", "freq_Hz"] + (["damping_ratio"] if has_damping else [])
-    good = [r[1:] if has_damping else r[1:4] for r in records]
-    df = pd.DataFrame(good, columns=cols).drop_duplicates(["state", "mode"])
+    cols = ["state", "mode", "freq_Hz", "damping_ratio", *MODE_UNCERTAINTY_COLUMNS]
+    keep = ["state", "mode", "freq_Hz"] + [c for c in cols[3:] if c in header]
+    df = pd.DataFrame([r[1:] for r in records], columns=cols)[keep].drop_duplicates(["state", "mode"])
     return CheckedModes(df, [s for s in dict.fromkeys(named) if s], tainted)
 
 

@@ -1,0 +1,31 @@
+"""Rule ema: a named FRF source (``ema.sources.<name>``) -> the dataset folder ``results/ema/<name>/dataset``
+and the EMA's report (poles.csv, stabilisation chart, synthesised FRFs) in ``results/ema/<name>/report``.
+
+Not in the paper's chain: the rule runs only for the sources named in the config.  Its dataset is read by
+the rest of the chain like any other (``measurements.dataset: results/ema/<name>/dataset`` in a second
+run, or ``jointid data ema`` beforehand: the datasets are checked when the Snakefile is parsed).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from jointid.ema.options import EmaOptions
+from jointid.ema.run import run_ema
+from jointid.progress import stamp
+
+CONFIG = ("ema",)
+"""The config sections rule ema reads."""
+
+
+def sources(cfg: dict) -> dict[str, str]:
+    """The named FRF sources of ``ema.sources`` (empty without an ``ema`` section)."""
+    return {str(k): str(v) for k, v in ((cfg.get("ema") or {}).get("sources") or {}).items()}
+
+
+def run_ema_stage(cfg: dict, source, out_dataset, out_poles) -> None:
+    """EMA of ``source`` with the criteria of ``cfg['ema']``: the dataset folder ``out_dataset``, and
+    ``out_poles`` (poles.csv) with the figures beside it."""
+    options = EmaOptions.from_section(cfg.get("ema"))
+    run_ema(source, out_dataset, report=Path(out_poles).parent, options=options,
+            log=lambda m: print(stamp(m), flush=True))

@@ -1,0 +1,35 @@
+# EMA: modes from measured FRFs (jointid.ema, docs/measurement-format.md "From FRFs: EMA").
+#   ema.sources.<name>: a frf.csv, hammer time histories (CSV), a UFF file with dataset 58, or a dataset
+#   folder with frf.csv  ->  results/ema/<name>/dataset (a dataset folder with per-mode uncertainties)
+#                             results/ema/<name>/report/{poles.csv, stabilisation_<state>.png, frf_<state>.png}
+# Only the named sources run: without ema.sources (the paper's data) nothing here is scheduled.
+
+from jointid.stages import ema as ema_stage
+
+EMA_SOURCES = ema_stage.sources(config)
+CFG_EMA = sections(config, *ema_stage.CONFIG)
+
+
+rule ema:
+    input:
+        source=lambda wc: EMA_SOURCES[wc.name],
+    output:
+        dataset=directory(f"{R}/ema/{{name}}/dataset"),
+        poles=f"{R}/ema/{{name}}/report/poles.csv",
+    params:
+        cfg=CFG_EMA,
+    wildcard_constraints:
+        name="[A-Za-z][A-Za-z0-9_]*",
+    log:
+        "logs/ema/{name}.log",
+    benchmark:
+        "benchmarks/out/ema/{name}.tsv"
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=10,
+    script:
+        "../scripts/ema.py"
+
+
+EXTRA_TARGETS.extend(expand(f"{R}/ema/{{name}}/report/poles.csv", name=list(EMA_SOURCES)))
