@@ -290,8 +290,10 @@ class Study:
                             "no model mode at the start — give theta0 nearer the answer, or raise solver.n_modes")
         joints = self._settings.model.joints
         weights = cfg["identify"].get("weights")
+        weights = np.ones(len(d.f_meas)) if not weights else np.asarray(weights, float)
+        weights = weights * (d.noise_rms() / d.mode_sigma()) ** 2  # each mode in units of its own uncertainty
         fit = PolishFit(d.f_meas, start.shapes[:, pairing.model_index], joints.lower_N_per_m3, joints.upper_N_per_m3,
-                        weights=None if not weights else np.asarray(weights, float), sigma_rel=d.sigma_rel,
+                        weights=weights, sigma_rel=d.noise_rms(),
                         repair=meas_shapes is None, rule=d.rule)
         polish = polish_on_model(self._settings.model, self.model(), names, np.array([start.theta[k] for k in names]),
                                  fit, max_iter=max_iter, log=log or _quiet)

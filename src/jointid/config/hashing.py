@@ -40,6 +40,14 @@ def _canonical(value: Any) -> Any:
     raise ConfigError(f"config: value of type {type(value).__name__} cannot be hashed — use YAML types only")
 
 
+def mesh_digest(cfg: Mapping) -> str:
+    """A short digest of the mesh settings of a configuration (its ``mesh`` section and model kind):
+    two models with the same digest have the same discretisation (a synthetic dataset computed on the
+    analysis's own mesh has no discretisation error against it, :mod:`jointid.diagnosis.mesh_error`)."""
+    kind = (cfg.get("model") or {}).get("kind", "rig")
+    return config_hash({"mesh": cfg.get("mesh"), "kind": kind})[:16]
+
+
 def config_hash(cfg: Mapping, keys: str | Iterable[str] | None = None) -> str:
     """Stable short hash of a configuration or of some of its sections.
 

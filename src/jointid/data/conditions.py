@@ -18,7 +18,7 @@ from jointid.yamlio import number_from_text
 __all__ = ["TOP_KEYS", "STATE_KEYS", "CURRENT_KEYS", "SETUP_KEYS", "check_conditions", "hz_confirmed"]
 
 TOP_KEYS = ("source", "states", "frequency_uncertainty_pct", "test_setup", "notes", "frequencies_in_Hz_confirmed",
-            "damping_uncertainty_pct", "shape_uncertainty_pct")
+            "damping_uncertainty_pct", "shape_uncertainty_pct", "computed_on_mesh")
 """``frequencies_in_Hz_confirmed: true`` says the frequencies are in Hz as written (a file format that
 defines its unit, such as UFF 55, or a structure whose modes lie below 20 Hz): the kHz plausibility
 check of modes.csv is skipped."""
@@ -119,6 +119,10 @@ def check_conditions(path, label, problems, points, has_frf_states):
         u = data.get(key, 1.0)
         if not _is_number(u) or not 0 < u < 100:
             problems.add(f"{label}:{key}", f"{key} = {u!r} is not a number in (0, 100)", hint)
+    if "computed_on_mesh" in data and not isinstance(data["computed_on_mesh"], str):
+        problems.add(f"{label}:computed_on_mesh", f"computed_on_mesh = {data['computed_on_mesh']!r} is not text",
+                     "remove the key (it is written by jointid's synthesiser: the digest of the mesh settings a "
+                     "synthetic dataset was computed on)")
     if "frequencies_in_Hz_confirmed" in data and not isinstance(data["frequencies_in_Hz_confirmed"], bool):
         problems.add(f"{label}:frequencies_in_Hz_confirmed",
                      f"frequencies_in_Hz_confirmed = {data['frequencies_in_Hz_confirmed']!r} is not true/false",

@@ -139,7 +139,7 @@ def _further_modes(diag, fits: dict, names: list[str]) -> list[dict]:
             rows.append({"measurement": f"{d.name}: the mode near {sa.freqs_Hz[j]:.0f} Hz, not measured today "
                                         "(extend the measured band to it)",
                          "kind": "further mode", "state": d.name, "em_force_N": d.info.em_force_N,
-                         "predictions_Hz": f, "sigma_rel": d.sigma_rel})
+                         "predictions_Hz": f, "sigma_rel": d.noise_rms()})
     return rows
 
 
@@ -172,7 +172,7 @@ def _force_levels(diag, fits: dict, names: list[str]) -> list[dict]:
                 rows.append({"measurement": f"a state at em_force_N = {F:g} N: mode {i + 1} (as measured in "
                                             f"{ref.name}, near {sa.freqs_Hz[j]:.0f} Hz)",
                              "kind": "force level", "state": info.name, "em_force_N": F,
-                             "predictions_Hz": f, "sigma_rel": ref.sigma_rel, "group": f"force {F:g}"})
+                             "predictions_Hz": f, "sigma_rel": ref.noise_rms(), "group": f"force {F:g}"})
     return rows
 
 

@@ -28,7 +28,6 @@ Numerics
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -37,15 +36,14 @@ from scipy.optimize import least_squares, linear_sum_assignment
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis.results import Evaluation, Fit
 from jointid.diagnosis.shape_residuals import ShapeTerms
+from jointid.diagnosis.starts import (EIGEN_RTOL, START_DIGITS, TIE_RTOL, best_fit, chi2_resolution,  # noqa: F401
+                                      refit_starts, rounded_start)
 from jointid.diagnosis.terms import System, is_solid_term, term_component
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
 from jointid.progress import stamp
 
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
-START_DIGITS = 3  # significant digits of a refit's start taken from a linearised estimate
-TIE_RTOL = 1e-6  # fits from several starts within this relative chi-square are one optimum (best_fit)
-EIGEN_RTOL = 1e-6  # the reduced solver's relative eigenvalue tolerance (Diagnoser's default tol): best_fit's ties
 
 
 def print_log(msg: str) -> None:
@@ -357,63 +355,6 @@ def term_directions(system: System) -> list[tuple[dict, dict]]:
         if name != "M0" and not is_solid_term(name):
             out.append(({}, {name: 1.0}))
     return out
-
-
-def refit_starts(spec: EffectSpec, t_hat: float) -> list[float]:
-    """Start values of a one-parameter candidate: its linearised estimate, a bracket above it
-    (effects saturate, so the linearised estimate tends to be low), inside the bounds, and the
-    effect at (almost) its null: the refit of a nested model then never ends worse than the model
-    it extends (a strong start can lock onto a pairing of its own)."""
-    p = spec.effect.params[0]
-    lo, hi = p.t_bounds
-    hi = hi if math.isfinite(hi) else 1e6
-    span = hi - lo
-    base = float(np.clip(rounded_start(t_hat), lo + 1e-3 * span, hi))
-    out = [base]
-    for s in (3.0 * base, lo + 0.3 * span):
-        s = float(np.clip(s, lo + 1e-3 * span, hi))
-        if all(abs(s - o) > 0.05 * max(abs(o), 1e-3 * span) for o in out):
-            out.append(s)
-        if len(out) == 2:
-            break
-    near_null = p.t_near_null()
-    if all(abs(near_null - o) > 0.05 * max(abs(o), 1e-3 * span) for o in out):
-        out.append(near_null)
-    return out
-
-
-def chi2_resolution(f: Fit, eig_rtol: float = EIGEN_RTOL) -> float:
-    """How far the chi-square of ``f`` can move with the solver's accuracy alone: each frequency is
-    certified to a relative eigenvalue error ``eig_rtol``, so a frequency row moves by up to
-    ``eig_rtol / (2 sigma_i)`` and the chi-square by ``sum |r_i| eig_rtol / sigma_i`` (first order)."""
-    ev = getattr(f, "ev", None)
-    if ev is None or ev.sigma is None:
-        return 0.0
-    from jointid.diagnosis.results import frequency_rows
-
-    rows = frequency_rows(ev)
-    return float(np.sum(np.abs(ev.r[rows]) * eig_rtol / np.asarray(ev.sigma, float)[rows]))
-
-
-def best_fit(fits: list[Fit]) -> Fit:
-    """The fit of least chi-square over several starts; fits within :data:`TIE_RTOL` of it, or within
-    what the solver's accuracy alone can move a chi-square (:func:`chi2_resolution`), are one optimum
-    reached twice, and the first start's is taken.  Each chi-square is certified to the solver
-    tolerance only, so a strict minimum would pick between such twins by round-off, and an identical
-    question in another run (on another subspace) could be answered from the other twin."""
-    finite = [f for f in fits if np.isfinite(f.chi2)]
-    if not finite:
-        return fits[0]
-    low = min(f.chi2 for f in finite)
-    return next(f for f in finite
-                if f.chi2 <= low + max(TIE_RTOL * abs(low), chi2_resolution(f)) + 1e-9)
-
-
-def rounded_start(t: float) -> float:
-    """A start value from an estimate, to :data:`START_DIGITS` significant digits: a start is a guess,
-    and an estimate's last digits change with the subspace that computed it, so that rounded, a fit
-    asked again from the same estimate is the same question (:mod:`jointid.diagnosis.memo`)."""
-    return float(f"{float(t):.{START_DIGITS}g}")
 
 
 def refit(diag: Diagnoser, fit: Fit, spec: EffectSpec, t_hat: np.ndarray, *, verify: bool = True) -> Fit:

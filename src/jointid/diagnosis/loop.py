@@ -31,6 +31,7 @@ from jointid.diagnosis.combine import combine_candidates, refit_at, refit_on_lad
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, print_log, refit
 from jointid.diagnosis.judging import judge_fits, model_error_of
+from jointid.diagnosis.mesh_error import mesh_budget
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
 from jointid.diagnosis.statistics import identifiability, score_candidate, state_contrasts
@@ -192,38 +193,6 @@ def compare_reference(diag: Diagnoser, base: Variant, reference_state: str | Non
     log(f"diagnosis: calibrating the baseline on {ref}")
     fit_ref = sub.fit(base, x0)
     return fit_ref.x, compare_tables(diag, base, fit_ref.x)
-
-
-def mesh_budget(diag: Diagnoser, base: Variant, x0, notes: list, log) -> None:
-    """Step 1b: each measured mode's mesh correction and known error at ``x0``
-    (:mod:`jointid.diagnosis.mesh_error`), set on the diagnoser's states; a note says what was done."""
-    from jointid.config.typed import ModelSpec
-    from jointid.diagnosis.mesh_error import estimate_mesh_errors
-
-    spec = ModelSpec.from_config(diag.cfg)
-    if spec.is_mesh_file:
-        notes.append("the mesh error is not in the budget: a mesh file cannot be refined here (the model error "
-                     "sigma_m holds it)")
-        return
-    from jointid.diagnosis.mesh_error import MeshErrors
-
-    halve = tuple((diag.cfg.get("mesh_check") or {}).get("halve") or ("thickness",))
-    key = rec = None
-    if diag.memo is not None:  # asked before at the same point of the same model and data: recorded
-        key = diag.memo.value_key(diag.context_digest(), "mesh_errors", np.asarray(x0, float), list(halve))
-        rec = diag.memo.get_value(key)
-    if rec is not None:
-        errors = MeshErrors.from_json(rec)
-        log("diagnosis: the mesh error as recorded by an earlier run at the same point")
-    else:
-        sols = diag.solve_states(base, x0)
-        index = [p.model_index for p in diag.pair(sols)]
-        errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
-                                      n_modes=diag.n_modes, log=log)
-        if key is not None:
-            diag.memo.put_value(key, errors.to_json())
-    errors.apply(diag.data)
-    notes.append(errors.note(diag.data))
 
 
 def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log) -> tuple[dict, Fit, list]:

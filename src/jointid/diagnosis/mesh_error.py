@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MeshErrors", "estimate_mesh_errors", "FOLLOW_MAC"]
+__all__ = ["MeshErrors", "estimate_mesh_errors", "mesh_budget", "FOLLOW_MAC"]
 
 FOLLOW_MAC = 0.8
 """A refined-mesh mode follows a model mode when their MAC at the measuring points is at least this."""
@@ -135,3 +135,38 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
     release_heap()
     out.seconds = time.time() - t0
     return out
+
+
+def mesh_budget(diag, base, x0, notes: list, log) -> None:
+    """Step 1b: each measured mode's mesh correction and known error at ``x0``
+    (:mod:`jointid.diagnosis.mesh_error`), set on the diagnoser's states; a note says what was done."""
+    from jointid.config.typed import ModelSpec
+
+    from jointid.config.hashing import mesh_digest
+
+    if all(d.computed_on_mesh == mesh_digest(diag.cfg) for d in diag.data):
+        notes.append("the mesh error is not in the budget: the data were computed on this very mesh "
+                     "(conditions.yaml computed_on_mesh), so the model has no discretisation error against them")
+        return
+    spec = ModelSpec.from_config(diag.cfg)
+    if spec.is_mesh_file:
+        notes.append("the mesh error is not in the budget: a mesh file cannot be refined here (the model error "
+                     "sigma_m holds it)")
+        return
+    halve = tuple((diag.cfg.get("mesh_check") or {}).get("halve") or ("thickness",))
+    key = rec = None
+    if diag.memo is not None:  # asked before at the same point of the same model and data: recorded
+        key = diag.memo.value_key(diag.context_digest(), "mesh_errors", np.asarray(x0, float), list(halve))
+        rec = diag.memo.get_value(key)
+    if rec is not None:
+        errors = MeshErrors.from_json(rec)
+        log("diagnosis: the mesh error as recorded by an earlier run at the same point")
+    else:
+        sols = diag.solve_states(base, x0)
+        index = [p.model_index for p in diag.pair(sols)]
+        errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
+                                      n_modes=diag.n_modes, log=log)
+        if key is not None:
+            diag.memo.put_value(key, errors.to_json())
+    errors.apply(diag.data)
+    notes.append(errors.note(diag.data))

@@ -54,7 +54,7 @@ def row_sigma(ev: Evaluation, data: list[StateData] | None = None) -> np.ndarray
     f = frequency_rows(ev)
     if ev.sigma is not None:
         return np.asarray(ev.sigma, float)[f]
-    return np.array([data[si].sigma_rel for si, mode in ev.rows if mode >= 0], float)
+    return np.array([data[si].noise_rms() for si, mode in ev.rows if mode >= 0], float)
 
 
 def row_known(ev: Evaluation) -> np.ndarray:

@@ -48,6 +48,7 @@ import numpy as np
 import pandas as pd
 
 from jointid.config import load_config
+from jointid.config.hashing import mesh_digest
 from jointid.data.dataset import write_dataset
 from jointid.diagnosis.effects import apply_effects, enabled_effects
 from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system, term_component
@@ -204,6 +205,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
             cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
         conds[sname] = cond
     conditions = _conditions(noise, conds, None if truncated else [lo, hi], bool(truth_damping), bool(meas["shapes"]))
+    conditions["computed_on_mesh"] = mesh_digest(cfg)  # the truth's discretisation (diagnosis.mesh_error)
     return {"modes": pd.DataFrame(modes_rows),
             "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
             "frf": pd.DataFrame(frf_rows) if frf_rows else None,

@@ -39,6 +39,7 @@ class StateData:
     shape_sigma_rel: float | None = None  # stated shape uncertainty (shape_uncertainty_pct / 100); None: estimated
     known_rel: np.ndarray | None = None  # known model error per measured mode (the mesh's, relative); None: none
     mesh_shift: np.ndarray | None = None  # correction of each measured mode's model log frequency (the mesh's)
+    computed_on_mesh: str | None = None  # a synthetic dataset's mesh digest (conditions.yaml computed_on_mesh)
 
     def mode_shift(self) -> np.ndarray:
         """The mesh correction ``ln(f_refined / f_mesh)`` of each measured mode (zeros where none)."""
@@ -49,6 +50,10 @@ class StateData:
     def mode_sigma(self) -> np.ndarray:
         """The relative frequency uncertainty of each measured mode ``(n_modes,)``."""
         return np.broadcast_to(np.asarray(self.sigma_rel, float), self.f_meas.shape).astype(float)
+
+    def noise_rms(self) -> float:
+        """The root mean square of the modes' relative frequency uncertainties (one number for the state)."""
+        return float(np.sqrt(np.mean(self.mode_sigma() ** 2))) if len(self.f_meas) else float(np.mean(self.sigma_rel))
 
     def mode_known(self) -> np.ndarray:
         """The known error of each measured mode ``(n_modes,)`` (zeros where none is known)."""
@@ -76,8 +81,9 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
     """:class:`StateData` of the requested states of a :class:`jointid.data.dataset.Dataset`.
 
     The motor force comes from the dataset's ``conditions.yaml`` (the measured input), else from
-    ``cfg['states']``.  The frequency uncertainty is the dataset's ``frequency_uncertainty_pct``,
-    else ``identify.frequency_uncertainty_pct``; the shape uncertainty is the dataset's
+    ``cfg['states']``.  The frequency uncertainty is per mode where modes.csv gives
+    ``freq_uncertainty_pct``, else the dataset's ``frequency_uncertainty_pct``, else
+    ``identify.frequency_uncertainty_pct``; the shape uncertainty is the dataset's
     ``shape_uncertainty_pct`` (None when not stated: the diagnosis estimates it).  Each state carries the observability rule of its
     test (:func:`state_rule`) unless ``identify.visible_threshold`` is null.
     """
@@ -101,8 +107,10 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
         shapes = None
         if ds.shapes is not None and s in set(ds.shapes["state"]):
             shapes = ds.shape_matrix(s, system.labels)
-        out.append(StateData(s, StateInfo(s, float(force)), ds.freqs(s), shapes, sigma,
-                             state_rule(ds, s, system, cfg, shapes), shape_sigma))
+        per = ds.frequency_sigma_rel(s)  # per-mode uncertainties (modes.csv freq_uncertainty_pct), e.g. an EMA's
+        out.append(StateData(s, StateInfo(s, float(force)), ds.freqs(s), shapes, sigma if per is None else per,
+                             state_rule(ds, s, system, cfg, shapes), shape_sigma,
+                             computed_on_mesh=ds.conditions.get("computed_on_mesh")))
     return out
 
 

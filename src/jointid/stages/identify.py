@@ -44,7 +44,9 @@ def scout_config_keys(states: list[str]) -> tuple[str, ...]:
 
 def measured_modes(cfg: dict, state: str, pts):
     """``(frequencies, shapes or None, frequency uncertainty in %)`` of one state's measured modes
-    (``pts``: the measuring-point table)."""
+    (``pts``: the measuring-point table).  With per-mode uncertainties in modes.csv
+    (``freq_uncertainty_pct``, e.g. from the EMA) the uncertainty is their root mean square, and
+    :func:`noise_weights` weights each mode by its own."""
     from jointid.correlate.pairing import below_band
     from jointid.data.dataset import read_dataset
     from jointid.errors import DataError
@@ -58,7 +60,24 @@ def measured_modes(cfg: dict, state: str, pts):
     if ds.shapes is not None and state in set(ds.shapes["state"]):
         shapes = ds.shape_matrix(state, dof_labels(pts))
     sigma_pct = ds.conditions.get("frequency_uncertainty_pct", cfg["identify"]["frequency_uncertainty_pct"])
+    per = ds.frequency_sigma_rel(state)
+    if per is not None:
+        sigma_pct = 100 * float(np.sqrt(np.mean(per ** 2)))
     return ds.freqs(state), shapes, float(sigma_pct)
+
+
+def noise_weights(cfg: dict, state: str, pts, sigma_pct: float, weights):
+    """``identify.weights`` (None: ones) times each mode's ``(sigma / sigma_i)^2`` where modes.csv gives
+    per-mode frequency uncertainties ``sigma_i`` (``sigma``: :func:`measured_modes`' root mean square):
+    the fit's residual of mode i is then in units of its own uncertainty.  ``weights`` as given
+    without per-mode uncertainties."""
+    from jointid.data.dataset import read_dataset
+
+    per = read_dataset(dataset_folder(cfg, state), measuring_points=pts).frequency_sigma_rel(state)
+    if per is None:
+        return weights
+    w = np.ones(len(per)) if weights is None else np.asarray(weights, float)
+    return w * (sigma_pct / 100 / per) ** 2
 
 
 def visibility_rule(cfg: dict, state: str, pts):
@@ -309,7 +328,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     doc, pts = io.read_json(surface_json), pd.read_csv(points_csv)
     f_meas, shapes, sigma_pct = measured_modes(cfg, state, pts)
     ic = cfg["identify"]
-    weights = np.asarray(ic["weights"], float) if ic.get("weights") else None
+    weights = noise_weights(cfg, state, pts, sigma_pct, np.asarray(ic["weights"], float) if ic.get("weights") else None)
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
     names, zoom = doc["names"], doc.get("stage") == "zoom"
     rule = ic.get("pairing", "independent")
