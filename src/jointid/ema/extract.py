@@ -179,7 +179,7 @@ def dataset_tables(results: list[StateEma], conditions: dict, source: str) -> di
             "frequencies_in_Hz_confirmed": True,
             "notes": "per-mode uncertainties measured by the EMA (modes.csv); no global noise stated",
             "states": states}
-    for key in ("test_setup",):
+    for key in ("test_setup", "computed_on_mesh"):  # a synthetic source's mesh digest passes through
         if key in conditions:
             cond[key] = conditions[key]
     return {"modes": modes, "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
