@@ -235,9 +235,15 @@ def lead_sentence(f: Findings) -> str:
     elif " + " in name and len(f.combinations):
         c = f.combinations[f.combinations["effects"].astype(str) == name.replace(" + ", "+")]
         value = f" ({c.iloc[0]['estimates']})" if len(c) else ""
+    left = []
+    if me.sigma_model_rel > 0:
+        left.append(f"a model error of about {100 * me.sigma_model_rel:.2g} % per mode remains")
+    if me.shape is not None and me.shape.above_noise:
+        left.append(f"the mode shapes keep a model error of about {100 * me.shape.sigma_model_rel:.2g} % of each "
+                    "mode's RMS")
+    rest = " and ".join(left) if left else "the best fit tried leaves no model error beyond the noise"
     return (f"Supported effect: {name}{value}, {b['support']} supported (ΔQAICc {daicc(b['delta_qaicc'])}), "
-            f"removing {100 * b['removed_fraction']:.0f} % of the misfit; a model error of about "
-            f"{100 * me.sigma_model_rel:.2g} % per mode remains.")
+            f"removing {100 * b['removed_fraction']:.0f} % of the misfit; {rest}.")
 
 
 def _judged(f: Findings) -> pd.DataFrame:
