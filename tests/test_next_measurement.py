@@ -4,6 +4,7 @@ expected-gain arithmetic on analytic toys (three hypotheses with known predictio
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from jointid.diagnosis.next_measurement import (ProposalOptions, ScalarCandidate, ShapePairCandidate, expected_gain,
@@ -127,7 +128,7 @@ def test_propose_names_the_measurement_that_separates_the_hypotheses():
     text = "\n".join(next_measurement_markdown(df, summary, opts))
     assert "The measurement that would narrow the reconstruction" in text
     assert "Next measurement: off: the static stiffness at T05:y" in text and "×4.00" in text
-    assert "damping ratio: not proposed" in text
+    assert "Not proposed: a damping ratio" in text
 
 
 def test_propose_with_one_admissible_hypothesis_proposes_nothing():
@@ -143,3 +144,19 @@ def test_options_come_from_the_config_section_with_defaults():
     assert ProposalOptions.from_config({}) == ProposalOptions()
     got = ProposalOptions.from_config({"next_measurement": {"weight_uncertainty_pct": 1.0, "n_draws": 0}})
     assert got.weight_uncertainty_pct == 1.0 and got.n_draws == 0 and got.static_stiffness_uncertainty_pct == 5.0
+
+
+def test_the_report_names_the_measurement_from_the_csv(tmp_path):
+    from jointid.reporting.htmltable import html_table
+    from jointid.reporting.hypotheses import next_measurement_html
+
+    records = {"A": _record(1e12, 20.0, 1.0e8, 0.0), "B": _record(3e12, 26.0, 1.0e8, 1.0)}
+    w = akaike_weights([0.0, 1.0])
+    rows = [{"rank": i + 1, "hypothesis": n, "qaicc": q, "delta_qaicc": q, "weight": float(w[i])}
+            for i, (n, q) in enumerate(zip("AB", (0.0, 1.0)))]
+    df, _ = propose(records, rows, ProposalOptions(n_draws=50))
+    df.to_csv(tmp_path / "next_measurements.csv", index=False)
+    back = pd.read_csv(tmp_path / "next_measurements.csv")
+    page = next_measurement_html(back, html_table)
+    assert "The measurement that would narrow the reconstruction: the weight of the moving part" in page
+    assert "k_lateral_N_per_m3 spans ×3.00" in page and "narrow it to ×1.00" in page

@@ -150,7 +150,7 @@ def _ranges(keep: np.ndarray, values: dict) -> dict:
 
 
 def expected_gain(cand, names: list[str], qaicc, weights, values: dict, *, delta: float = 4.0,
-                  n_draws: int = 0, rng: np.random.Generator | None = None) -> dict:
+                  n_draws: int = 0, rng: np.random.Generator | None = None, differ: np.ndarray | None = None) -> dict:
     """The expected effect of measurement ``cand`` on the admissible hypotheses ``names``.
 
     ``qaicc``: their QAICc today; ``weights``: their Akaike weights (renormalised here); ``values``:
@@ -161,9 +161,12 @@ def expected_gain(cand, names: list[str], qaicc, weights, values: dict, *, delta
 
     Returns ``n_left`` (expected admissible hypotheses after), ``truth_kept`` (probability that the
     truth stays admissible), ``ratio_after`` and ``ratio_before`` (parameter -> max / min) and
-    ``min_delta_chi2`` (the smallest noise-free chi-square between any truth and another hypothesis:
-    how well the measurement separates the closest two).
+    ``min_delta_chi2`` (the smallest noise-free chi-square between a truth and another hypothesis:
+    how well the measurement separates the closest two; only the pairs ``differ[g, h]`` when given, e.g.
+    those whose target parameter differs).
     """
+    H = len(names)
+    differ = ~np.eye(H, dtype=bool) if differ is None else np.asarray(differ, bool) & ~np.eye(H, dtype=bool)
     q = np.asarray(qaicc, float)
     w = np.asarray(weights, float)
     w = w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / len(w))
@@ -174,7 +177,8 @@ def expected_gain(cand, names: list[str], qaicc, weights, values: dict, *, delta
     for g, name in enumerate(names):
         e0 = np.zeros(cand.noise_shape(1))
         c0 = cand.chi2(name, names, e0)[0]
-        sep = min(sep, float(np.min(np.delete(c0, g)))) if len(names) > 1 else sep
+        if differ[g].any():
+            sep = min(sep, float(np.min(c0[differ[g]])))
         e = rng.standard_normal(cand.noise_shape(n_draws)) if n_draws else e0
         c = cand.chi2(name, names, e)
         qq = q[None, :] + c
@@ -185,11 +189,11 @@ def expected_gain(cand, names: list[str], qaicc, weights, values: dict, *, delta
             after[p] += w[g] * r.mean()
     before = {p: float(np.max(v) / np.min(v)) for p, v in values.items()}
     return {"n_left": float(n_left), "truth_kept": float(kept), "ratio_after": {p: float(v) for p, v in after.items()},
-            "ratio_before": before, "min_delta_chi2": float(sep)}
+            "ratio_before": before, "min_delta_chi2": float(sep) if np.isfinite(sep) else 0.0}
 
 
 COLUMNS = ["rank", "measurement", "kind", "state", "sigma_pct", "min_delta_chi2", "expected_hypotheses_left",
-           "truth_kept_fraction", "predictions"]
+           "truth_kept_fraction", "predictions", "target", "admissible_hypotheses"]
 
 
 def _admissible(rows: list[dict], delta: float) -> list[dict]:
@@ -226,7 +230,8 @@ def _scalar_candidates(records: dict, names: list[str], opts: ProposalOptions, s
 def _shape_candidates(records: dict, names: list[str], q, w, values: dict, target: str,
                       opts: ProposalOptions, sigma_shape: float) -> list:
     """Per state measured without shapes (in every hypothesis's data), the DOF pair of least expected
-    ``target`` range at the noise-free measurement (ties: the larger smallest chi-square)."""
+    ``target`` range at the noise-free measurement (ties: fewer hypotheses left, then the larger smallest
+    chi-square between hypotheses whose ``target`` differs)."""
     preds = [records[n]["predictions"] for n in names]
     labels = preds[0]["probe_labels"]
     eps = math.hypot(opts.shape_uncertainty_pct / 100, sigma_shape)
@@ -251,10 +256,10 @@ def _shape_candidates(records: dict, names: list[str], q, w, values: dict, targe
         ratio = np.where(keep, v, -np.inf).max(axis=1) / np.where(keep, v, np.inf).min(axis=1)  # (G, L, L)
         exp_ratio = np.tensordot(w, ratio, axes=1)
         exp_left = np.tensordot(w, keep.sum(axis=1), axes=1)
-        off = ~np.eye(H, dtype=bool)
-        sep = np.min(chi[off], axis=0) if H > 1 else np.zeros((L, L))
+        pairs = _differ(values[target])
+        sep = np.min(chi[pairs], axis=0) if pairs.any() else np.zeros((L, L))
         iu = np.triu_indices(L, 1)
-        order = np.lexsort((-sep[iu], exp_left[iu], np.round(exp_ratio[iu], 9)))
+        order = np.lexsort((-sep[iu], _rounded(exp_left[iu]), _rounded(exp_ratio[iu])))
         i, j = iu[0][order[0]], iu[1][order[0]]
         ref = max((i, j), key=lambda k: float(np.min(np.abs(S[0][k]))))  # the one every mode moves most
         lead = j if ref == i else i
@@ -263,6 +268,22 @@ def _shape_candidates(records: dict, names: list[str], q, w, values: dict, targe
                                       f"{labels[lead]} with a reference at {labels[ref]} (ratio {labels[lead]}/"
                                       f"{labels[ref]})", "shape", st["state"], "-", eps, vals))
     return out
+
+
+SAME_REL = 0.01
+"""Two hypotheses whose target parameter differs by less than this (relative) need not be told apart."""
+
+
+def _differ(v: np.ndarray) -> np.ndarray:
+    """``(H, H)``: the pairs of hypotheses whose values ``v`` differ by more than :data:`SAME_REL`."""
+    lv = np.log(np.asarray(v, float))
+    return np.abs(lv[:, None] - lv[None, :]) > math.log1p(SAME_REL)
+
+
+def _rounded(x) -> np.ndarray:
+    """Four significant digits (a sort key: float noise does not decide a tie)."""
+    x = np.asarray(x, float)
+    return np.array([float(f"{v:.4g}") for v in x.ravel()]).reshape(x.shape)
 
 
 def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None, *,
@@ -274,25 +295,25 @@ def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None
     stiffness; ``sigma_shape_rel``: the shape block's, beside the shape noise.  Returns the table
     (:data:`COLUMNS` plus ``<parameter>_ratio_before`` and ``_ratio_after`` per joint parameter) and a
     summary: ``admissible`` (names), ``target``, ``before``, ``best`` (the first row as a dict, or None)
-    and ``notes`` (what was not proposed, and why).
+    ``notes`` (what was not proposed, and why) and ``reason`` (why nothing is proposed, or "").
     """
     opts = opts or ProposalOptions()
     adm = _admissible(rows, opts.delta)
     names = [r["hypothesis"] for r in adm]
-    notes = ["a damping ratio: not proposed — the hypotheses share one nominal modal damping ratio, so none "
-             "predicts a damping of its own"]
-    summary = {"admissible": names, "target": "", "before": float("nan"), "best": None, "notes": notes}
+    notes = ["a damping ratio — the hypotheses share one nominal modal damping ratio, so none predicts a damping "
+             "of its own"]
+    summary = {"admissible": names, "target": "", "before": float("nan"), "best": None, "notes": notes, "reason": ""}
     if len(names) < 2:
-        notes.insert(0, f"{len(names)} admissible hypothesis: nothing to separate")
+        summary["reason"] = f"{len(names)} admissible hypothesis, nothing to separate"
         return pd.DataFrame(columns=COLUMNS), summary
     if not all("predictions" in records[n] for n in names):
-        notes.insert(0, "the hypotheses' records carry no predictions (written by an older version): rerun them")
+        summary["reason"] = "the hypotheses' records carry no predictions (written by an older version): rerun them"
         return pd.DataFrame(columns=COLUMNS), summary
     q = np.array([r["qaicc"] for r in adm], float)
     w = np.array([r["weight"] for r in adm], float)
     values = _joint_values(records, names)
     if not values:
-        notes.insert(0, "no joint parameter is positive in every admissible hypothesis")
+        summary["reason"] = "no joint parameter is positive in every admissible hypothesis"
         return pd.DataFrame(columns=COLUMNS), summary
     spans = {p: float(v.max() / v.min()) for p, v in values.items()}
     target = opts.target if opts.target in values else max(spans, key=lambda p: (spans[p], p))
@@ -301,22 +322,24 @@ def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None
     cands += _shape_candidates(records, names, q, w, values, target, opts, sigma_shape_rel)
     if any(any(p["states"][si].get("shapes_measured") for p in (records[n]["predictions"] for n in names))
            for si in range(len(records[names[0]]["predictions"]["states"]))):
-        notes.append("a DOF pair in a state measured with shapes: not proposed — its shapes are in the fits already")
+        notes.append("a DOF pair in a state measured with shapes — its shapes are in the fits already")
     out = []
     for c in cands:
         g = expected_gain(c, names, q, w, values, delta=opts.delta, n_draws=opts.n_draws,
-                          rng=np.random.default_rng(opts.seed))
+                          rng=np.random.default_rng(opts.seed), differ=_differ(values[target]))
         row = {"measurement": c.measurement, "kind": c.kind, "state": c.state, "sigma_pct": 100 * c.rel,
                "min_delta_chi2": g["min_delta_chi2"], "expected_hypotheses_left": g["n_left"],
-               "truth_kept_fraction": g["truth_kept"], "predictions": c.predictions_text(names)}
+               "truth_kept_fraction": g["truth_kept"], "predictions": c.predictions_text(names),
+               "target": target, "admissible_hypotheses": len(names)}
         for p in values:
             row[f"{p}_ratio_before"] = g["ratio_before"][p]
             row[f"{p}_ratio_after"] = g["ratio_after"][p]
         out.append(row)
     df = pd.DataFrame(out)
     if len(df):
-        df = df.sort_values([f"{target}_ratio_after", "expected_hypotheses_left", "min_delta_chi2"],
-                            ascending=[True, True, False], kind="stable").reset_index(drop=True)
+        key = df.assign(_r=_rounded(df[f"{target}_ratio_after"]), _n=_rounded(df["expected_hypotheses_left"]))
+        df = df.loc[key.sort_values(["_r", "_n", "min_delta_chi2"], ascending=[True, True, False],
+                                    kind="stable").index].reset_index(drop=True)
         df.insert(0, "rank", np.arange(1, len(df) + 1))
         summary["best"] = df.iloc[0].to_dict()
     return df, summary
@@ -328,7 +351,7 @@ def next_measurement_markdown(df: pd.DataFrame, summary: dict, opts: ProposalOpt
     lines = ["", "## The measurement that would narrow the reconstruction", ""]
     names, target, best = summary["admissible"], summary["target"], summary["best"]
     if best is None:
-        lines += [f"No measurement proposed: {summary['notes'][0]}."]
+        lines += [f"No measurement proposed: {summary['reason'] or 'no candidate is predicted by every hypothesis'}."]
         return lines
     lines += [f"Over the {len(names)} admissible hypotheses ({', '.join(names)}), {target} spans "
               f"×{summary['before']:.2f}. **Next measurement: {best['measurement']}** (1σ {best['sigma_pct']:.1f} %): "
@@ -338,7 +361,8 @@ def next_measurement_markdown(df: pd.DataFrame, summary: dict, opts: ProposalOpt
               f"Each admissible hypothesis taken as the truth ({opts.n_draws} seeded noise draws each, truths "
               "weighted by their Akaike weights): the measurement's chi-square added to every hypothesis's QAICc, "
               f"the hypotheses within ΔQAICc < {opts.delta:g} of the new best kept (next_measurements.csv; "
-              "docs/reconstruction.md).", "",
+              f"docs/reconstruction.md). Smallest Δχ²: the noise-free chi-square between the closest two hypotheses "
+              f"whose {target} differs by more than {100 * SAME_REL:g} %.", "",
               f"| rank | measurement | 1σ (%) | smallest Δχ² | hypotheses left | {target} range after |",
               "|---:|---|---:|---:|---:|---:|"]
     for _, r in df.iterrows():
