@@ -295,14 +295,16 @@ def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None
     stiffness; ``sigma_shape_rel``: the shape block's, beside the shape noise.  Returns the table
     (:data:`COLUMNS` plus ``<parameter>_ratio_before`` and ``_ratio_after`` per joint parameter) and a
     summary: ``admissible`` (names), ``target``, ``before``, ``best`` (the first row as a dict, or None)
-    ``notes`` (what was not proposed, and why) and ``reason`` (why nothing is proposed, or "").
+    ``notes`` (what was not proposed, and why), ``reason`` (why nothing is proposed, or "") and ``caveats``
+    (sentences on how far to trust a candidate).
     """
     opts = opts or ProposalOptions()
     adm = _admissible(rows, opts.delta)
     names = [r["hypothesis"] for r in adm]
     notes = ["a damping ratio — the hypotheses share one nominal modal damping ratio, so none predicts a damping "
              "of its own"]
-    summary = {"admissible": names, "target": "", "before": float("nan"), "best": None, "notes": notes, "reason": ""}
+    summary = {"admissible": names, "target": "", "before": float("nan"), "best": None, "notes": notes, "reason": "",
+               "caveats": []}
     if len(names) < 2:
         summary["reason"] = f"{len(names)} admissible hypothesis, nothing to separate"
         return pd.DataFrame(columns=COLUMNS), summary
@@ -320,6 +322,11 @@ def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None
     summary.update(target=target, before=spans[target])
     cands = _scalar_candidates(records, names, opts, sigma_model_rel)
     cands += _shape_candidates(records, names, q, w, values, target, opts, sigma_shape_rel)
+    if any(c.kind == "shape" for c in cands) and sigma_shape_rel == 0.0:
+        summary["caveats"] = [f"A DOF pair is judged at the stated shape noise alone: no shape is measured, so the "
+                              f"shapes' model error is unknown (the frequencies' is {100 * sigma_model_rel:.1f} % per "
+                              "mode). A larger shape noise (next_measurement.shape_uncertainty_pct) judges it more "
+                              "cautiously."]
     if any(any(p["states"][si].get("shapes_measured") for p in (records[n]["predictions"] for n in names))
            for si in range(len(records[names[0]]["predictions"]["states"]))):
         notes.append("a DOF pair in a state measured with shapes — its shapes are in the fits already")
@@ -368,5 +375,5 @@ def next_measurement_markdown(df: pd.DataFrame, summary: dict, opts: ProposalOpt
     for _, r in df.iterrows():
         lines.append(f"| {r['rank']} | {r['measurement']} | {r['sigma_pct']:.1f} | {r['min_delta_chi2']:.2g} | "
                      f"{r['expected_hypotheses_left']:.1f} | ×{r[f'{target}_ratio_after']:.2f} |")
-    lines += [""] + [f"Not proposed: {n}." for n in summary["notes"]]
+    lines += [""] + list(summary.get("caveats", [])) + [f"Not proposed: {n}." for n in summary["notes"]]
     return lines
