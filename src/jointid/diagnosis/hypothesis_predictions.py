@@ -8,7 +8,9 @@ what the ranking job needs to judge candidate measurements (:mod:`jointid.diagno
   effect of the hypothesis adds), the weight of the moving part over g;
 * per state, ``static_stiffness_N_per_m``: the static drive-point stiffness ``1 / H(0)`` at
   ``harmonic.drive_point`` in each direction x, y, z (one factorisation of the full stiffness at the
-  fitted coefficients, one solve with three right-hand sides);
+  fitted coefficients, one solve with three right-hand sides), the load spread and the response averaged
+  over Table 1's patch (``harmonic.patch_diameter_m``, :func:`jointid.fe.patch.patch_probe`): a point load's
+  local flexibility grows without bound as the mesh is refined (``static_load`` says which was used);
 * per state, ``paired_shapes``: the model's shape at every measuring DOF (``probe_labels``) of the
   model mode paired with each measured mode (unit RMS over the DOFs; ``None`` for an unpaired mode), and
   ``shapes_measured``, whether the state's dataset has shapes.
@@ -58,17 +60,18 @@ def moving_mass_kg(system, variant, x, mc: dict) -> float:
     return out
 
 
-def static_stiffness(solver, kc: dict, mc: dict, rows: list[int]) -> np.ndarray:
-    """``1 / H_ii(0)`` for probe rows ``rows`` (N/m): one factorisation of ``K`` on the free DOFs of the
-    reduced solver's pencil, one solve.  NaN where ``K`` is singular (a rigid-body mode)."""
+def static_stiffness(solver, kc: dict, mc: dict, P) -> np.ndarray:
+    """``1 / H_ii(0)`` for the load / response rows ``P`` (sparse, ``(k, n_free)``) in N/m: one
+    factorisation of ``K`` on the free DOFs of the reduced solver's pencil, one solve.  NaN where ``K`` is
+    singular (a rigid-body mode)."""
+    k = P.shape[0]
     try:
         fac = factorize_pencil(solver.pencil, kc, mc, 0.0, solver.backend)
     except Exception:  # noqa: BLE001 - a singular stiffness has no static compliance
-        return np.full(len(rows), np.nan)
+        return np.full(k, np.nan)
     try:
-        P = solver.P[rows]
         U = fac.solve(np.asarray(P.T.todense(), float))
-        H = np.asarray(P @ U).reshape(len(rows), len(rows))
+        H = np.asarray(P @ U).reshape(k, k)
     finally:
         fac.free()
     h = np.diag(H)
@@ -84,13 +87,15 @@ def measurement_predictions(diag, fit, data) -> dict:
     dirs = [d for d in DIRECTIONS if f"{point}:{d}" in labels]
     rows = [labels.index(f"{point}:{d}") for d in dirs]
     solver = diag.solver
-    if solver is not None:
+    P, load = None, "point"
+    if solver is not None and rows:
         solver.release_factor()  # the fit is done: its factorisation's memory serves the static solve
+        P, load = _drive_rows(system, solver, point, dirs, rows, float(h.get("patch_diameter_m", 0.0)))
     states = []
     for si, d in enumerate(data):
         sol = fit.ev.solutions[si]
         kc, mc = sol.kc, sol.mc
-        k = static_stiffness(solver, kc, mc, rows) if (solver is not None and rows) else np.full(len(rows), np.nan)
+        k = static_stiffness(solver, kc, mc, P) if P is not None else np.full(len(rows), np.nan)
         phi = np.asarray(sol.shapes, float)
         shapes = []
         for j in np.asarray(fit.ev.index[si]):
@@ -106,4 +111,19 @@ def measurement_predictions(diag, fit, data) -> dict:
                        "paired_shapes": shapes})
     mc_first = fit.ev.solutions[0].mc
     return {"moving_mass_kg": moving_mass_kg(system, fit.variant, fit.x, mc_first), "drive_point": point,
-            "probe_labels": labels, "states": states}
+            "static_load": load, "probe_labels": labels, "states": states}
+
+
+def _drive_rows(system, solver, point: str, dirs: list[str], rows: list[int], diameter_m: float):
+    """The load / response rows of the static solve on the solver's free DOFs, and how the load is
+    applied: over a disc of ``diameter_m`` (:func:`jointid.fe.patch.patch_probe`, ``"patch <d> mm"``), or at
+    the probe's point where there is no patch or the model cannot give one (``"point"``)."""
+    if diameter_m > 0:
+        try:
+            from jointid.fe.patch import patch_probe
+
+            R = patch_probe(system.model, [point], diameter_m).tocsr()[["xyz".index(d) for d in dirs]]
+            return R[:, solver.free].tocsr(), f"patch {1e3 * diameter_m:g} mm"
+        except Exception:  # noqa: BLE001 - e.g. a mesh-file model without a top surface at the point
+            pass
+    return solver.P[rows], "point"
