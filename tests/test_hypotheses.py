@@ -227,6 +227,16 @@ def test_a_visible_mode_left_out_of_the_data_is_reported_missing(setup, tmp_path
         lo, hi = 0.97 * fs[fs < f].max(), 1.03 * fs[fs > f].min()
         assert any(lo < m["freq_Hz"] < hi for m in missing if m["state"] == state), (state, lo, f, hi, missing)
     assert all(s["n_unpaired_visible"] >= 1 for s in recs["paper_rig"]["states"])
+    # what the fit predicts for measurements not made (jointid.diagnosis.hypothesis_predictions): the
+    # carried mass of config.yaml's comment (table 11.06 + carriages 2.96 + motors 9.0 kg), a static
+    # drive-point stiffness per state and direction, a shape per measured mode
+    pred = recs["paper_rig"]["predictions"]
+    assert pred["moving_mass_kg"] == pytest.approx(23.0, abs=0.05)
+    for s, st in zip(pred["states"], recs["paper_rig"]["states"]):
+        assert set(s["static_stiffness_N_per_m"]) == {"T05:x", "T05:y", "T05:z"}
+        assert all(1e7 < k < 1e10 for k in s["static_stiffness_N_per_m"].values()), s["static_stiffness_N_per_m"]
+        assert len(s["paired_shapes"]) == len(st["f_meas_Hz"]) and not s["shapes_measured"]
+        assert all(len(v) == len(pred["probe_labels"]) for v in s["paired_shapes"] if v is not None)
 
 
 def test_reconstruction_ranges_span_the_admissible_hypotheses():

@@ -3,7 +3,8 @@
     python tools/readme_results.py [--results results] [--readme README.md]
 
 Replaces the lines between ``<!-- numbers: regenerate -->`` and ``<!-- /numbers -->`` with a table
-read from ``results/tables``, ``results/identify/<state>/params.json``, ``results/hypotheses`` and
+read from ``results/tables``, ``results/identify/<state>/params.json``, ``results/hypotheses`` (with
+``next_measurements.csv``) and
 ``results/diagnosis/paper``.  Exits 2 with a message when a file is missing.
 """
 
@@ -58,6 +59,14 @@ def table(results: Path) -> list[str]:
         out += ["", f"Both states at once (linked contact law): best reconstruction **{best['hypothesis']}**, "
                 f"σ_m = {best['sigma_model_pct']:.1f} % per mode. Within ΔQAICc < 4: {', '.join(near)} "
                 f"({len(near)} of {len(ranked)} ranked; {len(h) - len(ranked)} listed apart)."]
+    nxt = results / "hypotheses" / "next_measurements.csv"
+    if nxt.exists() and nxt.stat().st_size > 1:
+        n = pd.read_csv(nxt)
+        if len(n):
+            b, t = n.iloc[0], n.iloc[0]["target"]
+            out += ["", f"Next measurement: **{b['measurement']}** (1σ {b['sigma_pct']:.1f} %): {t} over the admissible "
+                    f"hypotheses ×{b[t + '_ratio_before']:.2f} → ×{b[t + '_ratio_after']:.2f} expected, "
+                    f"{b['expected_hypotheses_left']:.1f} of {int(b['admissible_hypotheses'])} hypotheses left."]
     verdict = results / "diagnosis" / "paper" / "ranking.csv"
     if verdict.exists():
         r = pd.read_csv(verdict).iloc[0]

@@ -2,6 +2,8 @@
 # config.yaml fitted to the run's measured states under the linked two-state law, then ranked by AICc.
 #   results/hypotheses/<name>/fit.json      one hypothesis (parameters, intervals, errors, misfits)
 #   results/hypotheses/ranking.csv          ranked by AICc (+ spread.csv, ranking.md)
+#   results/hypotheses/next_measurements.csv the measurement that would best narrow the admissible
+#                                           hypotheses' joint parameters (also in ranking.md)
 #   results/hypotheses/linked.json          the best hypothesis's linked fit per state, with the
 #                                           rigidity of a carriage on its rail under its joints
 # A hypothesis that overrides materials, rig or mesh builds its own model inside its job.
@@ -64,6 +66,7 @@ if HYPOTHESES:
             md=f"{R}/hypotheses/ranking.md",
             linked=f"{R}/hypotheses/linked.json",
             ranges=f"{R}/hypotheses/reconstruction.csv",
+            next=f"{R}/hypotheses/next_measurements.csv",
         params:
             cfg=sections(config, *hyp_stage.RANKING_CONFIG),
         log:

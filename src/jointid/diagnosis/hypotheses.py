@@ -35,6 +35,7 @@ import numpy as np
 
 from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
+from jointid.diagnosis.hypothesis_predictions import measurement_predictions
 from jointid.diagnosis.results import frequency_rows
 from jointid.diagnosis.statistics import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
@@ -168,7 +169,8 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None
 
     Returns a JSON-ready record: chi-square, counts, AICc, parameters with 95 % intervals scaled by
     ``max(1, sqrt(chi2 / dof))``, per-state errors (misfits counted), the unpaired visible modes, the
-    pairing and the profile over the preload classes.  ``start_basis``: a basis of ``system`` to start
+    pairing, the profile over the preload classes and ``predictions``, what the fitted model predicts
+    for measurements not made yet (:func:`jointid.diagnosis.hypothesis_predictions.measurement_predictions`).  ``start_basis``: a basis of ``system`` to start
     the reduced solver from (:mod:`jointid.stages.basis`).
     """
     law = LinkedLaw.from_config(cfg)
@@ -194,7 +196,9 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None
             best = (fit, P)
     fit, P = best
     fit = diag.certify(fit)  # checked against the full model
-    return fit_record(fit, data, P if linked else None, profile, n_choices=len(classes))
+    rec = fit_record(fit, data, P if linked else None, profile, n_choices=len(classes))
+    rec["predictions"] = measurement_predictions(diag, fit, data)  # for the next measurement (the ranking job)
+    return rec
 
 
 def _starts(var: Variant) -> list[np.ndarray]:

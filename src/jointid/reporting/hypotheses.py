@@ -2,8 +2,8 @@
 
 Reads the records of :mod:`jointid.stages.hypotheses` (``results/hypotheses/``): the QAICc ranking,
 the best hypothesis's linked fit (contact law parameters with intervals, frequencies of both states
-beside the measurement and the paper's per-state method) and the spread of the joint parameters over
-the admissible hypotheses.
+beside the measurement and the paper's per-state method), the spread of the joint parameters over
+the admissible hypotheses and the measurement that would narrow it (next_measurements.csv).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import html
 
 import pandas as pd
 
-__all__ = ["hypotheses_html", "linked_frequency_table", "LAW_TEXT"]
+__all__ = ["hypotheses_html", "linked_frequency_table", "next_measurement_html", "LAW_TEXT"]
 
 LAW_TEXT = ("k = k0·((P + F_c)/(P + F_c,0))^β per carriage in X and Y, F_c the carriage load (statics load share "
             "of the motor attraction and the carried weight), P the block preload (best catalogue class); the "
@@ -66,9 +66,11 @@ def _ranking_html(ranking: pd.DataFrame, html_table) -> str:
 
 
 def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame | None, html_table,
-                    paper_tables: dict | None = None, ranges: pd.DataFrame | None = None) -> str:
-    """The section's HTML: one-line calibration statement, ranking, the best hypothesis's linked fit
-    and the parameter spread (``html_table`` renders a frame)."""
+                    paper_tables: dict | None = None, ranges: pd.DataFrame | None = None,
+                    next_meas: pd.DataFrame | None = None) -> str:
+    """The section's HTML: one-line calibration statement, ranking, the best hypothesis's linked fit,
+    the parameter spread and, with ``next_meas`` (next_measurements.csv), the measurement that would
+    narrow the reconstruction (``html_table`` renders a frame)."""
     esc = html.escape
     best = ranking.iloc[0]["hypothesis"]
     rec = records[best]
@@ -131,4 +133,27 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
         out.append(html_table(top, {"value_min": ".4g", "value_max": ".4g", "value_weighted": ".4g",
                                     "n_hypotheses": "d"}, {"value_weighted": "weighted"},
                               text_cols=("quantity", "state", "unit")))
+    if next_meas is not None and len(next_meas):
+        out.append(next_measurement_html(next_meas, html_table))
     return "".join(out)
+
+
+def next_measurement_html(df: pd.DataFrame, html_table) -> str:
+    """The measurement that would narrow the reconstruction (next_measurements.csv, best first): the
+    named measurement with the target parameter's range before and after, and the candidates."""
+    esc = html.escape
+    best = df.iloc[0]
+    t = str(best["target"])
+    head = (f"<p class='note'><b>The measurement that would narrow the reconstruction: {esc(str(best['measurement']))}</b> "
+            f"(1σ {best['sigma_pct']:.1f} %). Over the {int(best['admissible_hypotheses'])} admissible hypotheses "
+            f"{esc(t)} spans ×{best[t + '_ratio_before']:.2f}; on synthetic data drawn from them (each taken as the "
+            "truth, seeded noise, Akaike weights) this measurement would narrow it to "
+            f"×{best[t + '_ratio_after']:.2f} and leave {best['expected_hypotheses_left']:.1f} hypotheses admissible. "
+            "No damping ratio is proposed: the hypotheses share one nominal modal damping ratio "
+            "(docs/reconstruction.md).</p>")
+    cols = ["rank", "measurement", "sigma_pct", "min_delta_chi2", "expected_hypotheses_left", t + "_ratio_after"]
+    return head + html_table(df[cols], {"rank": "d", "sigma_pct": ".1f", "min_delta_chi2": ".3g",
+                                        "expected_hypotheses_left": ".1f", t + "_ratio_after": ".2f"},
+                             {"sigma_pct": "1σ (%)", "min_delta_chi2": "smallest Δχ²",
+                              "expected_hypotheses_left": "hypotheses left", t + "_ratio_after": f"{t} range after (×)"},
+                             text_cols=("measurement",))

@@ -247,7 +247,8 @@ def _hypotheses_html(data: dict) -> str:
     from jointid.reporting.hypotheses import hypotheses_html
 
     h = data["hypotheses"]
-    return hypotheses_html(h["ranking"], h["records"], h["spread"], html_table, data["tables"], h.get("ranges"))
+    return hypotheses_html(h["ranking"], h["records"], h["spread"], html_table, data["tables"], h.get("ranges"),
+                           h.get("next"))
 
 
 def _provenance_html(cfg: dict, prov: dict) -> str:

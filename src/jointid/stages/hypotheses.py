@@ -4,7 +4,8 @@
   measured states under the linked two-state law and writes ``results/hypotheses/<name>/fit.json``;
 * :func:`run_ranking` ranks the fitted hypotheses by QAICc (AICc with the model error of the best):
   ``results/hypotheses/ranking.csv``, ``spread.csv`` (joint parameters over the hypotheses within
-  delta QAICc < 4: the reconstruction range) and ``ranking.md``.
+  delta QAICc < 4: the reconstruction range), ``ranking.md`` and ``next_measurements.csv`` (the
+  measurement that would best narrow that range, :mod:`jointid.diagnosis.next_measurement`).
 
 See :mod:`jointid.diagnosis.hypotheses` and docs/reconstruction.md, "Hypotheses".
 """
@@ -24,6 +25,7 @@ from jointid.config.typed import ModelSpec
 from jointid.diagnosis.fitting import print_log
 from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
 from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
+from jointid.diagnosis.next_measurement import ProposalOptions, next_measurement_markdown, propose
 from jointid.diagnosis.terms import build_system
 from jointid.errors import ConfigError
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
@@ -84,17 +86,21 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
     return rec
 
 
-RANKING_CONFIG = ("materials", "rig", "model", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "hypotheses")
+RANKING_CONFIG = ("materials", "rig", "model", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "hypotheses",
+                  "next_measurement")
 """Config keys of rule ``hypotheses`` (the best hypothesis's joints in the catalogue-style block test)."""
 CREDIBLE_RATIO = (0.6, 1.5)
 """Lateral/normal rigidity ratio of a carriage on its rail that a guide catalogue makes credible."""
 
 
 def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv: str, out_md: str,
-                linked_json: str | None = None, ranges_csv: str | None = None, *, log=print_log) -> pd.DataFrame:
+                linked_json: str | None = None, ranges_csv: str | None = None, next_csv: str | None = None, *,
+                log=print_log) -> pd.DataFrame:
     """Rank the fitted hypotheses by QAICc and write the ranking, the parameter spread and a summary;
     with ``linked_json`` (and ``cfg``, :data:`RANKING_CONFIG`) also the best hypothesis's linked fit
-    per state with the rigidity of one carriage on its rail under its joints."""
+    per state with the rigidity of one carriage on its rail under its joints; with ``next_csv`` the
+    candidate measurements over the admissible hypotheses, best first (``cfg['next_measurement']``,
+    :func:`jointid.diagnosis.next_measurement.propose`; ranking.md has them either way)."""
     records = {}
     for path in fit_jsons:
         rec = io.read_json(path)
@@ -110,7 +116,18 @@ def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv
     ranges = pd.DataFrame(reconstruction_ranges(records, rows, delta=ADMISSIBLE_DELTA_AICC))
     if ranges_csv:
         io.write_csv(ranges, ranges_csv)
-    io.write_text(out_md, ranking_markdown(ranking, pd.DataFrame(spread), records, linked, me, ranges))
+    opts = ProposalOptions.from_config(cfg, delta=ADMISSIBLE_DELTA_AICC)
+    proposal = propose(records, rows, opts, sigma_model_rel=me.sigma_model_rel,
+                       sigma_shape_rel=me.shape.sigma_model_rel if me.shape is not None else 0.0)
+    if next_csv:
+        io.write_csv(proposal[0], next_csv)
+    best = proposal[1]["best"]
+    if best is not None:
+        t = proposal[1]["target"]
+        log(f"next measurement: {best['measurement']} — {t} x{proposal[1]['before']:.2f} -> "
+            f"x{best[t + '_ratio_after']:.2f}, {best['expected_hypotheses_left']:.1f} hypotheses left")
+    io.write_text(out_md, ranking_markdown(ranking, pd.DataFrame(spread), records, linked, me, ranges,
+                                           proposal=proposal, opts=opts))
     if linked_json:
         io.write_json(linked_json, linked)
     return ranking
@@ -145,8 +162,10 @@ def linked_summary(cfg: dict, rec: dict, log=print_log) -> dict:
 
 
 def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict, linked: dict | None = None,
-                     me: ModelError | None = None, ranges: pd.DataFrame | None = None) -> str:
-    """The ranking as a short Markdown page (report and README)."""
+                     me: ModelError | None = None, ranges: pd.DataFrame | None = None, *,
+                     proposal: tuple | None = None, opts: ProposalOptions | None = None) -> str:
+    """The ranking as a short Markdown page (report and README); with ``proposal`` (:func:`propose`'s
+    table and summary) the section on the measurement that would narrow the reconstruction."""
     me = me or NO_MODEL_ERROR
     lines = ["# Reconstruction hypotheses ranked by QAICc", "", me.sentence(), "",
              "Each hypothesis is fitted to both states at once under the linked contact law "
@@ -195,6 +214,8 @@ def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict,
             a = v["assembly_N_per_um"]
             lines.append(f"| {st} | {v['max_abs_error_pct']:.2f} | {v['n_unpaired_visible']} | {a['lateral']:,.0f} | "
                          f"{a['normal']:,.0f} | {v['lateral_over_normal']:.2f} | {'yes' if v['credible'] else 'no'} |")
+    if proposal is not None:
+        lines += next_measurement_markdown(proposal[0], proposal[1], opts)
     return "\n".join(lines) + "\n"
 
 

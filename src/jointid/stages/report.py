@@ -80,8 +80,8 @@ def _diagnosis(inputs: dict) -> dict:
 
 
 def _hypotheses(inputs: dict):
-    """The hypotheses' ranking, records, spread and reconstruction ranges (None when the run has no
-    hypotheses)."""
+    """The hypotheses' ranking, records, spread, reconstruction ranges and next measurements (None when
+    the run has no hypotheses)."""
     import pandas as pd
 
     if not inputs.get("hypotheses"):
@@ -93,7 +93,7 @@ def _hypotheses(inputs: dict):
         return pd.read_csv(path) if path.exists() and path.stat().st_size > 1 else None
 
     return {"ranking": ranking, "records": records, "spread": beside("spread.csv"),
-            "ranges": beside("reconstruction.csv")}
+            "ranges": beside("reconstruction.csv"), "next": beside("next_measurements.csv")}
 
 
 def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
