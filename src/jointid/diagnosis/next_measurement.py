@@ -151,6 +151,7 @@ def _ranges(keep: np.ndarray, values: dict) -> dict:
 
 def expected_gain(cand, names: list[str], qaicc, weights, values: dict, *, delta: float = 4.0,
                   n_draws: int = 0, rng: np.random.Generator | None = None, differ: np.ndarray | None = None) -> dict:
+    # many parameters: the candidate, the admissible hypotheses' QAICc, weights and values, and the draw options
     """The expected effect of measurement ``cand`` on the admissible hypotheses ``names``.
 
     ``qaicc``: their QAICc today; ``weights``: their Akaike weights (renormalised here); ``values``:

@@ -96,6 +96,7 @@ CREDIBLE_RATIO = (0.6, 1.5)
 def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv: str, out_md: str,
                 linked_json: str | None = None, ranges_csv: str | None = None, next_csv: str | None = None, *,
                 log=print_log) -> pd.DataFrame:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rank the fitted hypotheses by QAICc and write the ranking, the parameter spread and a summary;
     with ``linked_json`` (and ``cfg``, :data:`RANKING_CONFIG`) also the best hypothesis's linked fit
     per state with the rigidity of one carriage on its rail under its joints; with ``next_csv`` the
