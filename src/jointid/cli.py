@@ -26,6 +26,7 @@ MODULES = {
     "uff": "jointid.data.uff",
     "data": "jointid.data.__main__",
     "export-mesh": "jointid.fe.meshexport",
+    "results": "jointid.stages.recovery",
 }
 COMMANDS = {
     "diagnose": "diagnose which listed physical effect the model lacks (--dataset DIR --out DIR)",
@@ -35,6 +36,7 @@ COMMANDS = {
     "uff": "import a Universal File (.unv/.uff) into a dataset folder",
     "data": "validate dataset folders before any run (check FOLDER ... [--points CSV])",
     "export-mesh": "write the rig as a mesh file with named groups and its model: config (--out DIR)",
+    "results": "heal: stop orphaned jobs, remove stale temporary files and damaged results before a run",
 }
 
 
