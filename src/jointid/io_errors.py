@@ -40,7 +40,9 @@ class ResultReadError(JointidError):
 
 
 def _mb(n_bytes: float) -> str:
-    return f"{n_bytes / 1e6:.1f} MB"
+    if n_bytes >= 1e5:
+        return f"{n_bytes / 1e6:.1f} MB"
+    return f"{n_bytes / 1e3:.1f} kB" if n_bytes >= 1e3 else f"{int(n_bytes)} bytes"
 
 
 def _free_bytes(folder: Path) -> int | None:

@@ -48,14 +48,18 @@ def stop_orphans(workdir: Path) -> list[str]:
     return lines
 
 
-def remove_temporaries(results: Path) -> list[str]:
+def _rel(path, workdir: Path) -> str:
+    return os.path.relpath(path, workdir)
+
+
+def remove_temporaries(results: Path, workdir: Path) -> list[str]:
     """Remove the stale temporary files below ``results``; one line for all of them."""
-    removed = io.remove_stale_below(results) if results.is_dir() else []
+    removed = [_rel(p, workdir) for p in io.remove_stale_below(results)] if results.is_dir() else []
     return [f"removed {len(removed)} stale temporary file(s) of killed writers: "
             + ", ".join(str(p) for p in removed[:3]) + (" ..." if len(removed) > 3 else "")] if removed else []
 
 
-def remove_damaged(results: Path) -> list[str]:
+def remove_damaged(results: Path, workdir: Path) -> list[str]:
     """Remove each result that does not match its sidecar (and the sidecar); one line each."""
     lines = []
     for side in sorted(results.rglob(f"*{SUFFIX}")) if results.is_dir() else []:
@@ -66,17 +70,18 @@ def remove_damaged(results: Path) -> list[str]:
         if why:
             for p in (out, provenance_path(out)):
                 p.unlink(missing_ok=True)
-            lines.append(f"removed damaged {out}: {why}; it is rebuilt, with what depends on it")
+            lines.append(f"removed damaged {_rel(out, workdir)}: {why}; it is rebuilt, with what depends on it")
     return lines
 
 
-def unwritable(results: Path) -> list[str]:
+def unwritable(results: Path, workdir: Path) -> list[str]:
     """One line per results folder the workflow cannot write to (permission, read-only file system)."""
     lines = []
     for root, _dirs, _files in os.walk(results) if results.is_dir() else []:
         if not os.access(root, os.W_OK | os.X_OK):
-            lines.append(f"cannot write in {root}: permission denied or a read-only file system; make it writable "
-                         f"(chmod u+w {root}), then run `make reproduce` again")
+            rel = _rel(root, workdir)
+            lines.append(f"cannot write in {rel}: permission denied or a read-only file system; make it writable "
+                         f"(chmod u+w {rel}), then run `make reproduce` again")
     return lines
 
 
@@ -88,8 +93,8 @@ def heal(workdir: str | os.PathLike = ".", results: str = "results") -> tuple[in
                    "(kill -9, a closed terminal, power loss); wait for it to end, or if none runs, "
                    "run `snakemake --unlock` (with the same --configfile), then `make reproduce` again"]
     res = wd / results
-    lines = stop_orphans(wd) + remove_temporaries(res) + remove_damaged(res)
-    problems = unwritable(res)
+    lines = stop_orphans(wd) + remove_temporaries(res, wd) + remove_damaged(res, wd)
+    problems = unwritable(res, wd)
     return (1 if problems else 0), lines + problems
 
 
