@@ -396,3 +396,45 @@ def test_a_full_disk_or_a_denied_write_is_one_line_then_reproduce_rebuilds(clone
     assert not (clone / "results/tables/table2_power_off.csv").exists() and temporary_files(clone / "results") == []
     rc, out = reproduce(clone)
     assert_rebuilt(clone, coarse_run, rc, out)
+
+
+# ------------------------------------------------------------------ provenance: git_dirty
+def _git(cwd: Path, *args: str) -> None:
+    subprocess.run(["git", "-c", "user.email=t@example.org", "-c", "user.name=t", *args], cwd=cwd, check=True,
+                   capture_output=True)
+
+
+def test_git_dirty_counts_the_config_as_loaded_and_a_revert_clears_it(tmp_path, monkeypatch):
+    from jointid.reporting.provenance import CONFIG_ENV, git_state, pin_config_state
+
+    original, edited = "mesh: {refine: 1}\nharmonic: {n_freq: 400}\n", "mesh: {refine: 2}\nharmonic: {n_freq: 400}\n"
+    config, code = tmp_path / "config.yaml", tmp_path / "code.py"
+    config.write_text(original)
+    code.write_text("x = 1\n")
+    _git(tmp_path, "init", "-q")
+    _git(tmp_path, "add", ".")
+    _git(tmp_path, "commit", "-qm", "init")
+    monkeypatch.chdir(tmp_path)
+
+    def dirty(sections):
+        return git_state(tmp_path, sections=sections)[1]
+
+    def new_run():  # a new snakemake: the config files are pinned as they are now
+        monkeypatch.delenv(CONFIG_ENV, raising=False)
+        pin_config_state(["config.yaml"])
+
+    new_run()  # config.yaml edited during a run, then reverted: the run's values are the committed ones
+    config.write_text(edited)
+    assert dirty(["mesh"]) is False and dirty(None) is False
+    config.write_text(original)
+    assert dirty(["mesh"]) is False
+    code.write_text("x = 2\n")  # code changed when an output is written: dirty; reverted: clean
+    assert dirty(["mesh"]) is True
+    code.write_text("x = 1\n")
+    assert dirty(["mesh"]) is False
+    config.write_text(edited)  # edited before a run: dirty in the sections that differ only
+    new_run()
+    assert dirty(["mesh"]) is True and dirty(["harmonic"]) is False and dirty(None) is True
+    config.write_text(original)  # reverted: the next run (which reruns the rules of `mesh`) is clean
+    new_run()
+    assert dirty(["mesh"]) is False and dirty(None) is False

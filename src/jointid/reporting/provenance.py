@@ -64,21 +64,24 @@ commit when the Snakefile loaded them (:func:`pin_config_state`); jobs inherit i
 _GIT_TIMEOUT_S = 10.0
 
 
-def _git(args: list[str], cwd: Path) -> str | None:
-    """Output of ``git <args>`` run in ``cwd`` (stripped), or None if git fails or is missing."""
+def _git(args: list[str], cwd: Path, strip: bool = True) -> str | None:
+    """Output of ``git <args>`` run in ``cwd`` (stripped unless ``strip`` is False), or None if git fails
+    or is missing."""
     try:
         out = subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True,
                              timeout=_GIT_TIMEOUT_S, check=False,
                              env={**os.environ, "GIT_OPTIONAL_LOCKS": "0", "LC_ALL": "C"})
     except (OSError, subprocess.SubprocessError):
         return None
-    return out.stdout.strip() if out.returncode == 0 else None
+    if out.returncode != 0:
+        return None
+    return out.stdout.strip() if strip else out.stdout
 
 
 def _dirty_paths(folder: Path) -> set[Path] | None:
     """Absolute paths of the tracked files that differ from HEAD (None if git cannot tell)."""
     top = _git(["rev-parse", "--show-toplevel"], folder)
-    out = None if top is None else _git(["status", "--porcelain", "-z", "--untracked-files=no"], folder)
+    out = None if top is None else _git(["status", "--porcelain", "-z", "--untracked-files=no"], folder, strip=False)
     if out is None:
         return None
     paths = set()
