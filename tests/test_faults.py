@@ -12,7 +12,9 @@ How the faults are made:
   run as root in CI (permissions do not bite) and cannot mount a small file system.
 
 The end-to-end cases clone the session's coarse run (``coarse_run``) and rebuild only what the fault
-touched; the rebuild of the whole chain after a killed mesh job is marked ``extended``.
+touched.  ``make test`` keeps one of each kind (a job and snakemake killed, three truncated results, a
+full disk); ``extended``: snakemake killed alone, the whole run killed while the largest file is
+written (the whole chain is rebuilt), a denied write end to end.
 """
 
 from __future__ import annotations
@@ -318,6 +320,7 @@ def test_kill_9_of_a_job_and_of_snakemake_then_reproduce_rebuilds(clone, coarse_
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # the default suite kills snakemake together with a job (the test above)
 def test_kill_9_of_snakemake_alone_then_reproduce_rebuilds(clone, coarse_run):
     """kill -9 of snakemake while a job runs: the job may finish on its own (its output stays marked
     incomplete) or is stopped by the next run; either way the rebuild is complete and identical."""
@@ -384,8 +387,11 @@ def test_a_rule_reading_a_truncated_npz_names_it_in_one_line(clone):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("code, words", [("ENOSPC", "no space left on the device (it needs about"),
-                                         ("EACCES", "permission denied (the temporary file is made in results/tables)")])
+@pytest.mark.parametrize("code, words", [
+    ("ENOSPC", "no space left on the device (it needs about "),
+    # the writers' EACCES is in the default suite above (test_a_failed_write_is_one_line_...)
+    pytest.param("EACCES", "permission denied (the temporary file is made in results/tables)",
+                 marks=pytest.mark.extended)])
 def test_a_full_disk_or_a_denied_write_is_one_line_then_reproduce_rebuilds(clone, coarse_run, code, words):
     (clone / "results/tables/table2_power_off.csv").unlink()
     rc, out = reproduce(clone, env={FAULT_ENV: f"{code}:*/table2_power_off.csv"})

@@ -187,9 +187,11 @@ def write_text(path, text: str) -> None:
 
 
 def write_csv(df, path, float_format: str = "%.10g") -> None:
-    """CSV with a fixed float format so identical results give byte-identical files."""
-    with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False, float_format=float_format, lineterminator="\n")
+    """CSV with a fixed float format so identical results give byte-identical files (rendered first,
+    so that a full disk can say how much space the file needs)."""
+    data = df.to_csv(index=False, float_format=float_format, lineterminator="\n").encode("utf-8")
+    with atomic_path(path, len(data)) as tmp:
+        tmp.write_bytes(data)
 
 
 def _jsonable(obj):
