@@ -454,3 +454,12 @@ def test_git_dirty_counts_the_config_as_loaded_and_a_revert_clears_it(tmp_path, 
     config.write_text(original)  # reverted: the next run (which reruns the rules of `mesh`) is clean
     new_run()
     assert dirty(["mesh"]) is False and dirty(None) is False
+
+
+def test_a_config_file_outside_a_checkout_changes_nothing_the_commit_holds(tmp_path):
+    """A workflow copied out of its checkout (the tests' runs, a user's own folder): its config is no
+    part of a commit, so it cannot make the outputs dirty."""
+    from jointid.reporting.provenance import config_changes
+
+    (tmp_path / "config.yaml").write_text("mesh: {refine: 2}\n")
+    assert config_changes([tmp_path / "config.yaml"])["changed_sections"] == []

@@ -85,9 +85,13 @@ def write_error(path: str | os.PathLike, exc: OSError, size_bytes: int | None = 
     return None
 
 
-def read_error(path: str | os.PathLike, what: str) -> ResultReadError:
-    """The one-line error for a result file that cannot be used: ``what`` says why."""
-    return ResultReadError(f"cannot read {path}: {what}; {REBUILD}, or delete the file and rerun snakemake")
+def read_error(path: str | os.PathLike, what: str, checked: bool = False) -> ResultReadError:
+    """The one-line error for a result file that cannot be used: ``what`` says why.  ``checked``: the
+    file failed its provenance sidecar's check, which ``jointid results heal`` (``make reproduce``)
+    repeats and acts on; a file without a sidecar must be deleted by hand."""
+    fix = f"{REBUILD}, or delete the file and rerun snakemake" if checked else \
+        "delete it and run `make reproduce` again (it rebuilds the file and what depends on it)"
+    return ResultReadError(f"cannot read {path}: {what}; {fix}")
 
 
 def injected_fault(path: str | os.PathLike) -> OSError | None:

@@ -141,8 +141,8 @@ def config_changes(paths: Iterable[str | os.PathLike]) -> dict:
     for p in map(Path, paths):
         files.append(str(p.resolve()))
         dirty = _dirty_paths(p.resolve().parent)
-        if dirty is not None and p.resolve() not in dirty:
-            continue  # tracked and unchanged, or untracked (then it is no part of the commit anyway)
+        if dirty is None or p.resolve() not in dirty:
+            continue  # outside a checkout, tracked and unchanged, or untracked: no part of the commit's changes
         top = _git(["rev-parse", "--show-toplevel"], p.resolve().parent)
         rel = p.resolve().relative_to(top).as_posix() if top else None
         old = _yaml_sections(_git(["show", f"HEAD:{rel}"], p.resolve().parent) if rel else None)

@@ -77,7 +77,7 @@ def check_inputs(inputs: Iterable[str]) -> dict[str, str]:
         hashes[path] = sha256_file(path)
         why = check_sidecar(path, hashes[path])
         if why:
-            problems.append(str(read_error(path, why)))
+            problems.append(str(read_error(path, why, checked=True)))
     if problems:
         from jointid.io_errors import ResultReadError
 
