@@ -26,13 +26,18 @@ $(STAMP): pyproject.toml | $(BIN)/python
 
 install: $(STAMP)
 
+# jointid results heal (before Snakemake): stops jobs a killed snakemake left running, removes stale
+# temporary files and results that no longer match their provenance sidecars (rebuilt by the run, with
+# what depends on them); refuses in one line while a lock is held (docs/workflow.md, "Interrupted runs").
 reproduce: $(STAMP)
+	$(BIN)/jointid results heal
 	$(BIN)/snakemake -j2 --rerun-incomplete
 
 # Tables 1-3 alone (what CI gates): the chain mesh -> DOE -> surface -> identify -> verify -> harmonic
 TABLES := results/tables/table1_dynamic_stiffness.csv results/tables/table2_power_off.csv \
           results/tables/table3_power_on.csv
 tables: $(STAMP)
+	$(BIN)/jointid results heal
 	$(BIN)/snakemake -j2 --rerun-incomplete $(TABLES)
 
 # two workers; tests/conftest.py groups the tests that share fixtures and starts the slowest first.

@@ -14,6 +14,7 @@
 # from process to process, so a sum taken in that order (e.g. in the diagnosis) is bit-reproducible.
 
 import os
+import re
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # before numpy is imported below
@@ -21,10 +22,13 @@ os.environ.setdefault("PYTHONHASHSEED", "0")
 
 from jointid.config.datasets import dataset_folder
 from jointid.config.snakefile import merged, paper_input, sections, validated
+from jointid.reporting.provenance import pin_config_state
 from jointid.stages import doe, identify, modal, model, surface, verify
 
 configfile: "config.yaml"
 config = validated(config, ["config.yaml", *workflow.overwrite_configfiles])
+# provenance: the config files count as loaded now (an edit during the run changes none of its values)
+pin_config_state(["config.yaml", *workflow.overwrite_configfiles])
 SHEET = doe.doe_sheet(config)
 POINTS = list(SHEET["point"])
 STATES = list(config["states"])
@@ -77,11 +81,17 @@ PRIORITY_HYPOTHESES = 5
 localrules: all, doe, gather_modal, tables, doe_zoom, gather_zoom
 
 
+# The default target names every file the run builds (ARTIFACTS, at the end of this file), not only
+# the final ones.  Snakemake does not rebuild a missing intermediate file whose consumers are up to
+# date: after a kill, or after `jointid results heal` removed a damaged file, it would say "Nothing
+# to be done" with a result missing.  Named here, a missing file is rebuilt, and with it everything
+# that depends on it.
 rule all:
     input:
         f"{R}/tables/table2_power_off.csv",
         f"{R}/tables/table3_power_on.csv",
         lambda wc: EXTRA_TARGETS,  # a function: read after the rule files below have appended
+        lambda wc: ARTIFACTS,
     default_target: True
 
 
@@ -468,3 +478,14 @@ include: "workflow/rules/diagnosis.smk"
 include: "workflow/rules/meshcheck.smk"
 include: "workflow/rules/hypotheses.smk"
 include: "workflow/rules/ema.smk"
+
+
+# Every output of every rule the default run uses, over the run's wildcard values (see rule all).
+# ON_DEMAND: rules that the default run does not use with this configuration.
+ON_DEMAND = {"all", "current"} | (set() if USE_ROM else {"rom"}) \
+    | (set() if ZOOM else {"scout", "doe_zoom", "modal_zoom", "gather_zoom", "fit_zoom"}) \
+    | (set() if config["model"]["kind"] == "rig" else {"carriage_rigidity"})
+WILDCARD_VALUES = {"state": STATES, "point": POINTS, "dataset": list(DIAG_DATASETS), "name": list(HYPOTHESES),
+                   "source": list(EMA_SOURCES)}
+ARTIFACTS = sorted({f for r in workflow.rules if r.name not in ON_DEMAND for pattern in r.output
+                    for f in expand(re.sub(r"\{(\w+),[^{}]*\}", r"{\1}", str(pattern)), **WILDCARD_VALUES)})

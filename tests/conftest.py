@@ -72,7 +72,7 @@ RUN_TIMEOUT_S = 900
 # once per worker that uses them) as one group.  Groups are handed out in collection order, the
 # slowest first: seconds of the slowest groups in a fresh-clone CI run (make test beside make tables,
 # 2-core machine); they only order the work.
-SHARED_RUN_FILES = ("test_determinism.py", "test_interrupt.py", "test_reruns.py", "test_report.py",
+SHARED_RUN_FILES = ("test_determinism.py", "test_faults.py", "test_interrupt.py", "test_reruns.py", "test_report.py",
                     "test_workflow_e2e.py")
 GROUP_SECONDS = {"coarse_run": 600, "test_rom.py": 72, "test_diagnose.py": 70, "test_shape_residuals.py": 70,
                  "test_ambiguity.py": 55, "test_cluster.py": 48, "test_model_error_cases.py": 45,

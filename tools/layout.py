@@ -19,7 +19,7 @@ import ast
 import sys
 from pathlib import Path
 
-LAYERS = ["errors", "io", "yamlio", "threads", "correlate", "data", "config", "ema", "geometry", "fe",
+LAYERS = ["errors", "io_errors", "io", "yamlio", "threads", "correlate", "data", "config", "ema", "geometry", "fe",
           "identification", "response", "diagnosis", "reporting", "stages", "api", "cli"]
 
 

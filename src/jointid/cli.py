@@ -28,6 +28,7 @@ MODULES = {
     "data": "jointid.data.__main__",
     "ema": "jointid.ema.__main__",
     "export-mesh": "jointid.fe.meshexport",
+    "results": "jointid.stages.recovery",
 }
 COMMANDS = {
     "diagnose": "diagnose which listed physical effect the model lacks (--dataset DIR --out DIR)",
@@ -38,6 +39,7 @@ COMMANDS = {
     "data": "validate dataset folders (check FOLDER ...); modes from FRFs (ema FRF --out DIR, also `jointid ema`)",
     "ema": "modes from measured FRFs: EMA into a dataset folder (FRF.uff|frf.csv|DATASET --out DIR)",
     "export-mesh": "write the rig as a mesh file with named groups and its model: config (--out DIR)",
+    "results": "heal: stop orphaned jobs, remove stale temporary files and damaged results before a run",
 }
 
 

@@ -6,8 +6,14 @@ touches the previous result until the new one is complete.
 
 Temporary files are named ``.<name>.p<pid>h<host>_<random>.tmp`` (``<host>``: 8 hex digits of a
 hash of the host name).  A writer killed with SIGKILL cannot remove its own; the next write of the
-same target removes it (:func:`remove_stale_temporaries`), and the SIGTERM handler of
+same target removes it (:func:`remove_stale_temporaries`), so does ``jointid results heal`` before
+``make reproduce`` runs (:func:`remove_stale_below`), and the SIGTERM handler of
 :func:`jointid.stages.runner.run_script` removes those in flight (:func:`remove_in_flight`).
+
+A full disk, a quota, a read-only file system or a missing permission ends a write with one line
+(:class:`jointid.io_errors.ResultWriteError`: the file, the space it needs where known, the fix)
+and leaves no temporary file.  A result that cannot be read is named the same way
+(:func:`read_json`, :func:`read_csv`, :func:`load_npz`).
 """
 
 from __future__ import annotations
@@ -23,6 +29,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+
+from jointid.io_errors import injected_fault, read_error, write_error
 
 STALE_AFTER_S = 3600.0
 """Temporary files of another host (or of an older naming) count as stale after this age."""
@@ -49,6 +57,27 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+def _is_stale(p: Path, middle: str, host: str, now: float) -> bool | None:
+    """Whether the temporary file ``p`` (``middle``: its name between target and ``.tmp``) is stale;
+    None when the name is not one of :func:`atomic_path`'s."""
+    m = _OURS.match(middle)
+    if m and m["host"] == host:
+        return not _pid_alive(int(m["pid"]))
+    if m or _LEGACY.match(middle):
+        return now - p.stat().st_mtime > STALE_AFTER_S
+    return None
+
+
+def _remove_if_stale(p: Path, middle: str, host: str, now: float) -> bool:
+    try:
+        if str(p) not in _IN_FLIGHT and _is_stale(p, middle, host, now) and p.is_file():
+            p.unlink()
+            return True
+    except FileNotFoundError:  # removed meanwhile by someone else
+        pass
+    return False
+
+
 def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:
     """Remove temporary files that killed writers of ``path`` left beside it.
 
@@ -64,30 +93,33 @@ def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:
     """
     path = Path(path)
     prefix, host, now = f".{path.name}.", _host_tag(), time.time()
-    removed = []
     try:
         siblings = list(path.parent.iterdir())
     except OSError:
-        return removed
-    for p in siblings:
-        name = p.name
-        if not (name.startswith(prefix) and name.endswith(".tmp")) or str(p) in _IN_FLIGHT:
-            continue
-        middle = name[len(prefix):-len(".tmp")]
-        m = _OURS.match(middle)
-        try:
-            if m and m["host"] == host:
-                stale = not _pid_alive(int(m["pid"]))
-            elif m or _LEGACY.match(middle):
-                stale = now - p.stat().st_mtime > STALE_AFTER_S
-            else:
-                continue  # another target's temporary file
-            if stale and p.is_file():
-                p.unlink()
-                removed.append(p)
-        except FileNotFoundError:  # removed meanwhile by someone else
-            continue
-    return removed
+        return []
+    return [p for p in siblings if p.name.startswith(prefix) and p.name.endswith(".tmp")
+            and _remove_if_stale(p, p.name[len(prefix):-len(".tmp")], host, now)]
+
+
+_ANY_TEMPORARY = re.compile(r"^\..+?\.(?P<middle>p\d+h[0-9a-f]{8}_[a-z0-9_]+)\.tmp$")
+
+
+def remove_stale_below(folder: str | os.PathLike) -> list[Path]:
+    """Remove the stale temporary files (:func:`remove_stale_temporaries`) of every target below
+    ``folder``, e.g. the 150 MB ``.matrices.npz.*.tmp`` of a mesh job killed with SIGKILL.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files removed.
+    """
+    host, now, removed = _host_tag(), time.time(), []
+    for root, _dirs, files in os.walk(folder):
+        for name in files:
+            m = _ANY_TEMPORARY.match(name)
+            if m and _remove_if_stale(Path(root, name), m["middle"], host, now):
+                removed.append(Path(root, name))
+    return sorted(removed)
 
 
 def remove_in_flight() -> list[str]:
@@ -113,38 +145,53 @@ _UMASK = _current_umask()
 
 
 @contextmanager
-def atomic_path(path: str | os.PathLike):
+def atomic_path(path: str | os.PathLike, size_bytes: int | None = None):
     """Yield a temporary path beside ``path``; on success move it to ``path``, else delete it.
 
-    Stale temporary files of killed earlier writers of ``path`` are removed first.
+    Stale temporary files of killed earlier writers of ``path`` are removed first.  A full disk,
+    a quota, a read-only file system or a missing permission raise
+    :class:`jointid.io_errors.ResultWriteError` (one line; ``size_bytes``, where the writer knows
+    it, is the space the file needs), and no temporary file stays.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale_temporaries(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.p{os.getpid()}h{_host_tag()}_",
-                               suffix=".tmp")
-    os.close(fd)
-    _IN_FLIGHT.add(tmp)
+    tmp = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(path)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.p{os.getpid()}h{_host_tag()}_",
+                                   suffix=".tmp")
+        os.close(fd)
+        _IN_FLIGHT.add(tmp)
         yield Path(tmp)
+        fault = injected_fault(path)  # the tests' fault hook (jointid.io_errors): after the data, as a full disk
+        if fault is not None:
+            raise fault
         # mkstemp creates the file private (0600); results get the permissions of any new file
         os.chmod(tmp, 0o666 & ~_UMASK)
         os.replace(tmp, path)
+    except OSError as exc:
+        err = write_error(path, exc, size_bytes)
+        if err is None:
+            raise
+        raise err from None
     finally:
-        _IN_FLIGHT.discard(tmp)
-        if os.path.exists(tmp):
-            os.remove(tmp)
+        if tmp is not None:
+            _IN_FLIGHT.discard(tmp)
+            if os.path.exists(tmp):
+                os.remove(tmp)
 
 
 def write_text(path, text: str) -> None:
-    with atomic_path(path) as tmp:
+    with atomic_path(path, len(text.encode())) as tmp:
         tmp.write_text(text)
 
 
 def write_csv(df, path, float_format: str = "%.10g") -> None:
-    """CSV with a fixed float format so identical results give byte-identical files."""
-    with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False, float_format=float_format, lineterminator="\n")
+    """CSV with a fixed float format so identical results give byte-identical files (rendered first,
+    so that a full disk can say how much space the file needs)."""
+    data = df.to_csv(index=False, float_format=float_format, lineterminator="\n").encode("utf-8")
+    with atomic_path(path, len(data)) as tmp:
+        tmp.write_bytes(data)
 
 
 def _jsonable(obj):
@@ -162,16 +209,51 @@ def _jsonable(obj):
 
 
 def write_json(path, obj) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(_jsonable(obj), indent=2, sort_keys=True) + "\n")
+    text = json.dumps(_jsonable(obj), indent=2, sort_keys=True) + "\n"
+    with atomic_path(path, len(text.encode())) as tmp:
+        tmp.write_text(text)
 
 
 def read_json(path):
-    return json.loads(Path(path).read_text())
+    """The JSON document in ``path``; a file that is not valid JSON (e.g. cut short) raises
+    :class:`jointid.io_errors.ResultReadError` naming it."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError) as exc:  # json.JSONDecodeError is a ValueError
+        raise read_error(path, f"not valid JSON ({exc})") from None
+
+
+def read_csv(path, **kwargs):
+    """``pandas.read_csv(path)``; a file that cannot be parsed raises
+    :class:`jointid.io_errors.ResultReadError` naming it."""
+    import pandas as pd
+
+    try:
+        return pd.read_csv(path, **kwargs)
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise read_error(path, f"not a readable CSV table ({type(exc).__name__}: {exc})") from None
+
+
+def load_npz(path) -> dict[str, np.ndarray]:
+    """Every array of an ``.npz`` file, read into memory; a damaged file (e.g. cut short: no zip
+    directory) raises :class:`jointid.io_errors.ResultReadError` naming it."""
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, EOFError, ValueError, OSError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise read_error(path, f"not a readable .npz archive ({type(exc).__name__}: {exc})") from None
+
+
+def _nbytes(arrays) -> int:
+    return sum(int(np.asarray(a).nbytes) for a in arrays.values())
 
 
 def write_npz(path, **arrays) -> None:
-    with atomic_path(path) as tmp:
+    with atomic_path(path, _nbytes(arrays)) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
 
@@ -192,7 +274,8 @@ def write_npz_mappable(path, arrays: dict) -> None:
     import io as _io
     import zipfile
 
-    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+    with atomic_path(path, _nbytes(arrays)) as tmp, \
+            zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
         for name, value in arrays.items():
             arr = np.asarray(value)
             if not arr.flags.c_contiguous:
@@ -223,8 +306,20 @@ def map_npz(path) -> dict[str, np.ndarray]:
 
     A member stored uncompressed whose data are aligned (as :func:`write_npz_mappable` writes them)
     is not read: its pages are loaded on first touch and shared by every process that maps the same
-    file.  Other members (compressed, unaligned, object arrays) are read as ``np.load`` would.
+    file.  Other members (compressed, unaligned, object arrays) are read as ``np.load`` would.  A
+    damaged file raises :class:`jointid.io_errors.ResultReadError` naming it.
     """
+    import zipfile
+
+    try:
+        return _map_npz(path)
+    except (zipfile.BadZipFile, EOFError, ValueError, OSError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise read_error(path, f"not a readable .npz archive ({type(exc).__name__}: {exc})") from None
+
+
+def _map_npz(path) -> dict[str, np.ndarray]:
     import io as _io
     import mmap
     import zipfile

@@ -39,6 +39,18 @@ if DIAG_DATASETS:
             ranking=f"{R}/diagnosis/{{dataset}}/ranking.csv",
             ladder=f"{R}/diagnosis/{{dataset}}/ladder.csv",
             page=f"{R}/diagnosis/{{dataset}}/index.html",
+            # written beside them on every run (jointid.diagnosis.outputs); declared so that a missing
+            # one is rebuilt (mac_<state>.csv is written only for states with measured shapes)
+            verdict=f"{R}/diagnosis/{{dataset}}/verdict.json",
+            combinations=f"{R}/diagnosis/{{dataset}}/combinations.csv",
+            next_measurements=f"{R}/diagnosis/{{dataset}}/next_measurements.csv",
+            compare=f"{R}/diagnosis/{{dataset}}/compare.csv",
+            current=f"{R}/diagnosis/{{dataset}}/current.csv",
+            parameters=f"{R}/diagnosis/{{dataset}}/parameters.csv",
+            drift=f"{R}/diagnosis/{{dataset}}/drift.csv",
+            shape_residuals=f"{R}/diagnosis/{{dataset}}/shape_residuals.csv",
+            point_residuals=f"{R}/diagnosis/{{dataset}}/point_residuals.csv",
+            preload_curve=f"{R}/diagnosis/{{dataset}}/preload_curve.csv",
         params:
             cfg=_diagnosis_cfg,
             history=f"{R}/history.csv",

@@ -12,18 +12,18 @@ CFG_EMA = sections(config, *ema_stage.CONFIG)
 
 rule ema:
     input:
-        source=lambda wc: EMA_SOURCES[wc.name],
+        source=lambda wc: EMA_SOURCES[wc.source],
     output:
-        dataset=directory(f"{R}/ema/{{name}}/dataset"),
-        poles=f"{R}/ema/{{name}}/report/poles.csv",
+        dataset=directory(f"{R}/ema/{{source}}/dataset"),
+        poles=f"{R}/ema/{{source}}/report/poles.csv",
     params:
         cfg=CFG_EMA,
     wildcard_constraints:
-        name="[A-Za-z][A-Za-z0-9_]*",
+        source="[A-Za-z][A-Za-z0-9_]*",
     log:
-        "logs/ema/{name}.log",
+        "logs/ema/{source}.log",
     benchmark:
-        "benchmarks/out/ema/{name}.tsv"
+        "benchmarks/out/ema/{source}.tsv"
     threads: 1
     resources:
         mem_mb=1500,
@@ -32,4 +32,4 @@ rule ema:
         "../scripts/ema.py"
 
 
-EXTRA_TARGETS.extend(expand(f"{R}/ema/{{name}}/report/poles.csv", name=list(EMA_SOURCES)))
+EXTRA_TARGETS.extend(expand(f"{R}/ema/{{source}}/report/poles.csv", source=list(EMA_SOURCES)))

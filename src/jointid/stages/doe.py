@@ -119,7 +119,7 @@ def sheet_theta(sheet_csv: str, point: str, names: list[str]) -> dict[str, float
     """Physical parameters (N/m^3) of one point of a DOE sample sheet."""
     import pandas as pd
 
-    sheet = pd.read_csv(sheet_csv).set_index("point")
+    sheet = io.read_csv(sheet_csv).set_index("point")
     if point not in sheet.index:
         from jointid.errors import DataError
 

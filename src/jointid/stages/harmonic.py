@@ -150,7 +150,7 @@ def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float, pa
     out = {"rests_on_tie": False, "note": "", "tied_pairings": 0, "rule": rule}
     if not tied_csv:
         return out
-    tied = pd.read_csv(tied_csv)
+    tied = io.read_csv(tied_csv)
     out["tied_pairings"] = int(tied["alternative"].nunique()) if len(tied) else 0
     for a, grp in tied.groupby("alternative"):
         hit = grp.loc[grp["fe_mode"] == g + 1, "order"]
@@ -197,7 +197,7 @@ def pairing_orders(chosen_order, tied_csv: str | None) -> dict:
     chosen_order = np.asarray(chosen_order, dtype=int)
     out = {"chosen": chosen_order}
     if tied_csv:
-        tied = pd.read_csv(tied_csv)
+        tied = io.read_csv(tied_csv)
         for a, grp in tied.groupby("alternative"):
             o = np.zeros(chosen_order.size, dtype=int)
             for order, fe in zip(grp["order"], grp["fe_mode"]):
@@ -230,7 +230,7 @@ def _measured_order(verify_csv: str | None, g: int) -> int | None:
     """Order of the measured mode paired with FE mode ``g`` (0-based) in the verify table, if any."""
     if not verify_csv:
         return None
-    ver = pd.read_csv(verify_csv)
+    ver = io.read_csv(verify_csv)
     hit = ver.index[ver["fe_mode"] == g + 1]
     return int(ver.loc[hit[0], "order"]) if len(hit) else None
 
@@ -328,7 +328,7 @@ def _measured_orders(verify_csv: str | None, n_modes: int) -> np.ndarray:
     """Per FE mode (0-based), the order of the measured mode paired with it in the verify table; 0 = none."""
     out = np.zeros(n_modes, dtype=int)
     if verify_csv:
-        ver = pd.read_csv(verify_csv)
+        ver = io.read_csv(verify_csv)
         for order, fe in zip(ver["order"], ver["fe_mode"]):
             if 1 <= int(fe) <= n_modes:
                 out[int(fe) - 1] = int(order)

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from jointid import io
+
 from jointid.config.datasets import dataset_folder
 from jointid.config.typed import Damping
 from jointid.identification.damping_law import ASSUMED, IDENTIFIED, MEASURED, law_ratios, law_text, usable_record
@@ -64,7 +66,7 @@ def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
     zm = ds.damping(state) if state in ds.states else None
     if zm is None:
         return {}, f"dataset {folder} has no damping ratios for {state}"
-    ver = pd.read_csv(verify_csv)
+    ver = io.read_csv(verify_csv)
     out = {}
     for order, fe_mode in zip(ver["order"], ver["fe_mode"]):
         if int(fe_mode) >= 1 and 1 <= int(order) <= len(zm):

@@ -325,7 +325,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
 
     from jointid.identification import joint_damping, updating  # scipy.optimize: not when the Snakefile imports us
 
-    doc, pts = io.read_json(surface_json), pd.read_csv(points_csv)
+    doc, pts = io.read_json(surface_json), io.read_csv(points_csv)
     f_meas, shapes, sigma_pct = measured_modes(cfg, state, pts)
     ic = cfg["identify"]
     weights = noise_weights(cfg, state, pts, sigma_pct, np.asarray(ic["weights"], float) if ic.get("weights") else None)

@@ -80,7 +80,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     mc_cfg = cfg["mesh_check"]
     halve = tuple(mc_cfg["halve"])
     par = io.read_json(params_json)
-    ver = pd.read_csv(verify_csv)
+    ver = io.read_csv(verify_csv)
     names = list(par["parameters"])
     theta = np.array([par["parameters"][n]["value"] for n in names])
     theta_d = dict(zip(names, theta))

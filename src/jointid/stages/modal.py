@@ -90,7 +90,7 @@ def run_modal_points(cfg: dict, matrices: str, sheet_csv: str, out_npzs: list[st
 
     names = parameter_names(cfg)
     paths = {os.path.splitext(os.path.basename(p))[0]: p for p in out_npzs}
-    sheet = pd.read_csv(sheet_csv)
+    sheet = io.read_csv(sheet_csv)
     if sorted(sheet["point"]) != sorted(paths):
         from jointid.errors import DataError
 
@@ -154,7 +154,7 @@ def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: st
     s = cfg["solver"]
     tol = float(s.get("rom_tolerance", 1e-4))
     model = load_model(matrices)
-    sheet = pd.read_csv(sheet_csv)
+    sheet = io.read_csv(sheet_csv)
     doe_x = sheet[[f"x_{n}" for n in parameter_names(cfg)]].to_numpy(float)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)  # not verified: raised as an error below
@@ -190,10 +190,10 @@ def run_gather(sheet_csv: str, npz_paths: list[str], out_csv: str, out_npz: str)
     """Rules ``gather_modal``/``gather_zoom``: per-point modal results -> one long table and one array file."""
     import pandas as pd
 
-    sheet = pd.read_csv(sheet_csv)
+    sheet = io.read_csv(sheet_csv)
     rows, freqs, shapes, descr = [], [], [], []
     for point, path in zip(sheet["point"], npz_paths):
-        z = np.load(path)
+        z = io.load_npz(path)
         freqs.append(z["freqs_Hz"])
         shapes.append(z["shapes"])
         descr.append(z["description"])
@@ -202,6 +202,6 @@ def run_gather(sheet_csv: str, npz_paths: list[str], out_csv: str, out_npz: str)
                          "description": str(z["description"][j]), "strain_joints": float(z["strain_joints"][j])})
     io.write_csv(pd.DataFrame(rows), out_csv)
     io.write_npz(out_npz, points=sheet["point"].to_numpy().astype(str), freqs_Hz=np.array(freqs),
-                 shapes=np.array(shapes), labels=np.load(npz_paths[0])["labels"],
+                 shapes=np.array(shapes), labels=io.load_npz(npz_paths[0])["labels"],
                  descriptions=np.array(descr))
     log(f"gather: {len(npz_paths)} points -> {out_csv}")

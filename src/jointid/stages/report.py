@@ -25,17 +25,17 @@ def load_inputs(inputs: dict) -> dict:
 
     by_state = lambda key, reader: {Path(p).parent.name: reader(p) for p in _as_list(inputs[key])}  # noqa: E731
     return {
-        "table1": pd.read_csv(inputs["table1"]),
-        "table1_ranges": pd.read_csv(inputs["table1_ranges"]) if inputs.get("table1_ranges") else None,
-        "tables": {"power_off": pd.read_csv(inputs["table2"]), "power_on": pd.read_csv(inputs["table3"])},
-        "verify": by_state("verify", pd.read_csv),
+        "table1": io.read_csv(inputs["table1"]),
+        "table1_ranges": io.read_csv(inputs["table1_ranges"]) if inputs.get("table1_ranges") else None,
+        "tables": {"power_off": io.read_csv(inputs["table2"]), "power_on": io.read_csv(inputs["table3"])},
+        "verify": by_state("verify", io.read_csv),
         "params": by_state("params", io.read_json),
-        "frf": by_state("frf", pd.read_csv),
+        "frf": by_state("frf", io.read_csv),
         "stiffness": by_state("stiffness", io.read_json),
-        "modes": by_state("modes", lambda p: dict(np.load(p))),
-        "diagnostics": pd.read_csv(inputs["diagnostics"]),
-        "sheet": pd.read_csv(inputs["sheet"]),
-        "points": pd.read_csv(inputs["points"]),
+        "modes": by_state("modes", lambda p: dict(io.load_npz(p))),
+        "diagnostics": io.read_csv(inputs["diagnostics"]),
+        "sheet": io.read_csv(inputs["sheet"]),
+        "points": io.read_csv(inputs["points"]),
         "paper_table1": read_paper(inputs.get("paper_table1") or None, PAPER_TABLE1_COLUMNS),
         "mesh_check": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("mesh_check") or []))},
         "rigidity": {d["state"]: d for d in map(io.read_json, _as_list(inputs.get("rigidity") or []))},
@@ -61,7 +61,7 @@ def _frf_measured(inputs: dict):
 def _csv_or_none(path: Path):
     import pandas as pd
 
-    return pd.read_csv(path) if path.exists() and path.stat().st_size > 1 else None
+    return io.read_csv(path) if path.exists() and path.stat().st_size > 1 else None
 
 
 def _diagnosis(inputs: dict) -> dict:
@@ -86,11 +86,11 @@ def _hypotheses(inputs: dict):
 
     if not inputs.get("hypotheses"):
         return None
-    ranking = pd.read_csv(inputs["hypotheses"])
+    ranking = io.read_csv(inputs["hypotheses"])
     records = {r["hypothesis"]: r for r in map(io.read_json, _as_list(inputs.get("hypothesis_fits") or []))}
     def beside(name):
         path = Path(inputs["hypotheses"]).with_name(name)
-        return pd.read_csv(path) if path.exists() and path.stat().st_size > 1 else None
+        return io.read_csv(path) if path.exists() and path.stat().st_size > 1 else None
 
     return {"ranking": ranking, "records": records, "spread": beside("spread.csv"),
             "ranges": beside("reconstruction.csv"), "next": beside("next_measurements.csv")}

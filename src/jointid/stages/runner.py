@@ -1,4 +1,9 @@
-"""Glue between Snakemake scripts and the package: logging, clean errors, config from params."""
+"""Glue between Snakemake scripts and the package: logging, clean errors, config from params.
+
+Before a stage reads anything, every input file that has a provenance sidecar is checked against the
+SHA-256 the sidecar recorded (:func:`check_inputs`): a damaged result is named in one line, with the
+fix, instead of failing somewhere inside a reader.  The hashes serve the outputs' sidecars too.
+"""
 
 from __future__ import annotations
 
@@ -58,43 +63,89 @@ def input_files(paths: Iterable[str]) -> list[str]:
     return out
 
 
-def write_sidecars(outputs: Iterable[str], cfg, inputs: Iterable[str]) -> list:
-    """Provenance sidecar ``<output>.provenance.json`` of each output (see :mod:`jointid.reporting.provenance`)."""
-    from jointid.reporting.provenance import write_provenance
+def check_inputs(inputs: Iterable[str]) -> dict[str, str]:
+    """SHA-256 of every input file; raises :class:`jointid.io_errors.ResultReadError` (one line per
+    damaged file) where an input does not match its provenance sidecar (a file cut short or changed
+    since it was written).  Returns {path: sha256}."""
+    from jointid.io_errors import read_error
+    from jointid.reporting.provenance import check_sidecar, sha256_file
+
+    hashes, problems = {}, []
+    for path in input_files(inputs):
+        if not os.path.isfile(path):
+            continue
+        hashes[path] = sha256_file(path)
+        why = check_sidecar(path, hashes[path])
+        if why:
+            problems.append(str(read_error(path, why, checked=True)))
+    if problems:
+        from jointid.io_errors import ResultReadError
+
+        raise ResultReadError(problems)
+    return hashes
+
+
+def write_sidecars(outputs: Iterable[str], cfg, inputs: Iterable[str], input_hashes=None) -> list:
+    """Provenance sidecar ``<output>.provenance.json`` of each output (see :mod:`jointid.reporting.provenance`):
+    one record for the job (git state, input hashes), each output's own SHA-256 added."""
+    from jointid.reporting.provenance import provenance, write_provenance
 
     inputs = input_files(inputs)
-    return [write_provenance(out, cfg, inputs=inputs) for out in outputs]
+    record = provenance(cfg, inputs=inputs, input_hashes=input_hashes)
+    return [write_provenance(out, cfg, record=record) for out in outputs]
 
 
-def run_script(smk, fn, provenance: bool | Iterable[str] = False) -> None:
+def _one_line(exc: BaseException, limit: int = 200) -> str:
+    text = " ".join(str(exc).split()) or "(no message)"
+    return f"{type(exc).__name__}: {text[:limit]}{'...' if len(text) > limit else ''}"
+
+
+def run_script(smk, fn, provenance: bool | Iterable[str] = True) -> None:
     """Run ``fn(cfg, input, output)`` with stdout/stderr sent to the rule's log.
 
     ``cfg`` is ``smk.params.cfg`` (the config sections the rule depends on, passed through ``params:``
-    so that a change reruns exactly the affected rules).  A :class:`JointidError` is printed as its
+    so that a change reruns exactly the affected rules).  The inputs are checked against their
+    provenance sidecars first (:func:`check_inputs`).  A :class:`JointidError` is printed as its
     problem lines (no traceback) and the script exits 1; Snakemake then removes the rule's outputs.
-    SIGTERM removes the temporary files of unfinished writes and exits with status 143.
+    Any other exception prints one line (what failed, in which rule, where the traceback is) and
+    writes the traceback to the rule's log only.  SIGTERM removes the temporary files of unfinished
+    writes and exits with status 143.  While it runs, the job holds a ticket
+    (:mod:`jointid.stages.jobs`) by which a later run finds it if Snakemake was killed.
 
-    With ``provenance`` (True: every output; or the names of outputs) each of those outputs gets a
-    sidecar ``<output>.provenance.json`` once ``fn`` has succeeded: git commit, hash of ``cfg``,
-    package versions, SHA-256 of the job's input files and of the output.
+    With ``provenance`` (True, the default: every output; or the names of outputs) each of those
+    outputs gets a sidecar ``<output>.provenance.json`` once ``fn`` has succeeded: git commit, hash
+    of ``cfg``, package versions, SHA-256 of the job's input files and of the output.
     """
+    from jointid.stages import jobs
+
     install_sigterm_handler()
     log = smk.log[0] if len(smk.log) else None
     fh = open(log, "w") if log else None
     if fh:
         sys.stdout = sys.stderr = _Tee(fh, sys.__stderr__)
+    ticket = jobs.register(smk.rule, list(smk.output))
     try:
+        hashes = check_inputs(list(smk.input))
         fn(smk.params.cfg, smk.input, smk.output)
         if provenance:
             outs = list(smk.output) if provenance is True else [getattr(smk.output, n) for n in provenance]
-            write_sidecars(outs, smk.params.cfg, list(smk.input))
+            write_sidecars(outs, smk.params.cfg, list(smk.input), hashes)
     except JointidError as exc:
-        print(f"error in rule {smk.rule}:\n{exc}", file=sys.stderr)
+        if len(exc.problems) == 1:
+            print(f"error in rule {smk.rule}: {exc.problems[0]}", file=sys.stderr)
+        else:
+            print(f"error in rule {smk.rule}:\n{exc}", file=sys.stderr)
         sys.exit(1)
-    except Exception:
-        traceback.print_exc()
+    except Exception as exc:
+        if fh:
+            traceback.print_exc(file=fh)
+            print(f"error in rule {smk.rule}: unexpected {_one_line(exc)}; the full traceback is in {log}",
+                  file=sys.stderr)
+        else:
+            traceback.print_exc()
         sys.exit(1)
     finally:
+        jobs.unregister(ticket)
         if fh:
             fh.flush()
 

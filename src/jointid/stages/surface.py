@@ -27,8 +27,8 @@ def run_fit_surface(cfg: dict, sheet_csv: str, arrays_npz: str, out_json: str, o
 
     from jointid.identification.updating import fit_surfaces
 
-    sheet = pd.read_csv(sheet_csv)
-    z = np.load(arrays_npz)
+    sheet = io.read_csv(sheet_csv)
+    z = io.load_npz(arrays_npz)
     descr = z["descriptions"]
     names = parameter_names(cfg)
     doc, diag = fit_surfaces(sheet, z["freqs_Hz"], z["shapes"], descr, names, tracked_band(cfg),

@@ -16,7 +16,7 @@ def read_paper(path, columns):
     data are not the paper's (``path`` None or empty)."""
     import pandas as pd
 
-    return pd.read_csv(path) if path else pd.DataFrame(columns=list(columns))
+    return io.read_csv(path) if path else pd.DataFrame(columns=list(columns))
 
 
 def _paper_note(value: float, fmt: str, suffix: str = "") -> str:
@@ -42,9 +42,9 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
     paper = read_paper(paper_csv, PAPER_TABLES_COLUMNS)
     gathered = []
     for state, path in verify_csvs.items():
-        tab = frequency_table(pd.read_csv(path), paper, state)
+        tab = frequency_table(io.read_csv(path), paper, state)
         io.write_csv(tab, outputs[state])
-        unpaired = pd.read_csv(unpaired_csvs[state]) if unpaired_csvs else None
+        unpaired = io.read_csv(unpaired_csvs[state]) if unpaired_csvs else None
         if unpaired is not None:
             gathered.append(unpaired.assign(state=state))
         md = (markdown or {}).get(state) or outputs[state].replace(".csv", ".md")
@@ -119,7 +119,7 @@ def table1_ranges(docs: list[dict], points_npz: list[str], reference: str, cfg: 
 
     from jointid.response.ranges import LAWS, calibrate, case_table, range_table
 
-    data = {d["state"]: dict(np.load(p)) for d, p in zip(docs, points_npz)}
+    data = {d["state"]: dict(io.load_npz(p)) for d, p in zip(docs, points_npz)}
     doc = next(d for d in docs if d["state"] == reference)
     cal = doc.get("paired_minimum") or doc["governing_mode"]
     r = int(cal["fe_mode"]) - 1
