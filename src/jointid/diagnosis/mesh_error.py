@@ -164,6 +164,7 @@ def mesh_budget(diag, base, x0, notes: list, log) -> None:
     else:
         sols = diag.solve_states(base, x0)
         index = [p.model_index for p in diag.pair(sols)]
+        diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
         errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
                                       n_modes=diag.n_modes, log=log)
         if key is not None:
