@@ -338,6 +338,12 @@ def score(c: dict, res) -> dict:
             row.update({f"{short}_{tag}_true": true_v, f"{short}_{tag}_est": est, f"{short}_{tag}_lo": lo,
                         f"{short}_{tag}_hi": hi, f"{short}_{tag}_in": _inside(true_v, lo, hi),
                         f"{short}_{tag}_fitted": rows is not None})
+    ranks = {e: i + 1 for i, e in enumerate(res.ranking["effect"])}
+    row["truth_rank"] = ";".join(str(ranks.get(t, "")) for t in truth)
+    fits = res.parameters
+    if fits is not None and len(fits):
+        rep = _fit_params(res, reported)
+        row["interval_scale_reported"] = float(rep.interval_scale.iloc[0]) if rep is not None else np.nan
     me = rec["model_error"]
     row.update({"c_hat": me.get("c_hat"), "sigma_model_pct": me.get("sigma_model_pct"),
                 "sigma_known_pct": me.get("sigma_known_pct"), "verdict": res.verdict})
@@ -452,6 +458,10 @@ def run_label(rig: str, options: dict) -> str:
     return f"{rig}" + (f" {opts}" if opts else " (defaults)")
 
 
+def _slug(label: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_=." else "_" for ch in label).strip("_")
+
+
 def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = None, rig: str = "coarse",
         options: dict | None = None, doc: bool = True, command: str = "") -> Result:
     from jointid.threads import limit_threads
@@ -472,6 +482,13 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
         try:
             out = runner.diagnose(folder, options)
             row = score(c, out)
+            keep = OUT / "coverage_runs" / _slug(label) / c["case"]  # the tables, for a later reading
+            keep.mkdir(parents=True, exist_ok=True)
+            out.ranking.to_csv(keep / "ranking.csv", index=False)
+            if out.parameters is not None:
+                out.parameters.to_csv(keep / "parameters.csv", index=False)
+            out.combinations.to_csv(keep / "combinations.csv", index=False)
+            (keep / "verdict.txt").write_text(out.verdict + "\n")
         except Exception as exc:  # a case that fails is a result too: counted as wrong, said why
             row = {"case": c["case"], "kind": c["kind"], "truth": "+".join(c["effects"]) or "none",
                    "noise": c["noise"], "shapes": bool(c["shapes"]), "max_modes": c["max_modes"], "seed": c["seed"],
