@@ -66,8 +66,8 @@ of the splits by noise statement and by shapes below 80 %.
 ``diagnosis`` options (e.g. ``--set shape_residuals=true``); each option set is a *run* of its own in
 the CSV and in ``docs/validation.md`` (a rerun replaces its own rows only).  ``--quick``: 6 cases
 (``QUICK_CASES``: one of each kind and stratum, coarse rig), no doc.  The datasets are kept in
-``benchmarks/out/coverage_data/<rig>/<case>`` (keyed by the truth's hash): a second run with other
-options does not synthesise again.  One reduced solver is reused from case to case (``diagnose(...,
+``benchmarks/out/coverage_data/<rig>/<case>`` (keyed by the truth's hash; synthesised again when
+``jointid/diagnosis/synth.py`` changes): a second run with other options does not synthesise again.  One reduced solver is reused from case to case (``diagnose(...,
 solver=)``, as the hidden-effect tests do): its subspace only grows and every answer is certified.
 """
 
@@ -77,6 +77,7 @@ import argparse
 import hashlib
 import json
 import math
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -218,8 +219,14 @@ class Runner:
         truth = truth_of(c, self.rig_name)
         key = hashlib.sha256(json.dumps(truth, sort_keys=True).encode()).hexdigest()[:12]
         folder = DATA / self.rig_name / f"{c['case']}-{key}"
+        stamp = folder / "synth_source.sha256"  # the synthesiser's source: a changed one synthesises again
+        code = hashlib.sha256(Path(synth.__file__).read_bytes()).hexdigest()
         if (folder / "modes.csv").exists():
-            return folder, 0.0
+            if not stamp.exists():
+                stamp.write_text(code + "\n")
+            if stamp.read_text().strip() == code:
+                return folder, 0.0
+            shutil.rmtree(folder)
         t0 = time.perf_counter()
         if self.truth_model is None:
             cfg_t = synth.truth_config(truth, self.rig["cfg"])
@@ -227,7 +234,9 @@ class Runner:
             self.log(f"[j] truth model ({json.dumps(TRUTH_MESH[self.rig_name])}): {self.truth_model.n_dofs} DOFs, "
                      f"built in {time.perf_counter() - t0:.1f} s")
         tmp = folder.with_name(folder.name + ".tmp")
+        shutil.rmtree(tmp, ignore_errors=True)  # left by an interrupted run
         synth.write_synthetic(truth, self.rig["cfg"], tmp, model=self.truth_model)
+        (tmp / stamp.name).write_text(code + "\n")
         tmp.rename(folder)
         return folder, time.perf_counter() - t0
 
