@@ -42,7 +42,9 @@ Scores (one row per case in ``benchmarks/out/coverage_cases.csv``)
   when that is ``none needed`` or ``unexplained``, the first entry of the verdict record's
   ``supported`` list (a single or a pair, with the candidates tied to it in ``indistinguishable_from``)
   when there is one; else nothing.  An effect case is **found** when the named set holds every true
-  effect (a named tie that holds the truth counts; a pair case needs both).
+  effect (a named tie that holds the truth counts; a pair case needs both) and, when the answer is a
+  combination ``a+b``, it is exactly the true effects (a single-effect case answered by its effect plus
+  a spurious second one is wrong; ``found_loose`` counts it).
 * **claimed** (no-effect cases): the verdict record's ``supported`` list is not empty (some refit or
   pair is strongly or moderately supported against the current model) or ``explained_by`` names an
   effect.
@@ -277,6 +279,37 @@ def named_effects(res, supported: list[str]) -> tuple[list[str], str]:
     return [], "current"
 
 
+def judge(truth: str, explained_by: str, supported, named) -> dict:
+    """``found``, ``found_loose`` (effect cases) and ``claimed`` (no-effect cases) of one case from the
+    CSV's own columns (``truth`` ``a`` / ``a+b`` / ``none``; ``supported`` and ``named`` ``;``-separated),
+    so a saved CSV can be judged again.  ``found``: the named set holds every true effect and, when the
+    answer is a combination, it is exactly the true effects (a pair naming a spurious second effect is
+    wrong); ``found_loose``: the named set holds every true effect."""
+    split = lambda v: [x for x in (v.split(";") if isinstance(v, str) else []) if x]  # noqa: E731
+    sup, answer = split(supported), split(named)
+    short = str(explained_by)
+    combo = "+" in short or (short in ("none needed", "unexplained") and bool(sup) and "+" in sup[0])
+    true = [] if truth == "none" else str(truth).split("+")
+    if short.startswith("ERROR"):  # the diagnosis failed: wrong either way
+        return {"found": False, "found_loose": False, "claimed": np.nan} if true else \
+            {"found": np.nan, "found_loose": np.nan, "claimed": True}
+    if not true:
+        return {"found": np.nan, "found_loose": np.nan, "claimed": bool(answer) or bool(sup)}
+    return {"found": all(t in answer for t in true) and (not combo or set(answer) == set(true)),
+            "found_loose": all(t in answer for t in true), "claimed": np.nan}
+
+
+def rejudge(df: pd.DataFrame) -> pd.DataFrame:
+    """:func:`judge` again over the rows of a saved CSV."""
+    df = df.copy()
+    for col in ("found", "found_loose", "claimed"):
+        df[col] = df[col].astype(object) if col in df else np.nan
+    for i, r in df.iterrows():
+        for k, v in judge(r.truth, r.explained_by, r.get("supported"), r.get("named")).items():
+            df.at[i, k] = v
+    return df
+
+
 def _fit_params(res, label: str, names_set=None) -> pd.DataFrame | None:
     """Rows of ``res.parameters`` of the fit ``label`` (``current``: the current model, the last fit
     without candidates; a pair label matched in either order)."""
@@ -311,12 +344,7 @@ def score(c: dict, res) -> dict:
            "top": top.effect, "top_support": top.support, "top_ties": ";".join(_ties(top)),
            "top_delta_qaicc": float(top.delta_qaicc) if pd.notna(top.delta_qaicc) else np.nan,
            "reported_model": reported}
-    if truth:
-        row["found"] = all(t in named for t in truth)
-        row["claimed"] = np.nan
-    else:
-        row["found"] = np.nan
-        row["claimed"] = bool(supported) or bool(named)
+    row.update(judge(row["truth"], res.explained_by, row["supported"], row["named"]))
     # effect parameters
     pair_rows = _fit_params(res, "+" + "+".join(truth)) if len(truth) == 2 else None
     rk = res.ranking.set_index("effect")
@@ -380,7 +408,9 @@ def metrics(df: pd.DataFrame) -> dict:
             ins += list(eff.loc[m, f"eff{i}_in"].astype(bool))
     joints = list(df["kn_rep_in"].astype(bool)) + list(df["kl_rep_in"].astype(bool))
     joints_true = list(df["kn_true_in"].astype(bool)) + list(df["kl_true_in"].astype(bool))
+    loose = eff.found_loose if "found_loose" in eff else eff.found
     return {"found": (int(eff.found.astype(bool).sum()), len(eff)),
+            "found_loose": (int(loose.astype(bool).sum()), len(eff)),
             "no_claim": (int((~none.claimed.astype(bool)).sum()), len(none)),
             "effect_ci": (int(sum(ins)), len(ins)),
             "joint_ci": (int(sum(joints)), len(joints)),
@@ -388,6 +418,7 @@ def metrics(df: pd.DataFrame) -> dict:
 
 
 LABELS = {"found": "effect cases: the named set holds the truth (top-1 or a tie)",
+          "found_loose": "(information) the same, a combination naming a spurious second effect counted too",
           "no_claim": "no-effect cases: no effect claimed",
           "effect_ci": "95 % intervals of the effect parameters hold the truth",
           "joint_ci": "95 % intervals of k_normal, k_lateral (reported model) hold the truth",
@@ -640,7 +671,7 @@ def write_doc() -> Path:
     parts = [DOC_HEAD.format(design_text=design_text, definitions=definitions),
              "The cases (coarse rig; the default rig runs the first cases of `--cases`):\n",
              design_table(design()), ""]
-    df = pd.read_csv(CSV)
+    df = rejudge(pd.read_csv(CSV))
     df = df[~df["run"].str.endswith("--quick")]
     for label, g in df.groupby("run", sort=False):
         meta = json.loads(g["meta"].iloc[0])

@@ -90,3 +90,19 @@ def test_metrics_and_cells():
     _, _, met = summary_tables(df)
     assert met["found"] and not met["no_claim"] and not met["effect_ci"] and not met["joint_ci"]
     assert not met["cells"]  # the noise-right cell: joints 15/20 = 75 % < 80 %
+
+
+def test_judging_a_case_from_its_csv_columns():
+    from .bench_j_coverage import judge
+
+    assert judge("a", "a", "a", "a")["found"]
+    assert judge("a", "a or b", "a;b", "a;b")["found"]  # a named tie that holds the truth
+    assert judge("a", "unexplained", "a;b", "a")["found"]  # the supported one, named first
+    j = judge("a", "a+b", "a+b;a", "a;b")  # a spurious second effect
+    assert not j["found"] and j["found_loose"]
+    assert judge("a+b", "b+a", "b+a", "b;a")["found"]
+    assert not judge("a+b", "a", "a", "a")["found"]
+    assert judge("none", "none needed", "", "")["claimed"] is False
+    assert judge("none", "unexplained", "b", "b")["claimed"] is True
+    assert judge("none", "ERROR ValueError", None, None)["claimed"] is True
+    assert judge("a", "ERROR ValueError", None, None)["found"] is False
