@@ -302,11 +302,9 @@ def judge(truth: str, explained_by: str, supported, named) -> dict:
 def rejudge(df: pd.DataFrame) -> pd.DataFrame:
     """:func:`judge` again over the rows of a saved CSV."""
     df = df.copy()
+    judged = [judge(r.truth, r.explained_by, r.get("supported"), r.get("named")) for _, r in df.iterrows()]
     for col in ("found", "found_loose", "claimed"):
-        df[col] = df[col].astype(object) if col in df else np.nan
-    for i, r in df.iterrows():
-        for k, v in judge(r.truth, r.explained_by, r.get("supported"), r.get("named")).items():
-            df.at[i, k] = v
+        df[col] = pd.Series([j[col] for j in judged], index=df.index, dtype=object)
     return df
 
 
