@@ -538,6 +538,9 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
         row.update({"run": label, "rig": rig, "options": json.dumps(options, sort_keys=True),
                     "synth_s": synth_s, "time_s": time.perf_counter() - td})
         rows.append(row)
+        if k < len(todo):  # the cases so far, kept should the run be stopped
+            save_run(pd.DataFrame(rows), label, rig, options, quick, time.perf_counter() - t0, runner,
+                     command or _command(quick, cases, rig, options), len(todo))
         ok = ("found" if row["found"] else "MISSED") if c["effects"] else ("CLAIMED" if row["claimed"] else "none claimed")
         cis = [("in" if row.get(f"eff{i}_in") else "OUT") for i in (1, 2) if f"eff{i}" in row]
         print(f"[j] {k:2d}/{len(todo)} {c['case']} {row['truth']:<30s} {c['noise']:5s} "
@@ -558,21 +561,33 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
     res.add(f"time per case (diagnosis) [{label}]", f"{df.time_s.mean():.1f} s (total {total:.0f} s)")
     res.data = {"label": label, "cases": len(df), "total_s": total, "rig_s": runner.rig_s,
                 "mean_case_s": float(df.time_s.mean()), "met": met}
-    meta = {"label": label, "rig": rig, "options": options, "quick": quick, "n_cases": len(df), "total_s": total,
-            "rig_build_s": runner.rig_s, "rig_dofs": runner.rig["model"].n_dofs,
-            "truth_dofs": runner.truth_model.n_dofs if runner.truth_model is not None else None,
-            "mean_case_s": float(df.time_s.mean()), "mean_synth_s": float(df.synth_s.mean()),
-            "machine": machine(), "commit": head_commit(), "when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "command": command or f"python -m benchmarks j{' --quick' if quick else ''}"
-                                  f"{f' --cases {cases}' if cases else ''}{' --rig ' + rig if rig != 'coarse' else ''}"
-                                  + "".join(f" --set {k}={json.dumps(v)}" for k, v in options.items())}
-    df["meta"] = json.dumps(meta)
-    save(df, label)
+    save_run(df, label, rig, options, quick, total, runner, command or _command(quick, cases, rig, options), len(todo))
     if doc and not quick:
         write_doc()
         res.notes.append(f"docs/validation.md written ({DOC})")
     res.notes.append(f"cases: {CSV}")
     return res
+
+
+def _command(quick, cases, rig, options) -> str:
+    return (f"python -m benchmarks j{' --quick' if quick else ''}{f' --cases {cases}' if cases else ''}"
+            f"{' --rig ' + rig if rig != 'coarse' else ''}"
+            + "".join(f" --set {k}={json.dumps(v)}" for k, v in options.items()))
+
+
+def save_run(df: pd.DataFrame, label: str, rig: str, options: dict, quick: bool, total: float, runner,
+             command: str, planned: int) -> None:
+    """The run's rows with its record (machine, commit, times) into the CSV."""
+    meta = {"label": label, "rig": rig, "options": options, "quick": quick, "n_cases": len(df),
+            "planned_cases": planned, "total_s": total,
+            "rig_build_s": runner.rig_s, "rig_dofs": runner.rig["model"].n_dofs,
+            "truth_dofs": runner.truth_model.n_dofs if runner.truth_model is not None else None,
+            "mean_case_s": float(df.time_s.mean()), "mean_synth_s": float(df.synth_s.mean()),
+            "machine": machine(), "commit": head_commit(), "when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+            "command": command}
+    df = df.copy()
+    df["meta"] = json.dumps(meta)
+    save(df, label)
 
 
 def save(df: pd.DataFrame, label: str) -> None:
@@ -680,7 +695,10 @@ def write_doc() -> Path:
                   f"- machine: {meta['machine']} (shared with other jobs)",
                   f"- rig: {meta['rig']}, {meta['rig_dofs']} DOFs (built in {meta['rig_build_s']:.0f} s); truth model "
                   f"{meta['truth_dofs'] or '(datasets kept from an earlier run)'} DOFs",
-                  f"- {meta['n_cases']} cases in {meta['total_s'] / 60:.1f} min: diagnosis {meta['mean_case_s']:.1f} s "
+                  f"- {meta['n_cases']} cases"
+                  + (f" (of {meta['planned_cases']} planned: the run was stopped)"
+                     if meta.get("planned_cases", meta["n_cases"]) > meta["n_cases"] else "")
+                  + f" in {meta['total_s'] / 60:.1f} min: diagnosis {meta['mean_case_s']:.1f} s "
                   f"per case on average (synthesis {meta['mean_synth_s']:.1f} s, 0 when the dataset was kept)",
                   f"- targets met: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in met.items()), "",
                   main, "", "Splits (no cell of the noise and shapes splits may fall below 80 %):", "", splits, "",
