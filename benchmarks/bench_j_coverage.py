@@ -175,14 +175,18 @@ def design_table(cases: list[dict]) -> str:
     return _md(head, rows)
 
 
-def select(cases: list[dict], quick: bool, n: int | None, rig: str) -> list[dict]:
-    """The cases a run takes: ``--quick`` the QUICK_CASES; ``--cases N`` N of the design spread over it
-    (every kind and stratum early); the default rig without ``--cases`` DEFAULT_RIG_CASES."""
+def select(cases: list[dict], quick: bool, n: int | None, rig: str, subset: str = "all") -> list[dict]:
+    """The cases a run takes: ``--quick`` the QUICK_CASES; ``--subset shapes|frequencies`` the cases with
+    shapes or with frequencies only; ``--cases N`` N of them spread over the design (every kind and
+    stratum early); the default rig without ``--cases`` DEFAULT_RIG_CASES.  A subset or a number runs in
+    the spread order, so a run stopped early still holds every kind."""
     if quick:
         return [c for c in cases if c["case"] in QUICK_CASES]
+    if subset != "all":
+        cases = [c for c in cases if bool(c["shapes"]) == (subset == "shapes")]
     if n is None and rig == "default":
         n = DEFAULT_RIG_CASES
-    if n is None or n >= len(cases):
+    if subset == "all" and (n is None or n >= len(cases)):
         return cases
     # interleave the kinds (single, none, pair, ...), the singles one of each effect in turn, so that
     # a prefix holds every kind, effect and stratum early
@@ -500,13 +504,13 @@ def _slug(label: str) -> str:
 
 
 def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = None, rig: str = "coarse",
-        options: dict | None = None, doc: bool = True, command: str = "") -> Result:
+        options: dict | None = None, doc: bool = True, command: str = "", subset: str = "all") -> Result:
     from jointid.threads import limit_threads
 
     limit_threads(blas_threads or 1)
     options = dict(options or {})
-    label = run_label(rig, options) + (" --quick" if quick else "")
-    todo = select(design(), quick, cases, rig)
+    label = run_label(rig, options) + (" --quick" if quick else "") + (f" ({subset} only)" if subset != "all" else "")
+    todo = select(design(), quick, cases, rig, subset)
     res = Result("j")
     t0 = time.perf_counter()
     print(f"[j] coverage study: {len(todo)} cases, run '{label}'", flush=True)
@@ -540,7 +544,7 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
         rows.append(row)
         if k < len(todo):  # the cases so far, kept should the run be stopped
             save_run(pd.DataFrame(rows), label, rig, options, quick, time.perf_counter() - t0, runner,
-                     command or _command(quick, cases, rig, options), len(todo))
+                     command or _command(quick, cases, rig, options, subset), len(todo))
         ok = ("found" if row["found"] else "MISSED") if c["effects"] else ("CLAIMED" if row["claimed"] else "none claimed")
         cis = [("in" if row.get(f"eff{i}_in") else "OUT") for i in (1, 2) if f"eff{i}" in row]
         print(f"[j] {k:2d}/{len(todo)} {c['case']} {row['truth']:<30s} {c['noise']:5s} "
@@ -561,7 +565,7 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
     res.add(f"time per case (diagnosis) [{label}]", f"{df.time_s.mean():.1f} s (total {total:.0f} s)")
     res.data = {"label": label, "cases": len(df), "total_s": total, "rig_s": runner.rig_s,
                 "mean_case_s": float(df.time_s.mean()), "met": met}
-    save_run(df, label, rig, options, quick, total, runner, command or _command(quick, cases, rig, options), len(todo))
+    save_run(df, label, rig, options, quick, total, runner, command or _command(quick, cases, rig, options, subset), len(todo))
     if doc and not quick:
         write_doc()
         res.notes.append(f"docs/validation.md written ({DOC})")
@@ -569,8 +573,9 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
     return res
 
 
-def _command(quick, cases, rig, options) -> str:
+def _command(quick, cases, rig, options, subset="all") -> str:
     return (f"python -m benchmarks j{' --quick' if quick else ''}{f' --cases {cases}' if cases else ''}"
+            f"{' --subset ' + subset if subset != 'all' else ''}"
             f"{' --rig ' + rig if rig != 'coarse' else ''}"
             + "".join(f" --set {k}={json.dumps(v)}" for k, v in options.items()))
 
@@ -721,7 +726,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     from .common import format_table, write_result
 
-    res = run(quick=a.quick, cases=a.cases, rig=a.rig, options=parse_options(a.set), doc=not a.no_doc,
+    res = run(quick=a.quick, cases=a.cases, rig=a.rig, options=parse_options(a.set), doc=not a.no_doc, subset=a.subset,
               command="python -m benchmarks.bench_j_coverage " + " ".join(argv if argv is not None else sys.argv[1:]))
     write_result(res, a.quick)
     print(format_table([res]))
@@ -734,6 +739,8 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
         ap.add_argument("--quick", action="store_true", help="6 cases, no doc")
     ap.add_argument("--cases", type=int, default=None, help="(j) run N cases of the design (default: all)")
     ap.add_argument("--rig", choices=("coarse", "default"), default="coarse", help="(j) the analysis rig")
+    ap.add_argument("--subset", choices=("all", "shapes", "frequencies"), default="all",
+                    help="(j) only the cases with shapes, or with frequencies only (default: all)")
     ap.add_argument("--set", action="append", metavar="KEY=VALUE",
                     help="(j) a diagnosis option, e.g. shape_residuals=true (repeatable)")
 
