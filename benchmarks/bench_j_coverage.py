@@ -79,6 +79,7 @@ import argparse
 import hashlib
 import json
 import math
+import os
 import shutil
 import sys
 import time
@@ -589,7 +590,7 @@ def save_run(df: pd.DataFrame, label: str, rig: str, options: dict, quick: bool,
             "truth_dofs": runner.truth_model.n_dofs if runner.truth_model is not None else None,
             "mean_case_s": float(df.time_s.mean()), "mean_synth_s": float(df.synth_s.mean()),
             "machine": machine(), "commit": head_commit(), "when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "command": command}
+            "command": command, "load_average_1min": os.getloadavg()[0]}
     df = df.copy()
     df["meta"] = json.dumps(meta)
     save(df, label)
@@ -697,7 +698,10 @@ def write_doc() -> Path:
         parts += [f"## Run: {label}", "",
                   f"- command: `{meta['command']}`",
                   f"- commit: `{meta['commit']}`, {meta['when']}",
-                  f"- machine: {meta['machine']} (shared with other jobs)",
+                  f"- machine: {meta['machine']}, shared with other jobs"
+                  + (f" (load average {meta['load_average_1min']:.1f} at the end of the run)"
+                     if meta.get("load_average_1min") is not None else "")
+                  + ": the times are wall times under that load",
                   f"- rig: {meta['rig']}, {meta['rig_dofs']} DOFs (built in {meta['rig_build_s']:.0f} s); truth model "
                   f"{meta['truth_dofs'] or '(datasets kept from an earlier run)'} DOFs",
                   f"- {meta['n_cases']} cases"
