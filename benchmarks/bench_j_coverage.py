@@ -531,6 +531,11 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
                 out.parameters.to_csv(keep / "parameters.csv", index=False)
             out.combinations.to_csv(keep / "combinations.csv", index=False)
             (keep / "verdict.txt").write_text(out.verdict + "\n")
+            from jointid.diagnosis.outputs import verdict_record
+
+            rec = verdict_record(out, c["case"], {})
+            (keep / "verdict.json").write_text(json.dumps({k: rec[k] for k in ("explained_by", "supported",
+                                                                               "model_error")}, default=float) + "\n")
         except Exception as exc:  # a case that fails is a result too: counted as wrong, said why
             row = {"case": c["case"], "kind": c["kind"], "truth": "+".join(c["effects"]) or "none",
                    "noise": c["noise"], "shapes": bool(c["shapes"]), "max_modes": c["max_modes"], "seed": c["seed"],
