@@ -1,4 +1,4 @@
-"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e f g h i] [--quick]``.
+"""Benchmarks of jointid (issue 7): ``python -m benchmarks [a b c d e f g h i j] [--quick]``.
 
 =====  =======================================================================================
 ``a``  default-model assembly + 12-mode modal solve: jointid vs idiomatic scikit-fem, the ratio
@@ -10,6 +10,7 @@
 ``g``  where the lateral modes lose mesh convergence: grid lines added beside one set of part edges
 ``h``  the loop: enable one effect in the config and rerun the diagnosis target (tmp copy): wall time
 ``i``  the eigen-solve alone on one factor: block shift-invert Lanczos vs ARPACK, time and agreement
+``j``  coverage study of the diagnosis on synthetic cases: named effect, false claims, 95 % intervals
 =====  =======================================================================================
 
 Every measurement that matters for memory runs in its own subprocess (``benchmarks.worker``), which
@@ -17,4 +18,4 @@ reports its own peak RSS (``resource.getrusage``).  Results go to ``benchmarks/o
 one JSON per benchmark and ``summary.md`` with the table that is printed.
 """
 
-BENCHMARKS = ("a", "b", "c", "d", "e", "f", "g", "h", "i")
+BENCHMARKS = ("a", "b", "c", "d", "e", "f", "g", "h", "i", "j")

@@ -1,4 +1,7 @@
-"""``python -m benchmarks [a b c d e f g h i] [--quick] [--blas-threads N]``: run, print one table, save.
+"""``python -m benchmarks [a b c d e f g h i j] [--quick] [--blas-threads N]``: run, print one table, save.
+
+Benchmark ``j`` (the coverage study, docs/validation.md) takes ``--cases N``, ``--rig coarse|default`` and
+``--set KEY=VALUE`` (diagnosis options); its page is docs/validation.md, not docs/performance.md.
 
 Without names every benchmark runs.  ``--quick`` uses the coarse test mesh and small sizes (a few
 minutes in all); the full run builds models up to ~360k DOFs and runs the whole workflow once.
@@ -17,7 +20,8 @@ from .performance import write_performance
 
 MODULES = {"a": "bench_a_solve", "b": "bench_b_rom", "c": "bench_c_workflow", "d": "bench_d_scaling",
            "e": "bench_e_convergence", "f": "bench_f_param_mesh",
-           "g": "bench_g_edges", "h": "bench_h_loop", "i": "bench_i_eigen"}
+           "g": "bench_g_edges", "h": "bench_h_loop", "i": "bench_i_eigen",
+           "j": "bench_j_coverage"}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -33,6 +37,9 @@ def main(argv: list[str] | None = None) -> int:
                          "ratio old / new (new: the mean of the runs before and after the old)")
     ap.add_argument("--blas-threads", type=int, default=1,
                     help="OPENBLAS/OMP threads per worker process (0 = library default; default 1)")
+    from .bench_j_coverage import add_arguments
+
+    add_arguments(ap)
     a = ap.parse_args(argv)
     names = [n for n in BENCHMARKS if n in (a.names or BENCHMARKS)]
     if a.report:
@@ -45,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[benchmarks] running ({name}) ...", file=sys.stderr, flush=True)
         mod = importlib.import_module(f".{MODULES[name]}", __package__)
         kw = {"compare": a.compare} if name == "c" and a.compare else {}
+        if name == "j":
+            kw = {"cases": a.cases, "rig": a.rig, "options": mod.parse_options(a.set), "subset": a.subset,
+                  "command": "python -m benchmarks " + " ".join(argv if argv is not None else sys.argv[1:])}
         res = mod.run(quick=a.quick, blas_threads=a.blas_threads or None, **kw)
         res.data["benchmark_wall_s"] = time.perf_counter() - t0
         write_result(res, a.quick)
@@ -58,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     (OUT / f"summary{'_quick' if a.quick else ''}{'_' + ''.join(names) if a.names else ''}.md").write_text(
         header + table + "\n")
     if not a.quick:
-        write_performance(results)
+        write_performance([r for r in results if r.name != "j"])  # j's page: docs/validation.md
     return 0
 
 

@@ -20,6 +20,38 @@ COARSE = {"mesh": {"element": "hex2", "max_cell_size_m": 0.12, "height_cell_frac
                    "joint_cell_fraction": 1.0, "refine": 1}}
 
 
+def diagnosis_rig(rig: str = "coarse") -> dict:
+    """The rig of the synthetic diagnosis tests (as ``tests/conftest.py::diagnosis_rig``): normal and
+    lateral joint stiffness identified (2e11..4e12 N/m^3), feed stiffness fixed at 1e10 N/m^3 (so the
+    feed effect is not absorbed by an identified parameter).  ``rig``: ``coarse`` (config.yaml with
+    tests/coarse_config.yaml merged over it, one level deep, as Snakemake merges config files) or
+    ``default`` (the shipped config.yaml's mesh).  Returns ``{"cfg", "model", "system", "solver"}``."""
+    import yaml
+
+    from jointid.config import load_config
+    from jointid.config.typed import ModelSpec
+    from jointid.diagnosis.terms import build_system
+    from jointid.fe.model import build_model
+    from jointid.threads import limit_threads
+
+    limit_threads(1)
+    with open(ROOT / "config.yaml") as fh:
+        cfg = yaml.safe_load(fh)
+    if rig == "coarse":
+        with open(ROOT / "tests" / "coarse_config.yaml") as fh:
+            for k, v in yaml.safe_load(fh).items():
+                cfg[k] = {**cfg.get(k, {}), **v}
+    elif rig != "default":
+        raise ValueError(f"rig {rig!r}: use coarse or default")
+    cfg["joints"]["parameters"] = {
+        "k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
+        "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}}
+    cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
+    cfg = load_config(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
+    return {"cfg": cfg, "model": model, "system": build_system(model, cfg), "solver": None}
+
+
 def worker_env(blas_threads: int | None) -> dict:
     """Environment of a worker: the BLAS thread count pinned (the 2-core machine is shared, and
     threaded OpenBLAS on small dense blocks only spins), the venv first on PATH."""
