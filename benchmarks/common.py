@@ -28,13 +28,8 @@ def diagnosis_rig(rig: str = "coarse") -> dict:
     ``default`` (the shipped config.yaml's mesh).  Returns ``{"cfg", "model", "system", "solver"}``."""
     import yaml
 
-    from jointid.config import load_config
-    from jointid.config.typed import ModelSpec
-    from jointid.diagnosis.terms import build_system
-    from jointid.fe.model import build_model
-    from jointid.threads import limit_threads
+    from jointid.diagnosis.synth import identification_rig
 
-    limit_threads(1)
     with open(ROOT / "config.yaml") as fh:
         cfg = yaml.safe_load(fh)
     if rig == "coarse":
@@ -43,13 +38,7 @@ def diagnosis_rig(rig: str = "coarse") -> dict:
                 cfg[k] = {**cfg.get(k, {}), **v}
     elif rig != "default":
         raise ValueError(f"rig {rig!r}: use coarse or default")
-    cfg["joints"]["parameters"] = {
-        "k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
-        "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}}
-    cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
-    cfg = load_config(cfg)
-    model = build_model(ModelSpec.from_config(cfg))
-    return {"cfg": cfg, "model": model, "system": build_system(model, cfg), "solver": None}
+    return identification_rig(cfg)
 
 
 def worker_env(blas_threads: int | None) -> dict:

@@ -108,20 +108,9 @@ def diagnosis_rig() -> dict:
     """The rig of the synthetic diagnosis tests: coarse mesh, normal and lateral joint stiffness
     identified, feed stiffness fixed (so the feed effect is not absorbed by an identified parameter).
     Returns ``{"cfg", "model", "system", "solver"}`` (solver None: the first diagnosis makes it)."""
-    from jointid.config import load_config
-    from jointid.diagnosis.terms import build_system
-    from jointid.fe.model import build_model
-    from jointid.threads import limit_threads
+    from jointid.diagnosis.synth import identification_rig
 
-    limit_threads(1)
-    cfg = coarse_config_dict()
-    cfg["joints"]["parameters"] = {
-        "k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
-        "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}}
-    cfg["joints"]["fixed"] = {"k_feed_N_per_m3": 1.0e10}
-    cfg = load_config(cfg)
-    model = build_model(ModelSpec.from_config(cfg))
-    return {"cfg": cfg, "model": model, "system": build_system(model, cfg), "solver": None}
+    return identification_rig(coarse_config_dict())
 
 
 def ladder_text(ladder) -> str:

@@ -69,9 +69,9 @@ class ProposalOptions:
 
 
 @dataclass
-class ScalarCandidate:
-    """One scalar measurement: each hypothesis's prediction (``values``, in ``unit``) and the relative
-    1-sigma uncertainty ``rel`` of the measured value."""
+class _Candidate:
+    """What every candidate measurement has: its name, kind, state, unit, relative 1-sigma noise and the
+    hypotheses' predictions."""
 
     measurement: str
     kind: str
@@ -79,6 +79,12 @@ class ScalarCandidate:
     unit: str
     rel: float
     values: dict
+
+
+@dataclass
+class ScalarCandidate(_Candidate):
+    """One scalar measurement: each hypothesis's prediction (``values``, in ``unit``) and the relative
+    1-sigma uncertainty ``rel`` of the measured value."""
 
     def noise_shape(self, n: int) -> tuple:
         return (n,)
@@ -97,17 +103,10 @@ class ScalarCandidate:
 
 
 @dataclass
-class ShapePairCandidate:
+class ShapePairCandidate(_Candidate):
     """The shapes of the measured modes at one DOF pair: per hypothesis the pair's displacements
     ``(2, n_modes)`` from shapes at unit RMS over all measuring DOFs; ``eps`` the shape noise per DOF
     as a fraction of the pair's RMS."""
-
-    measurement: str
-    kind: str
-    state: str
-    unit: str
-    rel: float
-    values: dict
 
     def noise_shape(self, n: int) -> tuple:
         m = next(iter(self.values.values())).shape[1]

@@ -317,6 +317,24 @@ def drive_point_frf(system, modes, state: str, meas: dict, damping_ratio: float)
              "freq_Hz": float(fq), "re": float(h.real), "im": float(h.imag)} for fq, h in zip(f_axis, H)]
 
 
+def identification_rig(cfg: dict) -> dict:
+    """The rig the synthetic diagnosis cases are analysed on, from a configuration dict (not yet
+    validated): the normal and lateral joint stiffness identified (2e11..4e12 N/m^3), the feed stiffness
+    fixed at 1e10 N/m^3 (so the feed effect is not absorbed by an identified parameter).  Returns
+    ``{"cfg", "model", "system", "solver"}`` (solver None: the first diagnosis makes it)."""
+    from jointid.threads import limit_threads
+
+    limit_threads(1)
+    cfg = dict(cfg)
+    cfg["joints"] = {**cfg["joints"],
+                     "parameters": {"k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
+                                    "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}},
+                     "fixed": {"k_feed_N_per_m3": 1.0e10}}
+    cfg = load_config(cfg)
+    model = build_model(ModelSpec.from_config(cfg))
+    return {"cfg": cfg, "model": model, "system": build_system(model, cfg), "solver": None}
+
+
 def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
     """Synthesise and write the dataset folder ``out_dir``; returns the
     :class:`jointid.data.dataset.Dataset`."""
