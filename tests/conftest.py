@@ -45,7 +45,6 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from jointid.config.typed import ModelSpec
 
 REPO = Path(__file__).resolve().parents[1]
 COARSE_CONFIG = REPO / "tests" / "coarse_config.yaml"
