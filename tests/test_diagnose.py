@@ -300,7 +300,10 @@ def test_out_naming_a_file_and_a_model_file_of_the_wrong_kind(tmp_path, capsys):
     with pytest.raises(ModelError, match="not a jointid model file"):
         load_model(tmp_path / "other.npz")
     (tmp_path / "junk.npz").write_text("not a zip")
-    with pytest.raises(ModelError, match="not a readable .npz"):
+    # a damaged results file is named, with the fix (issue 51: jointid.io_errors.ResultReadError)
+    from jointid.io_errors import ResultReadError
+
+    with pytest.raises(ResultReadError, match="junk.npz: not a readable .npz archive.*make reproduce"):
         load_model(tmp_path / "junk.npz")
 
 
