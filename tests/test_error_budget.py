@@ -156,3 +156,11 @@ def test_twins_within_the_solver_accuracy_are_one_optimum():
     assert best_fit([a, b]) is a and best_fit([b, a]) is b
     far = _fit(r * np.sqrt(14.2 / 14.094), J, rows, [0.002] * n)
     assert best_fit([far, b]) is b
+
+
+def test_a_parameter_the_data_barely_constrain_gets_an_open_interval_not_an_overflow():
+    from jointid.diagnosis.results import log_interval
+
+    lo, hi = log_interval(8e11, 0.1)
+    assert lo == pytest.approx(8e11 * np.exp(-0.196)) and hi == pytest.approx(8e11 * np.exp(0.196))
+    assert log_interval(8e11, 1e4) == (0.0, float("inf"))  # math.exp(19600) would raise OverflowError

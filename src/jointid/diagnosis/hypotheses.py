@@ -36,7 +36,7 @@ import numpy as np
 from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
 from jointid.diagnosis.hypothesis_predictions import measurement_predictions
-from jointid.diagnosis.results import frequency_rows
+from jointid.diagnosis.results import frequency_rows, log_interval
 from jointid.diagnosis.statistics import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.errors import ConfigError
@@ -230,7 +230,7 @@ def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile
         value = fit.variant.physical(fit.x)[label]
         sd = math.sqrt(max(cov[j, j], 0.0))
         if j < fit.variant.p:  # log-parametrised joint stiffness
-            lo, hi = value * math.exp(-1.96 * sd), value * math.exp(1.96 * sd)
+            lo, hi = log_interval(value, sd)
         else:
             p = fit.variant.slots[j - fit.variant.p][1]
             a, b = p.from_t(fit.x[j] - 1.96 * sd), p.from_t(fit.x[j] + 1.96 * sd)

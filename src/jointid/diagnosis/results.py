@@ -18,7 +18,7 @@ from jointid.diagnosis.statistics import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
 from jointid.identification.model_error import ModelError, estimate
 
-__all__ = ["Evaluation", "Fit", "chi2_at", "frequency_rows", "refit_row", "row_known", "row_sigma", "row_weights",
+__all__ = ["Evaluation", "Fit", "chi2_at", "log_interval", "frequency_rows", "refit_row", "row_known", "row_sigma", "row_weights",
            "block_error"]
 
 
@@ -38,6 +38,16 @@ class Evaluation:
     sigma: np.ndarray | None = None  # per row: its stated uncertainty (frequency rows relative, shape rows
     # as a fraction of the mode's RMS); r = error / sigma
     known: np.ndarray | None = None  # per row: its known error (the mesh's, relative; 0 for shape rows)
+
+
+def log_interval(value: float, sd: float) -> tuple[float, float]:
+    """The 95 % interval ``value * exp(-+1.96 sd)`` of a log-parametrised value with standard deviation
+    ``sd`` (natural-log units); a parameter the data barely constrain gets ``(0, inf)`` instead of an
+    overflow."""
+    z = 1.96 * float(sd)
+    if not np.isfinite(z) or z > 700.0:
+        return 0.0, math.inf
+    return value * math.exp(-z), value * math.exp(z)
 
 
 def frequency_rows(ev: Evaluation) -> np.ndarray:

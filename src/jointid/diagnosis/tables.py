@@ -14,6 +14,7 @@ import pandas as pd
 
 from jointid.correlate import pairing as correlate
 from jointid.correlate.mac import mac
+from jointid.diagnosis.results import log_interval
 from jointid.diagnosis.fitting import Diagnoser, Fit
 from jointid.diagnosis.variants import EffectSpec, Variant
 from jointid.errors import NumericalWarning
@@ -66,7 +67,7 @@ def parameter_table(fits: dict) -> pd.DataFrame:
         for j, (lab, val) in enumerate(f.variant.physical(f.x).items()):
             sd = float(np.sqrt(max(cov[j, j], 0.0)))
             if j < f.variant.p:
-                lo, hi = val * math.exp(-1.96 * sd), val * math.exp(1.96 * sd)
+                lo, hi = log_interval(val, sd)
             else:
                 p = f.variant.slots[j - f.variant.p][1]
                 t = float(f.x[j])
@@ -125,8 +126,9 @@ def drift_table(diag: Diagnoser, current: Fit, log, skip: bool = False) -> pd.Da
         cov = f.scaled_covariance()  # a drift is judged against what the fit leaves, not the noise alone
         for j, n in enumerate(one.joint_names):
             sd = float(np.sqrt(max(cov[j, j], 0.0)))
+            lo, hi = log_interval(math.exp(f.x[j]), sd)
             rows.append({"parameter": n, "state": d.name, "value": math.exp(f.x[j]),
-                         "ci95_low": math.exp(f.x[j] - 1.96 * sd), "ci95_high": math.exp(f.x[j] + 1.96 * sd),
+                         "ci95_low": lo, "ci95_high": hi,
                          "ln_value": float(f.x[j]), "ln_sd": sd})
     df = pd.DataFrame(rows)
     if df.empty:
