@@ -714,6 +714,7 @@ def write_doc() -> Path:
                      if meta.get("planned_cases", meta["n_cases"]) > meta["n_cases"] else "")
                   + f" in {meta['total_s'] / 60:.1f} min: diagnosis {meta['mean_case_s']:.1f} s "
                   f"per case on average (synthesis {meta['mean_synth_s']:.1f} s, 0 when the dataset was kept)",
+                  *([f"- note: {meta['note']}"] if meta.get("note") else []),
                   f"- targets met: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in met.items()), "",
                   main, "", "Splits (no cell of the noise and shapes splits may fall below 80 %):", "", splits, "",
                   "Where the estimates and the misses lie (compliance parameters: rail_fixing, base_support "
