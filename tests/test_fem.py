@@ -149,7 +149,8 @@ def test_halved_grid_is_nested_and_halves_the_chosen_cells():
     rig = build_rig(cfg["rig"])
     base = mesh_from_config(rig, MeshOptions.from_section(cfg["mesh"])).mesh
     lines = [np.unique(np.round(base.p[i], 9)) for i in range(3)]
-    for halve, axes in ((("thickness",), (1,)), (("plan",), (0, 2)), (("joint_zone",), (0, 1, 2))):
+    for halve, axes in ((("thickness",), (1,)), (("plan",), (0, 2)), (("length",), (0,)), (("width",), (2,)),
+                        (("joint_zone",), (0, 1, 2))):
         fine = mesh_from_config(rig, MeshOptions.from_section(cfg["mesh"]), halve=halve).mesh
         for i in range(3):
             fl = np.unique(np.round(fine.p[i], 9))

@@ -51,7 +51,13 @@ def _in_patch(mid: np.ndarray, boxes: list[Box]) -> np.ndarray:
     return mask
 
 
-HALVE_CLASSES = ("plan", "thickness", "joint_zone", "edges")
+HALVE_CLASSES = ("plan", "length", "thickness", "width", "joint_zone", "edges")
+
+
+def axes_halved(halve: tuple[str, ...]) -> tuple[bool, bool, bool]:
+    """Per axis (X, Y, Z), whether ``halve`` bisects every cell along it: ``length`` X, ``thickness`` Y,
+    ``width`` Z, ``plan`` X and Z."""
+    return ("plan" in halve or "length" in halve, "thickness" in halve, "plan" in halve or "width" in halve)
 
 
 def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float | None = None,
@@ -62,7 +68,7 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
     bending of base and table converges slowest; ``joint_cell_m`` (m) caps the cell size inside the
     joint zone (carriage footprints between the base top and the carriage top), where the contact
     strips load rail and carriage locally.  ``halve`` names classes of cells split in two, on top of
-    ``refine``: ``plan`` (along X and Z), ``thickness`` (along Y), ``joint_zone`` (every axis, inside
+    ``refine``: ``length`` (along X), ``thickness`` (along Y), ``width`` (along Z), ``plan`` (X and Z), ``joint_zone`` (every axis, inside
     the joint zone), ``edges`` (the cells at re-entrant edges, across the edge: one more
     ``edge_levels``); the result is the same mesh with those cells bisected (nested), so a solve on it
     is a one-step refinement study of the mesh without them.  ``edge_levels`` halves the cells that
@@ -73,7 +79,7 @@ def build_mesh(rig: Rig, max_cell_m: float, refine: int = 1, joint_cell_m: float
     if unknown:
         raise ValueError(f"unknown cell classes to halve: {sorted(unknown)} (choose from {HALVE_CLASSES})")
     h_axes = (max_cell_m, min(max_cell_m, max_height_m or max_cell_m), max_cell_m)
-    axis_halved = ("plan" in halve, "thickness" in halve, "plan" in halve)
+    axis_halved = axes_halved(halve)
     edge_levels = int(edge_levels) + ("edges" in halve)
     if edge_levels:
         lines = [grid_lines(bp, h, refine, zones, joint_cell_m)
@@ -141,12 +147,8 @@ def _edge_refined_mesh(rig: Rig, lines: list[np.ndarray], levels: int, halve: tu
     for _ in range(levels):  # each level made to match across the joint faces before the next
         lo, hi, level, part = localrefine.refine_at(lo, hi, segments, level, part)
         lo, hi, level, part = _match_joint_faces(rig, lo, hi, level, part)[:4]
-    for axis in range(3):
-        mask = np.zeros(len(lo), bool)
-        if "plan" in halve and axis != 1:
-            mask[:] = True
-        if "thickness" in halve and axis == 1:
-            mask[:] = True
+    for axis, whole in enumerate(axes_halved(halve)):
+        mask = np.full(len(lo), whole)
         if "joint_zone" in halve:
             mask |= np.array([any(a - 1e-9 <= l_ and h_ <= b + 1e-9 for a, b in rig.joint_zone[axis])
                               for l_, h_ in zip(lo[:, axis], hi[:, axis])], bool)
