@@ -134,7 +134,7 @@ def test_two_effects_at_once_are_named_as_a_pair_and_enabling_one_leaves_the_oth
     with the fit the last run made of the pair (the same question, so the recorded fits answer it)."""
     t = truth({"em_preload": {"beta": 0.2}, "added_mass_edge": {"mass_kg": 1.0}}, seed=33)
     memo = FitMemo()
-    # frequency rows only, as the second run below (the configuration's default): the same question twice
+    # frequency rows only, in both runs (the second's configuration says so): the same question twice
     res, data = run_case(rig, t, tmp_path / "ds", memo=memo, shape_residuals=False)
     assert set(res.explained_by.split("+")) == {"em_preload", "added_mass_edge"}, res.verdict
     assert res.verdict.startswith("Missing effects:")
@@ -152,8 +152,7 @@ def test_two_effects_at_once_are_named_as_a_pair_and_enabling_one_leaves_the_oth
     a, b = res.explained_by.split("+")
     pair = res.combinations.set_index("effects").loc[f"{a}+{b}"]
     again = FitMemo(memo.records)
-    cfg = {**rig["cfg"], "effects": {a: {}}}
-    assert not cfg["diagnosis"].get("shape_residuals")
+    cfg = {**rig["cfg"], "effects": {a: {}}, "diagnosis": {**rig["cfg"]["diagnosis"], "shape_residuals": False}}
     second = diagnose(rig["system"], cfg, data, memo=again, solver=res.solver, drift=False, log=lambda m: None)
     top = second.ranking.iloc[0]
     assert top.effect == b and bool(top.explains) and second.explained_by == b, second.verdict
@@ -265,3 +264,20 @@ def test_too_few_modes_is_refused_with_a_clear_message(rig, tmp_path):
 def test_summary_table(capsys):
     """Print truth, rank, verdict and error ladder of every case (pytest -s)."""
     print_summary(SUMMARY, capsys)
+
+
+def test_a_pair_that_ties_with_its_own_single_yields_the_lead_to_the_single():
+    """Parsimony: the second effect of a pair within the tie window of its own single is not supported
+    against it, so the single leads; a pair clearly better than its singles, or tied with an unrelated
+    single, keeps the lead."""
+    from jointid.diagnosis.judging import parsimonious_order
+
+    tied = [(-2104.7, "a+b"), (-2101.8, "a"), (-381.5, "c"), (-62.9, "b")]
+    assert parsimonious_order(tied, 4.0) == ["a", "a+b", "c", "b"]
+    clear = [(-2104.7, "a+b"), (-2090.0, "a"), (-62.9, "b")]
+    assert parsimonious_order(clear, 4.0) == ["a+b", "a", "b"]
+    unrelated = [(-50.0, "a + b"), (-48.0, "c")]
+    assert parsimonious_order(unrelated, 4.0) == ["a + b", "c"]
+    both = [(-50.0, "a+b"), (-47.5, "b"), (-49.0, "a")]
+    assert parsimonious_order(both, 4.0) == ["a", "a+b", "b"]  # the better of the two singles
+    assert parsimonious_order([], 4.0) == []

@@ -21,7 +21,8 @@ from dataclasses import replace
 from jointid.diagnosis.results import Fit, block_error, chi2_at
 from jointid.identification.model_error import ModelError, akaike_weights, qaicc, support_text
 
-__all__ = ["SUPPORTED", "fit_label", "judge_fits", "model_error_of", "qaicc_of", "supported"]
+__all__ = ["SUPPORTED", "effect_set", "fit_label", "judge_fits", "model_error_of", "parsimonious_order", "qaicc_of",
+           "supported"]
 
 SUPPORTED = ("strongly", "moderately")
 """The ``support`` values of a candidate the data support against the current model."""
@@ -82,3 +83,26 @@ def supported(rows) -> np.ndarray:
     """Which rows (a DataFrame) are supported against the current model (``support`` strongly or
     moderately; rows not refitted have none)."""
     return rows["support"].isin(SUPPORTED).to_numpy()
+
+
+def effect_set(name: str) -> frozenset:
+    """The effects of a candidate's name (``a``, ``a+b`` or ``a + b``)."""
+    return frozenset(p.strip() for p in str(name).split("+") if p.strip())
+
+
+def parsimonious_order(candidates, tie: float) -> list[str]:
+    """The candidate names ``[(delta_qaicc, name), ...]`` best first, except that a combination at the
+    top yields the lead to the smallest of its own sub-models within ``tie`` of it (fewest effects, then
+    least QAICc): the extra effect is then not supported against the simpler model, so the simpler model
+    is the answer (Burnham & Anderson 2002, sec. 2.6: an added parameter that does not lower AIC by more
+    than its penalty is not supported)."""
+    ranked = sorted(candidates, key=lambda c: c[0])
+    if not ranked:
+        return []
+    d0, best = ranked[0]
+    inner = [(len(effect_set(n)), d, n) for d, n in ranked[1:]
+             if d - d0 < tie and effect_set(n) < effect_set(best)]
+    if not inner:
+        return [n for _, n in ranked]
+    lead = min(inner)[2]
+    return [lead] + [n for _, n in ranked if n != lead]

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.diagnosis.judging import SUPPORTED
+from jointid.diagnosis.judging import SUPPORTED, parsimonious_order
 from jointid.diagnosis.loop import Diagnosis
 from jointid.diagnosis.page import html_page
 
@@ -39,13 +39,14 @@ def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
 
 
 def supported_names(res: Diagnosis) -> list[str]:
-    """The refitted candidates and pairs the data support against the current model, best first."""
+    """The refitted candidates and pairs the data support against the current model, best first (a pair
+    after its own single when they tie: :func:`jointid.diagnosis.judging.parsimonious_order`)."""
     out = []
     for df, col in ((res.ranking, "effect"), (res.combinations, "effects")):
         if len(df) and "support" in df:
             ok = df[df["support"].isin(SUPPORTED)]
             out += list(zip(ok["delta_qaicc"], ok[col].astype(str)))
-    return [n for _, n in sorted(out)]
+    return parsimonious_order(out, float(res.ranking.attrs.get("tie_delta_aicc", 4.0)))
 
 
 def verdict_record(res: Diagnosis, dataset: str, run: dict) -> dict:

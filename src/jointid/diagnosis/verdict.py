@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from jointid.diagnosis.judging import SUPPORTED
+from jointid.diagnosis.judging import SUPPORTED, parsimonious_order
 from jointid.diagnosis.results import Fit
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 
@@ -217,7 +217,7 @@ def lead_sentence(f: Findings) -> str:
     stated noise."""
     me = f.model_error
     judged = _judged(f)
-    sup = judged[judged["support"].isin(SUPPORTED)]
+    sup = _supported(f, judged)
     known = (f"; beside the mesh's known error of {100 * me.sigma_known_rel:.2g} %, a model error of about "
              f"{100 * me.sigma_model_rel:.2g} % per mode remains" if me.sigma_known_rel > 0 else "")
     if not len(sup):
@@ -246,6 +246,15 @@ def lead_sentence(f: Findings) -> str:
             f"removing {100 * b['removed_fraction']:.0f} % of the misfit; {rest}.")
 
 
+def _supported(f: Findings, judged: pd.DataFrame) -> pd.DataFrame:
+    """The supported rows of ``judged``, the answer first (a pair yields to its own single within the tie
+    window: :func:`jointid.diagnosis.judging.parsimonious_order`)."""
+    sup = judged[judged["support"].isin(SUPPORTED)]
+    tie = float(f.ranking.attrs.get("tie_delta_aicc", 4.0))
+    order = parsimonious_order(zip(sup["delta_qaicc"], sup["name"]), tie)
+    return sup.set_index("name", drop=False).loc[order].reset_index(drop=True)
+
+
 def _judged(f: Findings) -> pd.DataFrame:
     """The refitted singles and the pairs, with their judged columns, best QAICc first."""
     cols = ["name", "delta_qaicc", "weight", "support", "removed_fraction", "max_abs_error_pct_after"]
@@ -263,7 +272,7 @@ def partial_text(f: Findings) -> str:
     or, with none supported, the misfit against the stated noise (docs/effects.md, "Reading the verdict")."""
     me = f.model_error
     judged = _judged(f)
-    sup = judged[judged["support"].isin(SUPPORTED)]
+    sup = _supported(f, judged)
     if not len(sup):
         ratio = np.sqrt(max(me.c_hat, 0.0))
         best = f" (the best, {judged.iloc[0]['name']}, ΔQAICc {daicc(judged.iloc[0]['delta_qaicc'])})" \
