@@ -505,13 +505,17 @@ def _slug(label: str) -> str:
 
 
 def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = None, rig: str = "coarse",
-        options: dict | None = None, doc: bool = True, command: str = "", subset: str = "all") -> Result:
+        options: dict | None = None, doc: bool = True, command: str = "", subset: str = "all",
+        only: tuple = ()) -> Result:
     from jointid.threads import limit_threads
 
     limit_threads(blas_threads or 1)
     options = dict(options or {})
     label = run_label(rig, options) + (" --quick" if quick else "") + (f" ({subset} only)" if subset != "all" else "")
     todo = select(design(), quick, cases, rig, subset)
+    if only:  # a probe of named cases: a run of its own, never in the doc
+        todo = [c for c in design() if c["case"] in only]
+        label, doc = label + " (probe)", False
     res = Result("j")
     t0 = time.perf_counter()
     print(f"[j] coverage study: {len(todo)} cases, run '{label}'", flush=True)
@@ -737,6 +741,7 @@ def main(argv: list[str] | None = None) -> int:
     from .common import format_table, write_result
 
     res = run(quick=a.quick, cases=a.cases, rig=a.rig, options=parse_options(a.set), doc=not a.no_doc, subset=a.subset,
+              only=tuple(x for x in a.only.split(",") if x),
               command="python -m benchmarks.bench_j_coverage " + " ".join(argv if argv is not None else sys.argv[1:]))
     write_result(res, a.quick)
     print(format_table([res]))
@@ -749,6 +754,7 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
         ap.add_argument("--quick", action="store_true", help="6 cases, no doc")
     ap.add_argument("--cases", type=int, default=None, help="(j) run N cases of the design (default: all)")
     ap.add_argument("--rig", choices=("coarse", "default"), default="coarse", help="(j) the analysis rig")
+    ap.add_argument("--only", default="", help="(j) a probe of the named cases (comma-separated), not in the doc")
     ap.add_argument("--subset", choices=("all", "shapes", "frequencies"), default="all",
                     help="(j) only the cases with shapes, or with frequencies only (default: all)")
     ap.add_argument("--set", action="append", metavar="KEY=VALUE",

@@ -34,6 +34,7 @@ import numpy as np
 from scipy.optimize import least_squares, linear_sum_assignment
 
 from jointid.correlate import pairing as correlate
+from jointid.diagnosis import mesh_error
 from jointid.diagnosis.results import Evaluation, Fit
 from jointid.diagnosis.shape_residuals import ShapeTerms
 from jointid.diagnosis.starts import (EIGEN_RTOL, START_DIGITS, TIE_RTOL, best_fit, chi2_resolution,  # noqa: F401
@@ -109,8 +110,9 @@ class Diagnoser:
             sols = self.solver.solve_many([variant.coefficients(x, d.info) for d in self.data], self.n_modes,
                                           refine=refine)
             if self.solver.generation == gen:
-                return sols
-        return sols
+                break
+        # the mesh's correction, where the budget has one (jointid.diagnosis.mesh_error), follows each model mode
+        return [mesh_error.correct(d, s) for d, s in zip(self.data, sols)]
 
     def pair(self, sols: list[Solution]) -> list[correlate.Pairing]:
         """Pair measured and model modes per state: by MAC where shapes are measured; frequency-only
@@ -219,9 +221,8 @@ class Diagnoser:
             s_row = np.concatenate([d.mode_sigma()[ok], d.mode_sigma()[bad], d.mode_sigma()[near]])
             sig.append(s_row)
             kn.append(np.concatenate([d.mode_known()[ok], d.mode_known()[bad], d.mode_known()[near]]))
-            c = d.mode_shift()  # the mesh's correction (jointid.diagnosis.mesh_error), zero without one
-            e_row = np.concatenate([np.log(f / fm) + c[ok], np.full(len(bad), np.log1p(UNPAIRED_ERROR)),
-                                    np.log(sol.freqs_Hz[cols] / tgt) + c[near]])
+            e_row = np.concatenate([np.log(f / fm), np.full(len(bad), np.log1p(UNPAIRED_ERROR)),
+                                    np.log(sol.freqs_Hz[cols] / tgt)])
             r.append(e_row / s_row)
             fm_all = np.full(len(d.f_meas), np.nan)
             fm_all[ok] = f

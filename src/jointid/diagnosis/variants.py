@@ -38,14 +38,9 @@ class StateData:
     rule: object = None  # VisibilityRule of the test (None: unpaired model modes are skipped free)
     shape_sigma_rel: float | None = None  # stated shape uncertainty (shape_uncertainty_pct / 100); None: estimated
     known_rel: np.ndarray | None = None  # known model error per measured mode (the mesh's, relative); None: none
-    mesh_shift: np.ndarray | None = None  # correction of each measured mode's model log frequency (the mesh's)
+    mesh_reference: tuple | None = None  # the mesh's correction: (model shapes at the probe (n_labels, n), their
+    # log frequency corrections (n,)) at the point it was computed (jointid.diagnosis.mesh_error.correct)
     computed_on_mesh: str | None = None  # a synthetic dataset's mesh digest (conditions.yaml computed_on_mesh)
-
-    def mode_shift(self) -> np.ndarray:
-        """The mesh correction ``ln(f_refined / f_mesh)`` of each measured mode (zeros where none)."""
-        if self.mesh_shift is None:
-            return np.zeros(len(self.f_meas))
-        return np.asarray(self.mesh_shift, float)
 
     def mode_sigma(self) -> np.ndarray:
         """The relative frequency uncertainty of each measured mode ``(n_modes,)``."""
