@@ -12,9 +12,10 @@ How the faults are made:
   run as root in CI (permissions do not bite) and cannot mount a small file system.
 
 The end-to-end cases clone the session's coarse run (``coarse_run``) and rebuild only what the fault
-touched.  ``make test`` keeps one of each kind (a job and snakemake killed, three truncated results, a
-full disk); ``extended``: snakemake killed alone, the whole run killed while the largest file is
-written (the whole chain is rebuilt), a denied write end to end.
+touched.  ``make test`` keeps one of each kind (a job and snakemake killed; a fresh run killed while
+the largest file is written, its temporary file healed and the file rebuilt; three truncated results;
+a full disk); ``extended``: snakemake killed alone, the whole run killed while the largest file is
+written in a complete folder (the whole chain is rebuilt), a denied write end to end.
 """
 
 from __future__ import annotations
@@ -32,8 +33,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import (RUN_TIMEOUT_S, SNAKEMAKE, clone_run, comparable_hashes, group_alive, incomplete_markers,
-                      run_snakemake, scheduled_jobs, snakemake_cmd, tail, temporary_files, workflow_env)
+from conftest import (RUN_TIMEOUT_S, SNAKEMAKE, clone_run, comparable_hashes, copy_workflow, group_alive,
+                      incomplete_markers, run_snakemake, scheduled_jobs, snakemake_cmd, tail, temporary_files,
+                      workflow_env)
 from jointid import io
 from jointid.io_errors import FAULT_ENV, ResultReadError, ResultWriteError
 from jointid.reporting.provenance import check_sidecar, provenance_path, write_provenance
@@ -176,6 +178,24 @@ def test_stale_temporaries_below_a_folder_are_removed_and_live_ones_kept(tmp_pat
     assert live.exists() and other.exists()
 
 
+def test_the_temporary_file_of_a_killed_writer_not_yet_reaped_is_stale(tmp_path):
+    """A writer killed with SIGKILL stays a zombie until its parent (or an init that reaps late, as in
+    many containers) reaps it: it writes nothing more, so its temporary file is removed."""
+    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        proc.kill()
+        deadline = time.monotonic() + 10
+        while Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+            assert time.monotonic() < deadline, "the killed process did not become a zombie"
+            time.sleep(0.01)
+        tmp = tmp_path / "model" / f".matrices.npz.p{proc.pid}h{io._host_tag()}_ab12.tmp"
+        tmp.parent.mkdir()
+        tmp.write_bytes(b"x" * 1000)
+        assert io.remove_stale_below(tmp_path) == [tmp]
+    finally:
+        proc.wait()
+
+
 # ------------------------------------------------------------------ sidecars and heal (no workflow)
 def _result_with_sidecar(folder: Path) -> Path:
     out = folder / "results" / "surface" / "model.json"
@@ -211,7 +231,8 @@ def test_heal_refuses_while_snakemake_holds_the_lock(tmp_path):
     (tmp_path / ".snakemake" / "locks").mkdir(parents=True)
     (tmp_path / ".snakemake" / "locks" / "0.output.lock").write_text("results/surface/model.json\n")
     status, lines = recovery.heal(tmp_path)
-    assert status == 1 and len(lines) == 1 and "snakemake --unlock" in lines[0]
+    # the snakemake of the venv by its path: `make install` does not put .venv/bin on PATH
+    assert status == 1 and len(lines) == 1 and f"run `{SNAKEMAKE} --unlock`" in lines[0], lines
     assert out.exists(), "nothing is touched while a run may be writing"
 
 
@@ -348,13 +369,11 @@ def test_kill_9_of_snakemake_alone_then_reproduce_rebuilds(clone, coarse_run):
     assert_rebuilt(clone, coarse_run, rc, out)
 
 
-@pytest.mark.slow
-@pytest.mark.extended
-def test_kill_9_while_the_largest_file_is_written_then_reproduce_rebuilds(clone, coarse_run):
-    """kill -9 of the whole run while results/model/matrices.npz is written: no half file, the
-    temporary file is removed by the next run, and every result is rebuilt (the whole chain)."""
-    model = clone / "results" / "model"
-    proc = start(clone, "--forcerun", "mesh")
+def kill_while_matrices_written(wd: Path, *args: str) -> Path:
+    """Start snakemake with ``args``, SIGKILL its whole group while results/model/matrices.npz (the
+    largest file) is being written; return the temporary file the writer left."""
+    model = wd / "results" / "model"
+    proc = start(wd, *args)
     try:
         tmp = wait_for(lambda: [p for p in model.glob(".matrices.npz.*.tmp") if p.stat().st_size > 0], proc,
                        "temporary matrices.npz being written")[0]
@@ -365,9 +384,45 @@ def test_kill_9_while_the_largest_file_is_written_then_reproduce_rebuilds(clone,
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
     assert not (model / "matrices.npz").exists() and tmp.exists()
-    run_snakemake(clone, "--unlock", check=True)
+    deadline = time.monotonic() + 30
+    while group_alive(proc.pid):  # SIGKILLed processes may take a moment to exit
+        assert time.monotonic() < deadline, f"processes of the killed run alive: {group_alive(proc.pid)}"
+        time.sleep(0.05)
+    run_snakemake(wd, "--unlock", check=True)
+    return tmp
+
+
+STALE_MATRICES = "stale temporary file(s) of killed writers: results/model/.matrices.npz."
+
+
+@pytest.mark.slow
+def test_kill_9_while_the_largest_file_is_written_leaves_no_half_file_and_its_job_rebuilds_it(coarse_run, tmp_path):
+    """kill -9 of a fresh run while results/model/matrices.npz is written: no half file; the README's
+    command removes the temporary file (heal), and the mesh job writes the same bytes again.  The
+    rest of the README's command is then a whole run from a folder without results, as ``coarse_run``
+    is; with a complete earlier run around it, the extended test below rebuilds the whole chain."""
+    wd = copy_workflow(tmp_path / "wf")
+    mesh_outputs = ("results/model/matrices.npz", "results/model/summary.json", "results/model/mesh.vtu",
+                    "results/model/measuring_points.csv")
+    tmp = kill_while_matrices_written(wd, mesh_outputs[0])
+    heal = subprocess.run([str(JOINTID), "results", "heal"], cwd=wd, capture_output=True, text=True,
+                          env=workflow_env(), timeout=120)
+    assert heal.returncode == 0 and len(lines_with(heal.stdout, STALE_MATRICES)) == 1, heal.stdout + heal.stderr
+    assert not tmp.exists()
+    run_snakemake(wd, "-j2", "--rerun-incomplete", *mesh_outputs, check=True)
+    got, want = artifacts(wd), artifacts(coarse_run)
+    assert {k: got.get(k) for k in mesh_outputs} == {k: want[k] for k in mesh_outputs}
+    assert temporary_files(wd / "results") == [] and incomplete_markers(wd) == [] and jobs.running(wd) == []
+
+
+@pytest.mark.slow
+@pytest.mark.extended
+def test_kill_9_while_the_largest_file_is_written_then_reproduce_rebuilds(clone, coarse_run):
+    """kill -9 of the whole run while results/model/matrices.npz is written: no half file, the
+    temporary file is removed by the next run, and every result is rebuilt (the whole chain)."""
+    kill_while_matrices_written(clone, "--forcerun", "mesh")
     rc, out = reproduce(clone)
-    assert lines_with(out, "stale temporary file(s) of killed writers: results/model/.matrices.npz."), out
+    assert lines_with(out, STALE_MATRICES), out
     assert_rebuilt(clone, coarse_run, rc, out, diagnosis_reran=True)
 
 

@@ -46,6 +46,8 @@ def _host_tag() -> str:
 
 
 def _pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` runs; a zombie (killed, not yet reaped by its parent or by an init that
+    reaps late, as in many containers) has ended and writes nothing more."""
     if pid == os.getpid():
         return True
     try:
@@ -53,8 +55,12 @@ def _pid_alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:  # exists, owned by someone else
-        return True
-    return True
+        pass
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True  # no /proc: the signal's answer stands
+    return stat[stat.rfind(")") + 2:].split()[0] != "Z"
 
 
 def _is_stale(p: Path, middle: str, host: str, now: float) -> bool | None:

@@ -85,13 +85,27 @@ def unwritable(results: Path, workdir: Path) -> list[str]:
     return lines
 
 
+def snakemake_command(workdir: Path) -> str:
+    """How to call the ``snakemake`` installed beside this Python from ``workdir``: ``.venv/bin/snakemake``
+    after ``make install`` (the venv is not on PATH), plain ``snakemake`` where there is none beside it."""
+    exe = Path(sys.executable).parent / "snakemake"
+    if not exe.is_file():
+        return "snakemake"
+    exe = exe.absolute()
+    try:
+        return exe.relative_to(workdir.resolve()).as_posix()
+    except ValueError:
+        return str(exe)
+
+
 def heal(workdir: str | os.PathLike = ".", results: str = "results") -> tuple[int, list[str]]:
     """Run the steps of the module docstring in ``workdir``; returns (exit status, lines to print)."""
     wd = Path(workdir)
     if locked(wd):
         return 1, [f"{wd / LOCKS} holds a lock: a snakemake run is active in {wd.resolve()}, or one was killed "
                    "(kill -9, a closed terminal, power loss); wait for it to end, or if none runs, "
-                   "run `snakemake --unlock` (with the same --configfile), then `make reproduce` again"]
+                   f"run `{snakemake_command(wd)} --unlock` (with the same --configfile), then `make reproduce` "
+                   "again"]
     res = wd / results
     lines = stop_orphans(wd) + remove_temporaries(res, wd) + remove_damaged(res, wd)
     problems = unwritable(res, wd)
