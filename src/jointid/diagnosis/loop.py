@@ -264,7 +264,9 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
 
     A measured mode that no model mode pairs with is a residual without a sensitivity: the score test
     cannot see that a candidate would bring the missing mode.  With such modes every applicable
-    candidate is refitted (the score-led ones first), its pairing re-done during the fit.
+    candidate is refitted (the score-led ones first), its pairing re-done during the fit.  When none of
+    the score-led refits explains the data, the other applicable candidates are refitted too: the
+    first-order test is blind to an effect the joints have absorbed at the current optimum.
     With effects enabled (``rungs``: the ladder's fits below ``current``) a candidate is refitted as
     the pair of the last enabled effect and itself (:func:`refit_on_ladder`), from the starts the
     pair has in a run without that effect enabled.
@@ -272,17 +274,30 @@ def refit_candidates(diag: Diagnoser, current: Fit, rows: list, fits: dict, n_re
     order = sorted([r for r in rows if r[1] is not None and r[2]["sign_ok"] and r[0]["score"] > 0
                     and r[2]["collinearity"] >= 1e-3 and r[0]["explained_fraction"] >= 0.01],
                    key=lambda r: -r[0]["score"])
+    rest = sorted([r for r in rows if r[1] is not None and r not in order[:n_refit]
+                   and r[2]["collinearity"] >= 1e-3], key=lambda r: -r[0]["score"])
     if any(p.unpaired_measured for p in current.pairings):
-        rest = [r for r in rows if r[1] is not None and r not in order and r[2]["collinearity"] >= 1e-3]
-        order = order[:n_refit] + sorted(rest, key=lambda r: -r[0]["score"])
-        n_refit = len(order)
-    steps = Steps(min(n_refit, len(order)))
-    for i, (row, spec, st) in enumerate(order[:n_refit]):
-        log(f"diagnosis: refitting {current.variant.name} + {row['effect']} {steps.next()}")
-        f = refit_on_ladder(diag, rungs, current, spec, verify=i == 0) if rungs else \
-            refit(diag, current, spec, st["t_hat"], verify=i == 0)
-        row.update(refit_row(f, current, diag.data, alpha))
-        fits["+" + row["effect"]] = f
+        order, n_refit, rest = order[:n_refit] + rest, len(order[:n_refit]) + len(rest), []
+    order = order[:n_refit]
+    steps = Steps(len(order))
+    for i, (row, spec, st) in enumerate(order):
+        _refit_one(diag, current, rungs, row, spec, st, fits, alpha, log, steps, verify=i == 0)
+    if rest and not any(bool(r[0].get("explains")) for r in order):
+        # none explains: the first-order test may be blind where the joints have absorbed an effect
+        # (its direction then looks like no improvement, or the wrong sign), so the rest are refitted too
+        steps = Steps(len(rest))
+        for row, spec, st in rest:
+            _refit_one(diag, current, rungs, row, spec, st, fits, alpha, log, steps, verify=False)
+
+
+def _refit_one(diag, current, rungs, row, spec, st, fits, alpha, log, steps, *, verify: bool) -> None:
+    # many parameters: the diagnoser, the model and its ladder, the candidate's row, spec and test, the outputs
+    """One candidate's refit (:func:`refit_candidates`): its ranking row filled, its fit kept in ``fits``."""
+    log(f"diagnosis: refitting {current.variant.name} + {row['effect']} {steps.next()}")
+    f = refit_on_ladder(diag, rungs, current, spec, verify=verify) if rungs else \
+        refit(diag, current, spec, st["t_hat"], verify=verify)
+    row.update(refit_row(f, current, diag.data, alpha))
+    fits["+" + row["effect"]] = f
 
 
 def combine_and_judge(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt: dict, log):
