@@ -44,3 +44,30 @@ def test_axis_halvings_add_up_to_a_uniform_refinement():
     assert np.all(np.abs(total - uniform)[moved] <= 0.10 * np.abs(uniform)[moved]), (total, uniform)
     assert np.all(np.abs(one["thickness"])[moved] < 0.6 * np.abs(uniform)[moved])
     assert np.all(total <= 0)  # a nested refinement only lowers the frequencies
+
+
+def test_the_correction_follows_each_model_mode_and_blends_mixed_ones():
+    """Analytic: two reference modes with corrections -1 % and -3 %.  Solved again with their order
+    swapped, each keeps its own correction; a mode that is an equal mix of the two takes the mean
+    (MAC² weights 0.5 / 0.5); a state without a reference is left as it was."""
+    from types import SimpleNamespace
+
+    from jointid.diagnosis.mesh_error import correct
+    from jointid.fe.reduced import Solution
+
+    a, b = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    ref = np.column_stack([a, b])
+    shift = np.log([0.99, 0.97])
+    d = SimpleNamespace(mesh_reference=(ref, shift))
+
+    def sol(shapes, f):
+        n = len(f)
+        return Solution(np.asarray(f, float), np.ones(n), np.zeros((1, n)), np.ones(n), np.zeros((1, n)), {}, {},
+                        np.column_stack(shapes))
+
+    swapped = correct(d, sol([b, a], [1000.0, 1010.0]))
+    assert np.allclose(swapped.freqs_Hz, [970.0, 999.9])
+    mixed = correct(d, sol([(a + b) / np.sqrt(2)], [1000.0]))
+    assert np.allclose(mixed.freqs_Hz, [1000.0 * np.exp(shift.mean())])
+    plain = sol([a], [1000.0])
+    assert correct(SimpleNamespace(mesh_reference=None), plain) is plain
