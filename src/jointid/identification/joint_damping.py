@@ -280,7 +280,7 @@ def fit_joint_damping(zeta, shares, freqs_Hz, directions, *, sigma_rel=None, ref
         s = np.full(n, max(math.sqrt(e2[best] / max(n - k, 1)), 1e-12))  # 1e-12: an exact fit
         noise_source = f"estimated from the scatter of the {best} fit (no damping_uncertainty_pct stated)"
     else:
-        noise_source = "stated (conditions.yaml damping_uncertainty_pct)"
+        noise_source = "stated (damping_uncertainty_pct: per mode in modes.csv, or conditions.yaml)"
     r = (designs[best] @ xs[best] - zeta) / zeta / s
     me = estimate(r, s, k, reference=f"{reference}, {best} law")
     if me.above_noise:
