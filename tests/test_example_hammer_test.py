@@ -2,7 +2,9 @@
 
 Runs the example as a user would and checks what it claims: the dataset passes the check against the
 model's measuring points, every paired mode holds the model at the true joints within 3 of its own sigma,
-the identified normal and lateral stiffness hold the truth in their 95 % intervals; the diagnosis on the
+the identified normal and lateral stiffness hold the truth in their 95 % intervals; the joint damping of
+power_off (hysteretic law, the EMA's own damping uncertainties) values no parameter whose 95 % interval
+misses the truth (eta_normal 0.06, zeta0 0.004, no loss in the other directions); the diagnosis on the
 EMA's own uncertainties names the hidden em_preload with an interval that holds it and a c_hat in [0.5, 2],
 and the same modes with one noise stated at half give a c_hat outside; all in under 3 minutes.
 """
@@ -34,6 +36,20 @@ def test_hammer_test_example_runs_and_recovers_the_joints():
     for name in ("k_normal_N_per_m3", "k_lateral_N_per_m3"):
         fit = summary["identified"][name]
         assert fit["low"] <= fit["truth"] <= fit["high"], (name, fit)
+    # the joint damping: a valued parameter holds the truth (a loss factor the truth lacks is 0: in the interval
+    # or at its lower end, which is cut at 0); one the fit calls not identifiable says why.  On this rig's six
+    # paired modes (two of them the merged triplet, with about 50 % damping uncertainty) every column of the
+    # weighted design is collinear with the others at R^2 0.995-0.9994 (>= COLLINEAR_R2): nothing is valued
+    # (the open item of issue 52, see CHANGELOG).
+    damping = summary["joint_damping_power_off"]
+    assert damping["n_modes"] == len(z) and damping["noise_source"].startswith("stated")
+    for key in ("zeta0", "eta_normal", "eta_lateral", "eta_feed"):
+        d = damping[key]
+        if d["value"] is None:
+            assert d["note"].startswith("not identifiable"), (key, d)
+        else:
+            assert d["low"] <= d["truth"] <= d["high"], (key, d)
+    assert damping["zeta0"]["truth"] == 0.004 and damping["eta_normal"]["truth"] == 0.06
     # the diagnosis of both states, on the EMA's own per-mode uncertainties (no noise typed in anywhere),
     # names the effect hidden in power_on, and its interval holds the truth
     truth_beta = yaml.safe_load((ROOT / "examples/hammer_test/truth.yaml").read_text())["effects"]["em_preload"]["beta"]
