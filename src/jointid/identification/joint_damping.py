@@ -23,7 +23,8 @@ the laws are compared by QAICc at it (AICc when the fit is within its noise).  T
 
 A parameter whose weighted column is nearly a combination of the others over the measured modes
 (``R^2 >= COLLINEAR_R2``, uncentred, ``zeta0``'s column included) is reported as not identifiable,
-with what it is collinear with, instead of a value.
+with what it is collinear with, instead of a value, unless the data are precise enough to determine
+it all the same (:func:`jointid.identification.collinearity.valued`).
 
 In the identify stage the energy shares come from the FE polish's exact sensitivities at its optimum
 (:func:`shares_from_polish`): ``d ln f_r / d log10 theta_j = ln(10) e_rj / 2``.
@@ -38,15 +39,13 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from jointid.errors import DataError
+from jointid.identification.collinearity import COLLINEAR_R2, collinearity as _collinearity, valued
 from jointid.identification.model_error import ModelError, estimate, qaicc, support_text
 
 __all__ = ["COLLINEAR_R2", "LAWS", "JointDamping", "LawFit", "attraction_change", "direction_label",
            "fit_joint_damping", "modal_ratios", "params_entry", "shares_from_polish", "stage_record", "summary_line"]
 
 LAWS = ("hysteretic", "viscous")
-COLLINEAR_R2 = 0.99
-"""A weighted column explained to this uncentred R^2 by the others (1 / (1 - R^2) = 100 times the variance
-of an independent column) is not identifiable from the measured modes."""
 Z95 = 1.96
 
 
@@ -88,25 +87,6 @@ def _design(shares: np.ndarray, freqs_Hz: np.ndarray, law: str) -> np.ndarray:
         raise ValueError(f"law {law!r}: use one of {', '.join(LAWS)}")
     cols = shares / 2.0 if law == "hysteretic" else shares * (np.pi * freqs_Hz)[:, None]
     return np.column_stack([np.ones(len(shares)), cols])
-
-
-def _collinearity(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per column of the weighted design ``A``: uncentred ``R^2`` on the other columns, and the other
-    column of largest ``|cos|`` with it (-1 for a single column)."""
-    n_col = A.shape[1]
-    r2, partner = np.zeros(n_col), np.full(n_col, -1)
-    norm = np.linalg.norm(A, axis=0)
-    unit = A / np.where(norm > 0, norm, 1.0)
-    for j in range(n_col):
-        others = np.delete(np.arange(n_col), j)
-        if norm[j] == 0:
-            r2[j] = 1.0
-        elif others.size:
-            coef = np.linalg.lstsq(A[:, others], A[:, j], rcond=None)[0]
-            r2[j] = 1.0 - float(np.sum((A[:, j] - A[:, others] @ coef) ** 2)) / norm[j] ** 2
-        if others.size:
-            partner[j] = others[np.argmax(np.abs(unit[:, others].T @ unit[:, j]))]
-    return r2, partner
 
 
 @dataclass(frozen=True)
@@ -186,8 +166,8 @@ class JointDamping:
         return ["zeta0"] + [fmt.format(direction_label(d)) for d in self.directions]
 
     def identifiable(self, law: str) -> np.ndarray:
-        """Per parameter of ``law``: whether its column is not collinear with the others."""
-        return self.r2[law] < COLLINEAR_R2
+        """Per parameter of ``law``: whether it is valued (:func:`jointid.identification.collinearity.valued`)."""
+        return valued(self.r2[law], self.fits[law].x, self.fits[law].cov)
 
     def _law_record(self, law: str) -> dict:
         fit, labels = self.fits[law], self.labels(law)
@@ -199,6 +179,9 @@ class JointDamping:
             if ok[j]:
                 out.update({key: value, f"{key}_sd": sd, f"{key}_ci95_low": max(0.0, value - Z95 * sd),
                             f"{key}_ci95_high": value + Z95 * sd, f"{key}_at_bound": bool(value <= 0.0)})
+                if self.r2[law][j] >= COLLINEAR_R2:
+                    out[f"{key}_note"] = (f"collinear with {labels[self.partner[law][j]]} (R^2 = "
+                                          f"{self.r2[law][j]:.4f}), determined by the data's precision")
             else:
                 out.update({key: None, f"{key}_ci95_low": None, f"{key}_ci95_high": None,
                             f"{key}_note": f"not identifiable: collinear with {labels[self.partner[law][j]]} "
