@@ -700,7 +700,7 @@ def write_doc() -> Path:
              "The cases (coarse rig; the default rig runs the first cases of `--cases`):\n",
              design_table(design()), ""]
     df = rejudge(pd.read_csv(CSV))
-    df = df[~df["run"].str.endswith("--quick")]
+    df = df[~df["run"].str.endswith("--quick") & ~df["run"].str.endswith("(probe)")]
     for label, g in df.groupby("run", sort=False):
         meta = json.loads(g["meta"].iloc[0])
         main, splits, met = summary_tables(g)
