@@ -217,6 +217,20 @@ def test_heal_removes_a_result_that_differs_from_its_sidecar(tmp_path):
     assert not out.exists() and not provenance_path(out).exists() and good.exists()
 
 
+def test_heal_forgets_the_kept_subspaces_only_when_it_repaired_something(tmp_path):
+    """A kept diagnosis subspace survives a heal with nothing to repair (the loop's reruns start from it)
+    and goes with any repair (the rebuilt diagnosis starts afresh, byte-identical to a run from clean)."""
+    kept = tmp_path / "results" / "diagnosis" / "paper" / "subspace.npz"
+    io.write_text(kept, "basis")
+    out = _result_with_sidecar(tmp_path)
+    assert recovery.heal(tmp_path) == (0, []) and kept.exists()
+    cut_to_half(out)
+    status, lines = recovery.heal(tmp_path)
+    assert status == 0 and len(lines) == 2 and lines[0].startswith("removed damaged results/surface/model.json")
+    assert lines[1].startswith("removed 1 kept diagnosis subspace(s) (results/diagnosis/paper/subspace.npz)")
+    assert not kept.exists()
+
+
 def test_heal_removes_a_result_whose_sidecar_is_damaged(tmp_path):
     out = _result_with_sidecar(tmp_path)
     cut_to_half(provenance_path(out))
@@ -423,7 +437,10 @@ def test_kill_9_while_the_largest_file_is_written_then_reproduce_rebuilds(clone,
     kill_while_matrices_written(clone, "--forcerun", "mesh")
     rc, out = reproduce(clone)
     assert lines_with(out, STALE_MATRICES), out
-    assert_rebuilt(clone, coarse_run, rc, out, diagnosis_reran=True)
+    # heal repaired something, so the kept subspace went with it: the diagnosis reruns from clean and its
+    # files are byte-identical too
+    assert lines_with(out, "kept diagnosis subspace(s)"), out
+    assert_rebuilt(clone, coarse_run, rc, out)
 
 
 @pytest.mark.slow

@@ -11,7 +11,12 @@ In this order, and only when no Snakemake run holds the folder's lock:
    sidecar recorded; a file that differs (cut short, changed since) or whose sidecar is damaged is
    removed with its sidecar.  The default target of the Snakefile names every result, so Snakemake
    then rebuilds it and everything that depends on it.
-4. **Writable folders.** A results folder without write permission stops here, in one line, instead
+4. **A fresh start for the diagnoses.** When any of the above was repaired, the diagnoses' kept
+   subspaces (``results/diagnosis/*/subspace.npz``, ``diagnosis.reuse_subspace``) are removed: a
+   diagnosis the rebuild reruns then starts afresh, as in an uninterrupted run from clean, and its files
+   come out byte-identical to that run's (one started from a kept subspace agrees only to the solver's
+   tolerance, and a pairing decided at a near tie can go the other way).
+5. **Writable folders.** A results folder without write permission stops here, in one line, instead
    of inside Snakemake.
 
 Each thing done prints one line.  Exit status 0 when the folder is ready, 1 when it is not (a line
@@ -74,6 +79,15 @@ def remove_damaged(results: Path, workdir: Path) -> list[str]:
     return lines
 
 
+def forget_subspaces(results: Path, workdir: Path) -> list[str]:
+    """Remove the diagnoses' kept subspaces (step 4); one line for all of them."""
+    kept = sorted((results / "diagnosis").glob("*/subspace.npz")) if (results / "diagnosis").is_dir() else []
+    for p in kept:
+        p.unlink(missing_ok=True)
+    return [f"removed {len(kept)} kept diagnosis subspace(s) ({', '.join(_rel(p, workdir) for p in kept[:2])}"
+            f"{' ...' if len(kept) > 2 else ''}): the diagnoses rerun afresh, as from clean"] if kept else []
+
+
 def unwritable(results: Path, workdir: Path) -> list[str]:
     """One line per results folder the workflow cannot write to (permission, read-only file system)."""
     lines = []
@@ -108,6 +122,8 @@ def heal(workdir: str | os.PathLike = ".", results: str = "results") -> tuple[in
                    "again"]
     res = wd / results
     lines = stop_orphans(wd) + remove_temporaries(res, wd) + remove_damaged(res, wd)
+    if lines:
+        lines += forget_subspaces(res, wd)
     problems = unwritable(res, wd)
     return (1 if problems else 0), lines + problems
 
