@@ -344,3 +344,23 @@ def test_a_nearly_collinear_direction_is_valued_when_the_data_are_precise_enough
     assert "determined by the data's precision" in rec["hysteretic"]["eta_lateral_note"]
     rough = jd.fit_joint_damping(zeta, shares, f, names, sigma_rel=0.05).record()
     assert rough["eta_lateral"] is None and "collinear with" in rough["hysteretic"]["eta_lateral_note"]
+
+
+def test_the_identify_stage_weights_by_the_per_mode_damping_uncertainty(tmp_path, monkeypatch):
+    """modes.csv's damping_uncertainty_pct (an EMA's) is each ratio's own weight; conditions.yaml's one
+    number is the fallback."""
+    seen = []
+    monkeypatch.setattr(jd, "shares_from_polish", lambda polish, f, weights=None: np.ones((len(f), 1)))
+    monkeypatch.setattr(jd, "fit_joint_damping", lambda *a, sigma_rel=None, **k: seen.append(sigma_rel)
+                        or (_ for _ in ()).throw(DataError("stop here")))
+    conditions = "source: test\ndamping_uncertainty_pct: 10\nstates: {s: {em_force_N: 0.0}}\n"
+    (tmp_path / "conditions.yaml").write_text(conditions)
+    (tmp_path / "modes.csv").write_text("state,mode,freq_Hz,damping_ratio,damping_uncertainty_pct\n"
+                                        "s,1,400.0,0.02,3\ns,2,900.0,0.03,7\n")
+    polish = {"f_fe": np.array([400.0, 900.0])}
+    assert jd.stage_record(str(tmp_path), "s", ["k"], polish, [400.0, 900.0]) == {"identified": False,
+                                                                                 "note": "stop here"}
+    assert np.allclose(seen[-1], [0.03, 0.07])
+    (tmp_path / "modes.csv").write_text("state,mode,freq_Hz,damping_ratio\ns,1,400.0,0.02\ns,2,900.0,0.03\n")
+    jd.stage_record(str(tmp_path), "s", ["k"], polish, [400.0, 900.0])
+    assert np.allclose(seen[-1], 0.10)

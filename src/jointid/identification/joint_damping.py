@@ -349,10 +349,13 @@ def stage_record(folder: str, state: str, names, polish, f_meas_Hz, weights=None
                                              "(identify.fe_polish: true)"}
     if len(zeta) != len(f_meas_Hz) or not np.all(np.isfinite(zeta) & (zeta > 0)):
         return {"identified": False, "note": "not every measured mode has a damping ratio > 0"}
-    sigma_pct = ds.conditions.get("damping_uncertainty_pct")
+    # per mode where modes.csv gives it (an EMA's damping_uncertainty_pct), else conditions.yaml's one number
+    sigma_pct = ds.mode_uncertainty_pct(state, "damping")
+    if sigma_pct is None and ds.conditions.get("damping_uncertainty_pct") is not None:
+        sigma_pct = float(ds.conditions["damping_uncertainty_pct"])
     try:
         res = fit_joint_damping(zeta, shares_from_polish(polish, f_meas_Hz, weights), polish["f_fe"], list(names),
-                                sigma_rel=None if sigma_pct is None else float(sigma_pct) / 100,
+                                sigma_rel=None if sigma_pct is None else np.asarray(sigma_pct, float) / 100,
                                 reference=f"identify[{state}] joint damping")
     except DataError as exc:
         return {"identified": False, "note": str(exc)}
