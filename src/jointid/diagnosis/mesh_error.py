@@ -27,7 +27,9 @@ as the mesh check does, finds less than half of it).
 A mode the refined mesh cannot follow (MAC < 0.8) takes the largest shift of its state, and an
 unpaired measured mode the largest known error of the paired ones: the mesh error of a mode the check
 cannot see is not taken to be zero.  The corrections are computed
-once, at one parameter point (the discretisation error moves little with the joints).
+once, at one parameter point (the discretisation error moves little with the joints); states whose
+model coefficients are equal there (e.g. without an enabled effect that tells them apart) share one
+refined solve.
 """
 
 from __future__ import annotations
@@ -139,8 +141,12 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
     for cls in halve:
         fine = build_system(build_model(spec, halve=(cls,)), cfg)
         out.n_dofs = (out.n_dofs[0], max(out.n_dofs[1], int(fine.n_dofs)))
+        done = []  # (coefficients, shift) of the states solved: states at equal coefficients share one solve
         for k, sol in enumerate(sols):
-            total[k] = total[k] + _class_shift(fine, sol, n_modes)
+            same = next((c for (kc, mc), c in done if kc == sol.kc and mc == sol.mc), None)
+            shift = _class_shift(fine, sol, n_modes) if same is None else same
+            done.append(((sol.kc, sol.mc), shift))
+            total[k] = total[k] + shift
         del fine
         release_heap()
     for d, sol, idx, model_shift in zip(data, sols, index, total):

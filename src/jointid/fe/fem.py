@@ -130,7 +130,7 @@ def assemble_elasticity(basis: Basis, lam_e: np.ndarray, mu_e: np.ndarray, rho_e
     dofs = basis.element_dofs  # (nloc, nel)
     nloc, nel = dofs.shape
     grads = np.stack([basis.basis[i][0].grad for i in range(nloc)])  # (nloc, 3, nel, nqp)
-    vals = np.stack([basis.basis[i][0].value for i in range(nloc)])  # (nloc, nel, nqp)
+    vals = np.stack([np.asarray(basis.basis[i][0]) for i in range(nloc)])  # (nloc, nel, nqp)
     dx = basis.dx  # (nel, nqp)
     sel = np.arange(nel) if elements is None else np.asarray(elements, dtype=np.int64)
     if len(sel) == 0:
