@@ -393,7 +393,7 @@ def test_chi2_survival_is_scipy_stats_number_for_number(x, dof):
     """The p-values without importing scipy.stats equal scipy.stats.chi2.sf exactly, edge cases included."""
     from scipy.stats import chi2
 
-    from jointid.diagnosis.statistics import chi2_sf
+    from jointid.diagnosis.criteria import chi2_sf
 
     ref = float(chi2.sf(x, dof))
     assert chi2_sf(x, dof) == ref or (np.isnan(ref) and np.isnan(chi2_sf(x, dof)))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from jointid.diagnosis.results import Evaluation, Fit, block_error, chi2_at, row_weights
-from jointid.diagnosis.statistics import chi2_p_value
+from jointid.diagnosis.criteria import chi2_p_value
 from jointid.identification.model_error import NO_MODEL_ERROR, estimate
 
 

@@ -67,3 +67,21 @@ def test_parameter_check_finds_config_in_the_domain_layers_of_a_package(tmp_path
     proc = subprocess.run([sys.executable, str(ROOT / "tools" / "layout.py"), str(pkg)], capture_output=True, text=True)
     assert proc.returncode == 1
     assert "a.py:1: build takes 'config'" in proc.stdout and "b.py" not in proc.stdout
+
+
+def test_a_cycle_through_annotations_only_is_a_cycle_and_a_lazy_package_is_passed_through(tmp_path):
+    """``if TYPE_CHECKING`` imports count (issue 53: no cycles, not even for annotations).  ``from pkg
+    import mod`` depends on ``pkg`` only where ``pkg/__init__.py`` imports package modules when loaded."""
+    pkg = tmp_path / "jointid"
+    (pkg / "fe").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from jointid.fe.b import h\n")
+    (pkg / "fe" / "__init__.py").write_text("")
+    (pkg / "io.py").write_text("")
+    (pkg / "fe" / "a.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from jointid.fe.b import h\n")
+    (pkg / "fe" / "b.py").write_text("from jointid import io\nfrom jointid.fe.a import g\n")
+    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "layout.py"), str(pkg)], capture_output=True, text=True)
+    assert proc.returncode == 1
+    assert proc.stdout.splitlines() == ["cycle: jointid.fe.a <-> jointid.fe.b"], proc.stdout
+    (pkg / "__init__.py").write_text("from jointid.fe.b import h\n")  # loaded eagerly: b -> jointid -> b
+    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "layout.py"), str(pkg)], capture_output=True, text=True)
+    assert "cycle: jointid <-> jointid.fe.a <-> jointid.fe.b" in proc.stdout, proc.stdout

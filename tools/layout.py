@@ -3,9 +3,10 @@
 Usage: ``python tools/layout.py [src/jointid]`` (default: ``src/jointid`` under the working directory).
 Prints one line per finding and exits 1 if there is any; prints nothing and exits 0 when clean.
 
-* Imports (every ``import`` statement, at module level and inside functions, not under
+* Imports (every ``import`` statement, at module level, inside functions and under
   ``if TYPE_CHECKING``) point only down the layers of ``LAYERS`` (docs/architecture.md), and no
-  modules import each other in a cycle.
+  modules import each other in a cycle, not even for annotations: a lower layer defines the
+  protocol it needs (e.g. :class:`jointid.fe.affine.AffineModel`).
 * No module is over 400 lines unless a comment among its first 40 lines starts with
   ``# over 400 lines:`` and gives the reason; no function is over 80 lines unless a comment at its top
   (before or right after its docstring) starts with ``# long`` and gives the reason.
@@ -30,19 +31,31 @@ def module_name(path: Path, root: Path) -> str:
     return ".".join(parts)
 
 
-def imports(path: Path, name: str) -> set[str]:
+def eager(path: Path) -> bool:
+    """Whether the module at ``path`` imports package modules when it is loaded (a top-level ``import``
+    of ``jointid``, not under ``if TYPE_CHECKING`` nor inside a function)."""
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("jointid"):
+            return True
+        if isinstance(node, ast.Import) and any(a.name.startswith("jointid") for a in node.names):
+            return True
+    return False
+
+
+def imports(path: Path, name: str, modules=(), eager_packages=()) -> set[str]:
+    """The package modules ``path`` imports: every ``import`` statement, at module level, inside functions
+    and under ``if TYPE_CHECKING`` (an annotation that names a module is a dependency on it too).
+    ``from pkg import name`` depends on the module ``pkg.name`` where that is one of ``modules``, and on
+    the package ``pkg`` only where its ``__init__`` imports package modules when loaded
+    (``eager_packages``; a lazy ``__init__`` is only passed through); else on ``pkg``."""
     out = set()
-    tree = ast.parse(path.read_text())
-    typing_only = set()
-    for node in ast.walk(tree):  # imports under `if TYPE_CHECKING:` are for annotations only
-        if isinstance(node, ast.If) and getattr(node.test, "id", getattr(node.test, "attr", "")) == "TYPE_CHECKING":
-            typing_only.update(id(n) for stmt in node.body for n in ast.walk(stmt))
-    for node in ast.walk(tree):
-        if id(node) in typing_only:
-            continue
+    for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("jointid"):
-            out.add(node.module)
-            out.update(f"{node.module}.{a.name}" for a in node.names)
+            subs = {f"{node.module}.{a.name}" for a in node.names}
+            named = subs & set(modules)
+            out.update(named)
+            if len(named) < len(subs) or node.module in eager_packages:
+                out.add(node.module)
         elif isinstance(node, ast.Import):
             out.update(a.name for a in node.names if a.name.startswith("jointid"))
     return out
@@ -112,7 +125,8 @@ def size_findings(path: Path) -> list[str]:
 def main(argv):
     root = Path(argv[1]) if len(argv) > 1 else Path.cwd() / "src" / "jointid"  # the checkout you stand in
     mods = {module_name(p, root): p for p in root.rglob("*.py")}
-    graph = {m: {i for i in imports(p, m) if i in mods and i != m} for m, p in mods.items()}
+    eager_pkgs = {m for m, p in mods.items() if p.name == "__init__.py" and eager(p)}
+    graph = {m: {i for i in imports(p, m, mods, eager_pkgs) if i in mods and i != m} for m, p in mods.items()}
     bad = 0
     for m, deps in sorted(graph.items()):
         for d in sorted(deps):

@@ -100,6 +100,18 @@ def load_schema(path: str | os.PathLike | None = None) -> dict:
 
 
 # ------------------------------------------------------------------ defaults and normalisation
+def default(key: str) -> Any:
+    """The schema's default of the dotted config key ``key`` (e.g. ``"solver.method"``): where the typed
+    options (:mod:`jointid.config.typed`) need a default, they take it from here, so that it lives in the
+    schema alone.  Raises KeyError for a key without a default."""
+    node: Mapping | None = load_schema()
+    for part in key.split("."):
+        node = subschema(node, part) if node is not None else None
+    if node is None or "default" not in node:
+        raise KeyError(f"schema.yaml gives no default for {key}")
+    return copy.deepcopy(node["default"])
+
+
 def subschema(schema: Mapping, key: str) -> Mapping | None:
     """The schema of ``key`` inside an object ``schema`` (properties, patterns, then map entries)."""
     props = schema.get("properties", {})

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from jointid.config.schema import default as schema_default
 from jointid.config.typed_mesh import MeshFileModel, read_only
 from jointid.correlate.observability import VISIBLE_THRESHOLD
 
@@ -133,14 +134,15 @@ class SolverOptions:
     shift_Hz: float | None = None
     backend: str | None = None
     min_freq_Hz: float | None = None
-    method: str = "full"
-    rom_tolerance: float = 1.0e-4
+    method: str = dataclasses.field(default_factory=lambda: schema_default("solver.method"))
+    rom_tolerance: float = dataclasses.field(default_factory=lambda: schema_default("solver.rom_tolerance"))
 
     @classmethod
     def from_section(cls, section: Mapping) -> SolverOptions:
-        """The options of a validated ``solver`` section."""
-        return cls(section.get("n_modes"), section.get("shift_Hz"), section.get("backend"),
-                   section.get("min_freq_Hz"), section.get("method", "full"), section.get("rom_tolerance", 1.0e-4))
+        """The options of a validated ``solver`` section (``method`` and ``rom_tolerance`` default to the
+        schema's)."""
+        return cls(section.get("n_modes"), section.get("shift_Hz"), section.get("backend"), section.get("min_freq_Hz"),
+                   **{k: section[k] for k in ("method", "rom_tolerance") if k in section})
 
 
 PART_SECTIONS = {"base": "base", "rail": "rails", "carriage": "carriages", "table": "table"}

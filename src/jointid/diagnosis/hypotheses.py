@@ -37,7 +37,7 @@ from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
 from jointid.diagnosis.hypothesis_predictions import measurement_predictions
 from jointid.diagnosis.results import frequency_rows, log_interval
-from jointid.diagnosis.statistics import aicc
+from jointid.diagnosis.criteria import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.errors import ConfigError
 from jointid.progress import Steps

@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from jointid.diagnosis.statistics import aicc, chi2_p_value
+from jointid.diagnosis.criteria import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
 from jointid.identification.model_error import ModelError, estimate
 
@@ -176,7 +176,7 @@ class Fit:
 
     @property
     def aicc(self) -> float:
-        """Corrected Akaike criterion of the fit (sigma known), :func:`statistics.aicc`."""
+        """Corrected Akaike criterion of the fit (sigma known), :func:`jointid.diagnosis.criteria.aicc`."""
         return aicc(self.chi2, self.n, self.k)
 
     def covariance(self) -> np.ndarray:

@@ -7,20 +7,18 @@ chi-square of a fit is ``r^T r`` and sigma is known:
   ``P = I - J_x J_x^+``, ``LM = r^T P J_t (J_t^T P J_t)^+ J_t^T P r`` ~ chi2(q); one-sided for a
   parameter whose null sits on its bound (mass >= 0, compliance >= 0, beta >= 0): p = 0.5 chi2_1 sf,
   and a linearised estimate of the wrong sign explains nothing.  Explained fraction ``LM / r^T r``;
-* ``AICc = chi2 + 2k + 2k(k+1)/(n-k-1)``; a variant "explains" the data when its chi2 is consistent
-  with the noise (p >= ``alpha``).
+* AICc and the chi-square p-value are in :mod:`jointid.diagnosis.criteria` (numbers only, below
+  the fits that use them).
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import math
-
 import numpy as np
 
+from jointid.diagnosis.criteria import chi2_sf
 from jointid.fe.reduced import Solution
-from jointid.identification.model_error import qaicc
 
 if TYPE_CHECKING:
     from jointid.diagnosis.fitting import Diagnoser, Evaluation, Fit
@@ -29,38 +27,6 @@ if TYPE_CHECKING:
 # a Jacobian column that a projection shrinks below this fraction of its norm is round-off (the
 # reduced solver's eigenvalues are accurate to 1e-6; a real between-state sensitivity is O(1))
 NEGLIGIBLE = 1e-4
-
-
-def chi2_sf(x: float, dof: float) -> float:
-    """``scipy.stats.chi2.sf(x, dof)``, the same numbers (``scipy.special.chdtrc``, which it calls),
-    without importing ``scipy.stats`` (about 0.6 s, paid by every Snakemake start through the rules'
-    imports): NaN for ``dof <= 0``, 1 for ``x < 0``."""
-    from scipy.special import chdtrc
-
-    if not dof > 0:
-        return math.nan
-    if x < 0:
-        return 1.0
-    return float(chdtrc(dof, x))
-
-
-def chi2_p_value(chi2: float, dof: int) -> float:
-    """Probability of a chi-square at least ``chi2`` with ``dof`` degrees of freedom (noise only)."""
-    return chi2_sf(chi2, dof)
-
-
-def aicc(chi2: float, n: int, k: int) -> float:
-    """Corrected Akaike criterion ``chi2 + 2k + 2k(k+1)/(n-k-1)`` (sigma known; inf for n <= k + 1):
-    :func:`jointid.identification.model_error.qaicc` of a chi-square at the stated noise.
-
-    Parameters
-    ----------
-    chi2 : float
-        Sum of squared sigma-normalised residuals.
-    n, k : int
-        Number of residuals and of fitted parameters.
-    """
-    return qaicc(chi2, n, k)
 
 
 def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -> np.ndarray:

@@ -72,7 +72,7 @@ def chi2_text(fit: Fit) -> str:
     blocks = fit.block_chi2()
     if len(blocks) == 1:
         return f"chi2 = {fit.chi2:.1f} for {fit.dof} degrees of freedom, p = {fit.p_value:.2g}"
-    from jointid.diagnosis.statistics import chi2_p_value
+    from jointid.diagnosis.criteria import chi2_p_value
 
     return "; ".join(f"{ {'frequency': 'frequencies'}.get(name, name + 's')} chi2 = {c:.1f} for {d} degrees of freedom, p = {chi2_p_value(c, d):.2g}"
                      for name, c, d in blocks)

@@ -17,14 +17,49 @@ progress stalls); should the check still fail after :data:`MAX_ROUNDS`, :func:`f
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from jointid.fe.modal import TWO_PI, count_pencil_modes_below
 
-if TYPE_CHECKING:
-    from jointid.fe.reduced import ReducedSolver
+
+
+class ReducedSolver(Protocol):
+    """What the checks and the refinement use of a reduced solver (:class:`jointid.fe.reduced.ReducedSolver`
+    is the one; named here so that this module does not import it back)."""
+
+    tol: float
+    max_basis: int
+    generation: int
+    basis: Any  # jointid.fe.basis.GrowingBasis
+    fac: Any  # the factorisation of K - sigma M at the last reference point
+    pencil: Any  # jointid.fe.pencil.FreePencil
+    backend: str
+    n_checks: int
+    n_refine: int
+    sturm_counts: dict
+    fallbacks: dict
+
+    def _ritz(self, kc: dict, mc: dict, n: int | None = None) -> tuple: ...
+
+    def _apply(self, coeffs: dict, Y: np.ndarray, group: str, base_product: np.ndarray | None = None) -> np.ndarray: ...
+
+    def _append(self, W: np.ndarray) -> int: ...
+
+    def _refactor(self, kc: dict, mc: dict) -> None: ...
+
+    def _reset(self, phi: np.ndarray) -> None: ...
+
+    def _lanczos(self, kc: dict, mc: dict, k: int) -> tuple: ...
+
+    def _say(self, msg: str) -> None: ...
+
+    def solve(self, kc: dict, mc: dict, n: int | None = None, **kw) -> Any: ...
+
+    @staticmethod
+    def point_key(kc: dict, mc: dict) -> str: ...
+
 
 MAX_ROUNDS = 12
 """Most enrichment rounds of one point before the full solve answers instead (:func:`full_solve`)."""

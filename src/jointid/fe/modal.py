@@ -238,8 +238,7 @@ def solve_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, *, shift_Hz: float
 
 def solve_model(model, kc: dict, mc: dict, n_modes: int, *, shift_Hz: float = -10.0,
                 backend: str = "auto", certify: bool = False) -> Modes:
-    """:func:`solve_modes` of an affine model (:class:`jointid.fe.fem.Model`, or the diagnosis'
-    :class:`jointid.diagnosis.effects.System`) at coefficients ``kc``, ``mc``, with the model's cached ordering.
+    """:func:`solve_modes` of an affine model (:class:`jointid.fe.affine.AffineModel`) at coefficients ``kc``, ``mc``, with the model's cached ordering.
     The full-size matrices are restricted to the free DOFs and dropped before the factorisation
     (about 0.3 GB less peak memory at 10^5 DOFs than holding both).
 

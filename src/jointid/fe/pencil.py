@@ -1,7 +1,7 @@
 """The affine matrices of a model on its free DOFs, assembled on one fixed sparsity pattern.
 
-``K(c) = K0 + sum c_a K_a`` and ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.fem.Model`, or the
-diagnosis' :class:`jointid.diagnosis.effects.System` with its effect terms) change only in their coefficients
+``K(c) = K0 + sum c_a K_a`` and ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.affine.AffineModel`: the FE
+model, or the diagnosis's with its effect terms) change only in their coefficients
 from one parameter point to the next.  :class:`FreePencil` restricts every term to the free DOFs once,
 places all of them on the union of their sparsity patterns, and then assembles the stiffness at new
 coefficients as one scatter-add per term into that pattern: no sparse additions, no slicing and no
@@ -23,7 +23,7 @@ class FreePencil:
 
     Parameters
     ----------
-    system : jointid.fe.fem.Model or jointid.diagnosis.effects.System
+    system : jointid.fe.affine.AffineModel
         Anything with ``stiffness`` and ``mass`` term dicts (``K0``, ``M0`` included), ``fixed`` and
         ``n_dofs``.
 

@@ -1,8 +1,8 @@
 # over 400 lines: the solver, its basis growth and its factorisation life cycle (released for other work, made again on use) are one state
 """Rayleigh-Ritz eigen-solver on an adaptively enriched subspace of an affine FE model.
 
-``K(c) = K0 + sum c_a K_a``, ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.fem.Model`, or the
-diagnosis' :class:`jointid.diagnosis.effects.System`).  The subspace starts from the exact modes at a
+``K(c) = K0 + sum c_a K_a``, ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.affine.AffineModel`: the
+FE model or the diagnosis's model with its effect terms).  The subspace starts from the exact modes at a
 reference point plus their first-order responses ``A^-1 (dK - lambda dM) phi`` to given coefficient
 directions.  At each refined point the residuals ``K phi - lambda M phi`` of the Ritz pairs are
 checked in the full space; where the estimated relative eigenvalue error exceeds ``tol`` (1e-6 by
@@ -28,8 +28,7 @@ from jointid.fe.modal import TWO_PI, factorize_pencil, shift_invert_lanczos
 from jointid.fe.pencil import FreePencil
 
 if TYPE_CHECKING:
-    from jointid.diagnosis.effects import System
-    from jointid.fe.fem import Model
+    from jointid.fe.affine import AffineModel
 
 
 @dataclass
@@ -54,11 +53,11 @@ def pad_to_basis(Y: np.ndarray, r: int) -> np.ndarray:
 
 
 class ReducedSolver:
-    """Rayleigh-Ritz eigen-solver of a :class:`System` on an adaptively enriched subspace.
+    """Rayleigh-Ritz eigen-solver of an affine model on an adaptively enriched subspace.
 
     Parameters
     ----------
-    system : System or jointid.fe.fem.Model
+    system : jointid.fe.affine.AffineModel
         Anything with ``stiffness`` and ``mass`` term dicts (``K0``, ``M0`` first), ``fixed``, ``probe``
         and ``n_dofs``.
     kc, mc : dict
@@ -78,7 +77,7 @@ class ReducedSolver:
         earlier run on the same model, :mod:`jointid.fe.warmstart`).
     """
 
-    def __init__(self, system: System | Model, kc: dict, mc: dict, n_modes: int, directions=(), *,
+    def __init__(self, system: AffineModel, kc: dict, mc: dict, n_modes: int, directions=(), *,
                  shift_Hz: float = -10.0, backend: str = "auto", tol: float = 1e-6, max_basis: int = 900,
                  n_seed: int | None = None, basis=None):
         # many parameters: the reduced solver's options (shift, backend, tolerance, basis size, seed), keyword with defaults

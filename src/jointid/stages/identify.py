@@ -312,9 +312,9 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
     reduced-order model ``rom`` when one is given (``solver.method: rom``; the verify stage then
     checks the result with a full solve).  With ``states`` (all states of the run) and frequencies
-    alone in every one of them, in equal numbers, ``identify.pairing: shared`` pairs the measured
-    modes with the same tracked modes in every state (:func:`jointid.identification.updating.identify_states_jointly`)
-    and the polish follows those modes by shape; ``independent`` (default) pairs each state by its
+    alone in every one of them, in equal numbers, ``identify.pairing: shared`` (the schema's default) pairs
+    the measured modes with the same tracked modes in every state (:func:`jointid.identification.updating.identify_states_jointly`)
+    and the polish follows those modes by shape; ``independent`` pairs each state by its
     own frequencies and re-pairs at every polish iterate.  Either way the notes name competing pairings
     and the other rule's choice.  With ``mesh.extrapolate_edges`` (the mesh with one and two more edge
     levels, built in this job) the polish is repeated on mesh-extrapolated frequencies (:mod:`jointid.fe.extrapolate`)
@@ -331,7 +331,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     weights = noise_weights(cfg, state, pts, sigma_pct, np.asarray(ic["weights"], float) if ic.get("weights") else None)
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
     names, zoom = doc["names"], doc.get("stage") == "zoom"
-    rule = ic.get("pairing", "independent")
+    rule = ic["pairing"]  # the schema gives the default
     shared, joint_info, pair_msgs = None, None, []
     log(f"identify[{state}]: {len(f_meas)} measured modes, {len(doc['tracked_modes'])} tracked modes; pairing "
         f"them on the {'zoomed ' if zoom else ''}response surfaces")
