@@ -1,6 +1,7 @@
 # jointid workflow: joint-surface identification by FE model updating (see README.md).
 #
-# Path convention: results/<stage>/..., logs/<rule>/..., benchmarks/out/<rule>/...
+# Path convention: results/<stage>/..., logs/<rule>/..., benchmarks/out/<rule>/...; a study with a
+# run.name writes under results/<name>/, logs/<name>/ and benchmarks/out/<name>/ instead (run_folders).
 # Config reaches every rule through `params: cfg=` holding only the parts that rule uses (whole
 # sections, or single keys such as harmonic.band_Hz, or one state), so a changed value reruns exactly
 # the stages that depend on it.  Rules with nothing of their own (gather_modal, tables, table1) get
@@ -21,7 +22,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("PYTHONHASHSEED", "0")
 
 from jointid.config.datasets import dataset_folder
-from jointid.config.snakefile import merged, paper_input, sections, validated
+from jointid.config.snakefile import merged, paper_input, run_folders, sections, validated
 from jointid.reporting.provenance import pin_config_state
 from jointid.stages import doe, identify, modal, model, surface, verify
 
@@ -32,7 +33,7 @@ pin_config_state(["config.yaml", *workflow.overwrite_configfiles])
 SHEET = doe.doe_sheet(config)
 POINTS = list(SHEET["point"])
 STATES = list(config["states"])
-R = "results"
+R, LOGS, BENCH = run_folders(config)  # results/, logs/, benchmarks/out/ (+ /<run.name> for a named study)
 
 # the config parts each rule uses: the CONFIG keys (or config_keys()) of its stage module in
 # src/jointid/stages/ (the mesh without mesh.extrapolate_edges; the first DOE without doe.zoom; ...)
@@ -106,9 +107,9 @@ rule mesh:
     params:
         cfg=CFG_MESH,
     log:
-        "logs/mesh.log",
+        f"{LOGS}/mesh.log",
     benchmark:
-        "benchmarks/out/mesh.tsv"
+        f"{BENCH}/mesh.tsv"
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -124,7 +125,7 @@ rule doe:
     params:
         cfg=CFG_DOE,
     log:
-        "logs/doe.log",
+        f"{LOGS}/doe.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -151,9 +152,9 @@ rule rom:
     params:
         cfg=CFG_ROM,
     log:
-        "logs/rom.log",
+        f"{LOGS}/rom.log",
     benchmark:
-        "benchmarks/out/rom.tsv"
+        f"{BENCH}/rom.tsv"
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -174,9 +175,9 @@ if USE_REDUCED:
         params:
             cfg=CFG_MODAL_RULE,
         log:
-            "logs/modal/points.log",
+            f"{LOGS}/modal/points.log",
         benchmark:
-            "benchmarks/out/modal/points.tsv"
+            f"{BENCH}/modal/points.tsv"
         priority: PRIORITY_TABLES
         threads: 1
         resources:
@@ -198,9 +199,9 @@ else:
             cfg=CFG_MODAL_RULE,
             theta=lambda wc: {n: float(SHEET.set_index("point").loc[wc.point, n]) for n in config["joints"]["parameters"]},
         log:
-            "logs/modal/{point}.log",
+            f"{LOGS}/modal/{{point}}.log",
         benchmark:
-            "benchmarks/out/modal/{point}.tsv"
+            f"{BENCH}/modal/{{point}}.tsv"
         priority: PRIORITY_TABLES
         threads: 1
         resources:
@@ -220,7 +221,7 @@ rule gather_modal:
     params:
         cfg=CFG_MODAL_CHAIN,  # nothing of its own: for the provenance
     log:
-        "logs/gather_modal.log",
+        f"{LOGS}/gather_modal.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -240,9 +241,9 @@ rule fit_surface:
     params:
         cfg=CFG_FIT_SURFACE,
     log:
-        "logs/fit_surface.log",
+        f"{LOGS}/fit_surface.log",
     benchmark:
-        "benchmarks/out/fit_surface.tsv"
+        f"{BENCH}/fit_surface.tsv"
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -279,7 +280,7 @@ rule scout:
         cfg=lambda wc: cfg_scout(wc.state),
         states=STATES,
     log:
-        "logs/scout/{state}.log",
+        f"{LOGS}/scout/{{state}}.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -299,7 +300,7 @@ rule doe_zoom:
         cfg=sections(config, *doe.CONFIG_ZOOM),
         states=STATES,
     log:
-        "logs/doe_zoom.log",
+        f"{LOGS}/doe_zoom.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -320,9 +321,9 @@ if USE_REDUCED:
         params:
             cfg=CFG_MODAL_RULE,  # the points' parameters come from the zoomed sheet (known at run time)
         log:
-            "logs/modal_zoom/points.log",
+            f"{LOGS}/modal_zoom/points.log",
         benchmark:
-            "benchmarks/out/modal_zoom/points.tsv"
+            f"{BENCH}/modal_zoom/points.tsv"
         priority: PRIORITY_TABLES
         threads: 1
         resources:
@@ -343,9 +344,9 @@ else:
         params:
             cfg=CFG_MODAL_RULE,  # the point's parameters come from the zoomed sheet (known at run time)
         log:
-            "logs/modal_zoom/{point}.log",
+            f"{LOGS}/modal_zoom/{{point}}.log",
         benchmark:
-            "benchmarks/out/modal_zoom/{point}.tsv"
+            f"{BENCH}/modal_zoom/{{point}}.tsv"
         priority: PRIORITY_TABLES
         threads: 1
         resources:
@@ -365,7 +366,7 @@ rule gather_zoom:
     params:
         cfg=CFG_MODAL_CHAIN,  # nothing of its own: for the provenance
     log:
-        "logs/gather_zoom.log",
+        f"{LOGS}/gather_zoom.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -386,7 +387,7 @@ rule fit_zoom:
     params:
         cfg=CFG_FIT_SURFACE,
     log:
-        "logs/fit_zoom.log",
+        f"{LOGS}/fit_zoom.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -410,9 +411,9 @@ rule identify:
         cfg=lambda wc: cfg_identify(wc.state),
         states=STATES,
     log:
-        "logs/identify/{state}.log",
+        f"{LOGS}/identify/{{state}}.log",
     benchmark:
-        "benchmarks/out/identify/{state}.tsv"
+        f"{BENCH}/identify/{{state}}.tsv"
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -435,9 +436,9 @@ rule verify:
     params:
         cfg=CFG_VERIFY,
     log:
-        "logs/verify/{state}.log",
+        f"{LOGS}/verify/{{state}}.log",
     benchmark:
-        "benchmarks/out/verify/{state}.tsv"
+        f"{BENCH}/verify/{{state}}.tsv"
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -461,7 +462,7 @@ rule tables:
     params:
         cfg=CFG_TABLES_CHAIN,  # nothing of its own: for the provenance
     log:
-        "logs/tables.log",
+        f"{LOGS}/tables.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:

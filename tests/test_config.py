@@ -302,7 +302,7 @@ BAD = [
      "solver.shift_Hz: 0 with rig.support.kind: free factorises a singular stiffness (rigid-body modes) — "
      "use a negative shift, e.g. -10"),
     ("unknown top-level key", lambda c: c.update(reprot={}),
-     "reprot: unknown key — did you mean 'report'? (allowed: materials, model, rig, mesh, mesh_check, carriage_rigidity, catalogue, joints, states, measurements, "
+     "reprot: unknown key — did you mean 'report'? (allowed: run, materials, model, rig, mesh, mesh_check, carriage_rigidity, catalogue, joints, states, measurements, "
      "datasets, doe, surface, identify, solver, harmonic, diagnosis, effects, linked, hypotheses, ema, next_measurement, report)"),
     ("length in mm", lambda c: c["rig"]["base"].update(length_m=1100),
      "rig.base.length_m: 1100 m is not a plausible size of a machine-tool feed drive; the value looks like mm — "

@@ -25,17 +25,17 @@ def test_second_example_runs_end_to_end_and_ranks_its_hidden_effect_first(tmp_pa
                           capture_output=True, text=True, timeout=1800, env=workflow_env())
     assert proc.returncode == 0, tail(proc.stdout + proc.stderr)
     truth = yaml.safe_load((work / EXAMPLE / "truth.yaml").read_text())
-    ranking = pd.read_csv(work / "results/diagnosis/measured/ranking.csv")
+    ranking = pd.read_csv(work / "results/single_carriage/diagnosis/measured/ranking.csv")
     first = ranking.iloc[0]
     hidden = next(iter(truth["effects"]))
     assert first["effect"] == hidden and bool(first["explains"])
     assert first["ci95_low"] <= truth["effects"][hidden]["beta"] <= first["ci95_high"]
-    ladder = pd.read_csv(work / "results/diagnosis/measured/ladder.csv")
+    ladder = pd.read_csv(work / "results/single_carriage/diagnosis/measured/ladder.csv")
     before = ladder[ladder.variant == "baseline"].max_abs_error_pct.max()
     after = ladder[ladder.variant.str.startswith(f"+{hidden}")].max_abs_error_pct.max()
     assert before > 5.0 and after < 0.5  # the error falls from the model's misfit to the noise
     # the rest of the chain ran on the mesh file: tables without the paper's columns, report written
-    table = pd.read_csv(work / "results/tables/table3_power_on.csv")
+    table = pd.read_csv(work / "results/single_carriage/tables/table3_power_on.csv")
     assert table.paper_simulation_Hz.isna().all() and table.relative_error_pct.abs().max() < 2.0
-    assert (work / "results/report/index.html").stat().st_size > 0
-    assert not (work / "results/identify/power_off/carriage_rigidity.json").exists()  # the rig's test only
+    assert (work / "results/single_carriage/report/index.html").stat().st_size > 0
+    assert not (work / "results/single_carriage/identify/power_off/carriage_rigidity.json").exists()  # the rig's test only

@@ -34,9 +34,9 @@ rule diagnosis_basis:
     params:
         cfg=_basis_cfg(),
     log:
-        "logs/diagnosis_basis.log",
+        f"{LOGS}/diagnosis_basis.log",
     benchmark:
-        "benchmarks/out/diagnosis_basis.tsv"
+        f"{BENCH}/diagnosis_basis.tsv"
     priority: PRIORITY_DIAGNOSIS
     threads: 1
     resources:

@@ -58,9 +58,9 @@ if DIAG_DATASETS:
         wildcard_constraints:
             dataset="|".join(DIAG_DATASETS),
         log:
-            "logs/diagnosis/{dataset}.log",
+            f"{LOGS}/diagnosis/{{dataset}}.log",
         benchmark:
-            "benchmarks/out/diagnosis/{dataset}.tsv"
+            f"{BENCH}/diagnosis/{{dataset}}.tsv"
         priority: PRIORITY_DIAGNOSIS
         threads: 1
         resources:
@@ -89,9 +89,9 @@ if DIAG_DATASETS:
         wildcard_constraints:
             dataset="|".join(DIAG_DATASETS),
         log:
-            "logs/diagnosis/{dataset}_current.log",
+            f"{LOGS}/diagnosis/{{dataset}}_current.log",
         benchmark:
-            "benchmarks/out/current/{dataset}.tsv"
+            f"{BENCH}/current/{{dataset}}.tsv"
         threads: 1
         resources:
             mem_mb=4500,

@@ -21,9 +21,9 @@ rule ema:
     wildcard_constraints:
         source="[A-Za-z][A-Za-z0-9_]*",
     log:
-        "logs/ema/{source}.log",
+        f"{LOGS}/ema/{{source}}.log",
     benchmark:
-        "benchmarks/out/ema/{source}.tsv"
+        f"{BENCH}/ema/{{source}}.tsv"
     threads: 1
     resources:
         mem_mb=1500,

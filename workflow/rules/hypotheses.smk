@@ -46,9 +46,9 @@ if HYPOTHESES:
         wildcard_constraints:
             name="|".join(HYPOTHESES),
         log:
-            "logs/hypotheses/{name}.log",
+            f"{LOGS}/hypotheses/{{name}}.log",
         benchmark:
-            "benchmarks/out/hypotheses/{name}.tsv"
+            f"{BENCH}/hypotheses/{{name}}.tsv"
         priority: _hypothesis_priority
         threads: 1
         resources:
@@ -70,7 +70,7 @@ if HYPOTHESES:
         params:
             cfg=sections(config, *hyp_stage.RANKING_CONFIG),
         log:
-            "logs/hypotheses/ranking.log",
+            f"{LOGS}/hypotheses/ranking.log",
         priority: PRIORITY_HYPOTHESES
         threads: 1
         script:

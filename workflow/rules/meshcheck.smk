@@ -21,9 +21,9 @@ if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "
         params:
             cfg=CFG_MESH_CHECK,
         log:
-            "logs/mesh_check/{state}.log",
+            f"{LOGS}/mesh_check/{{state}}.log",
         benchmark:
-            "benchmarks/out/mesh_check/{state}.tsv"
+            f"{BENCH}/mesh_check/{{state}}.tsv"
         priority: PRIORITY_DIAGNOSIS  # beside the hypotheses, not after them (see the Snakefile)
         threads: 1
         resources:

@@ -49,9 +49,9 @@ rule harmonic:
     params:
         cfg=lambda wc: cfg_harmonic(wc.state),
     log:
-        "logs/harmonic/{state}.log",
+        f"{LOGS}/harmonic/{{state}}.log",
     benchmark:
-        "benchmarks/out/harmonic/{state}.tsv"
+        f"{BENCH}/harmonic/{{state}}.tsv"
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -76,7 +76,7 @@ rule table1:
     params:
         cfg=CFG_TABLE1_CHAIN,  # harmonic.band_Hz / n_freq for the ranges; the rest for the provenance
     log:
-        "logs/table1.log",
+        f"{LOGS}/table1.log",
     priority: PRIORITY_TABLES
     threads: 1
     resources:
@@ -94,7 +94,7 @@ rule joint_damping_states:
     params:
         cfg=CFG_DAMPING_STATES,  # nothing of its own: for the provenance
     log:
-        "logs/joint_damping_states.log",
+        f"{LOGS}/joint_damping_states.log",
     threads: 1
     resources:
         mem_mb=500,
@@ -142,9 +142,9 @@ rule report:
     params:
         cfg=config,
     log:
-        "logs/report.log",
+        f"{LOGS}/report.log",
     benchmark:
-        "benchmarks/out/report.tsv"
+        f"{BENCH}/report.tsv"
     threads: 1
     resources:
         mem_mb=1500,

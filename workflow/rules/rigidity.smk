@@ -15,9 +15,9 @@ rule carriage_rigidity:
     params:
         cfg=CFG_RIGIDITY,
     log:
-        "logs/carriage_rigidity/{state}.log",
+        f"{LOGS}/carriage_rigidity/{{state}}.log",
     benchmark:
-        "benchmarks/out/carriage_rigidity/{state}.tsv"
+        f"{BENCH}/carriage_rigidity/{{state}}.tsv"
     threads: 1
     resources:
         mem_mb=2000,  # 1.4-1.5 GB measured (the 41k-DOF factorisations of the default 6 mm cells)

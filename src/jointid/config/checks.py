@@ -25,8 +25,13 @@ __all__ = [
     "check_harmonic",
     "check_joints",
     "check_materials",
+    "check_run",
     "check_solver",
 ]
+
+STAGE_FOLDERS = ("carriage_rigidity", "diagnosis", "doe", "ema", "harmonic", "hypotheses", "identify", "mesh_check",
+                 "modal", "model", "report", "rom", "surface", "tables")
+"""The folders the stages write directly under results/ (a run name must not be one of them)."""
 
 _POINT_RE = re.compile(r"^[TB](0[1-9]|1[0-8])$")
 
@@ -229,6 +234,17 @@ def check_solver(c: Checks) -> None:
             c.add("identify.weights", "all weights are 0 — give at least one positive weight, or [] for all 1")
     except Skip:
         pass
+
+
+def check_run(c: Checks) -> None:
+    """A run name is not the folder of a stage (results/<name>/ would mix the study with the default's)."""
+    try:
+        name = c.get("run.name")
+    except Skip:
+        return
+    if name in STAGE_FOLDERS:
+        c.add("run.name", f"{name!r} is the folder of a stage under results/ — choose another name, e.g. "
+                          f"{name}_study")
 
 
 def check_model(c: Checks) -> None:

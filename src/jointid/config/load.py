@@ -21,7 +21,7 @@ from typing import Any
 import yaml
 
 from jointid.config.checks import (Checks, check_doe, check_harmonic, check_joints, check_materials, check_model,
-                                   check_solver)
+                                   check_run, check_solver)
 from jointid.config.datasets import check_dataset_folders, check_states
 from jointid.config.messages import dotted, kind, suggest, translate
 from jointid.config.rig import check_geometry, check_mesh
@@ -35,7 +35,7 @@ DEFAULT_SOURCE = "config.yaml"
 """Label of the problem lines of a configuration given as a mapping."""
 
 SEMANTIC_CHECKS = (check_materials, check_geometry, check_mesh, check_joints, check_states,
-                   check_doe, check_harmonic, check_solver, check_model)
+                   check_doe, check_harmonic, check_solver, check_model, check_run)
 """The semantic checks :func:`check_config` always runs, in the order their problems are reported."""
 
 

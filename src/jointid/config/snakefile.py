@@ -11,7 +11,17 @@ from jointid.config.load import load_config
 from jointid.errors import ConfigError
 from jointid.yamlio import deep_merge
 
-__all__ = ["attribute", "merged", "sections", "validated"]
+__all__ = ["attribute", "merged", "run_folders", "sections", "validated"]
+
+
+def run_folders(config: dict) -> tuple[str, str, str]:
+    """``(results, logs, benchmarks)`` folders of the study: ``results``, ``logs``, ``benchmarks/out``
+    without a ``run.name``, else ``results/<name>``, ``logs/<name>``, ``benchmarks/out/<name>`` (one study,
+    one folder: two configurations in one working folder never write over each other)."""
+    name = str(((config.get("run") or {}).get("name")) or "")
+    if not name:
+        return "results", "logs", "benchmarks/out"
+    return f"results/{name}", f"logs/{name}", f"benchmarks/out/{name}"
 
 
 def validated(config: dict, configfiles=()) -> dict:

@@ -81,7 +81,8 @@ def remove_damaged(results: Path, workdir: Path) -> list[str]:
 
 def forget_subspaces(results: Path, workdir: Path) -> list[str]:
     """Remove the diagnoses' kept subspaces (step 4); one line for all of them."""
-    kept = sorted((results / "diagnosis").glob("*/subspace.npz")) if (results / "diagnosis").is_dir() else []
+    # the default study's (results/diagnosis/) and those of named studies (results/<run.name>/diagnosis/)
+    kept = sorted([*results.glob("diagnosis/*/subspace.npz"), *results.glob("*/diagnosis/*/subspace.npz")])
     for p in kept:
         p.unlink(missing_ok=True)
     return [f"removed {len(kept)} kept diagnosis subspace(s) ({', '.join(_rel(p, workdir) for p in kept[:2])}"
