@@ -2,7 +2,7 @@
 when there is none, and how often its nominal 95 % intervals hold the truth, when the model is a little
 wrong (the truth solved on a finer mesh) and the noise is stated right, 2x too small or 2x too large.
 
-A benchmark, not a CI test.  Each case is a synthetic dataset (:mod:`jointid.diagnosis.synth`) drawn
+A benchmark, not a CI test.  Each case is a synthetic dataset (:mod:`jointid.synthetic.generate`) drawn
 from the design below, diagnosed by :func:`jointid.diagnosis.loop.diagnose` on the rig of the
 synthetic diagnosis tests (``benchmarks.common.diagnosis_rig``: normal and lateral joint stiffness
 identified, feed fixed), and scored from the public results only (``Diagnosis.ranking``,
@@ -69,7 +69,7 @@ of the splits by noise statement and by shapes below 80 %.
 the CSV and in ``docs/validation.md`` (a rerun replaces its own rows only).  ``--quick``: 6 cases
 (``QUICK_CASES``: one of each kind and stratum, coarse rig), no doc.  The datasets are kept in
 ``benchmarks/out/coverage_data/<rig>/<case>`` (keyed by the truth's hash; synthesised again when
-``jointid/diagnosis/synth.py`` changes): a second run with other options does not synthesise again.  One reduced solver is reused from case to case (``diagnose(...,
+``jointid/synthetic/generate.py`` changes): a second run with other options does not synthesise again.  One reduced solver is reused from case to case (``diagnose(...,
 solver=)``, as the hidden-effect tests do): its subspace only grows and every answer is certified.
 """
 
@@ -155,7 +155,7 @@ def design() -> list[dict]:
 
 
 def truth_of(c: dict, rig: str) -> dict:
-    """The synth truth of a case (:mod:`jointid.diagnosis.synth`)."""
+    """The synth truth of a case (:mod:`jointid.synthetic.generate`)."""
     f = NOISE_FACTORS[c["noise"]]
     return {"joints": dict(c["joints"]), "states": STATES, "effects": {k: dict(v) for k, v in c["effects"].items()},
             "overrides": TRUTH_MESH[rig],
@@ -220,7 +220,7 @@ class Runner:
     def dataset(self, c: dict) -> tuple[Path, float]:
         """The case's dataset folder (synthesised unless kept from an earlier run) and the seconds spent."""
         from jointid.config.typed import ModelSpec
-        from jointid.diagnosis import synth
+        from jointid.synthetic import generate as synth
         from jointid.fe.model import build_model
 
         truth = truth_of(c, self.rig_name)
@@ -334,7 +334,7 @@ def _inside(v, lo, hi) -> bool:
 
 def score(c: dict, res) -> dict:
     """One CSV row: the case, what was named, the intervals and whether they hold the truth."""
-    from jointid.diagnosis.outputs import verdict_record
+    from jointid.reporting.diagnosis_outputs import verdict_record
 
     rec = verdict_record(res, c["case"], {})
     supported = list(rec["supported"])
@@ -535,7 +535,7 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
                 out.parameters.to_csv(keep / "parameters.csv", index=False)
             out.combinations.to_csv(keep / "combinations.csv", index=False)
             (keep / "verdict.txt").write_text(out.verdict + "\n")
-            from jointid.diagnosis.outputs import verdict_record
+            from jointid.reporting.diagnosis_outputs import verdict_record
 
             rec = verdict_record(out, c["case"], {})
             (keep / "verdict.json").write_text(json.dumps({k: rec[k] for k in ("explained_by", "supported",

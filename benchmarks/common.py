@@ -28,7 +28,7 @@ def diagnosis_rig(rig: str = "coarse") -> dict:
     ``default`` (the shipped config.yaml's mesh).  Returns ``{"cfg", "model", "system", "solver"}``."""
     import yaml
 
-    from jointid.diagnosis.synth import identification_rig
+    from jointid.synthetic.generate import identification_rig
 
     with open(ROOT / "config.yaml") as fh:
         cfg = yaml.safe_load(fh)

@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import pandas as pd
 
 from jointid.diagnosis.effects import EFFECTS, enabled_effects
-from jointid.diagnosis.synth import check_truth
+from jointid.synthetic.generate import check_truth
 
 from .bench_j_coverage import (NOISE_FACTORS, QUICK_CASES, SIZES, design, metrics, named_effects, select,
                                summary_tables, truth_of)

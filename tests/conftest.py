@@ -107,7 +107,7 @@ def diagnosis_rig() -> dict:
     """The rig of the synthetic diagnosis tests: coarse mesh, normal and lateral joint stiffness
     identified, feed stiffness fixed (so the feed effect is not absorbed by an identified parameter).
     Returns ``{"cfg", "model", "system", "solver"}`` (solver None: the first diagnosis makes it)."""
-    from jointid.diagnosis.synth import identification_rig
+    from jointid.synthetic.generate import identification_rig
 
     return identification_rig(coarse_config_dict())
 

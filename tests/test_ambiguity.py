@@ -20,12 +20,12 @@ import numpy as np
 import pytest
 
 from jointid.data.dataset import read_dataset, write_dataset
-from jointid.diagnosis import synth
+from jointid.synthetic import generate as synth
 from jointid.diagnosis.effects import pressure_ratio
-from jointid.diagnosis.history import history_row
+from jointid.reporting.diagnosis_history import history_row
 from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.memo import FitMemo
-from jointid.diagnosis.outputs import write_outputs
+from jointid.reporting.diagnosis_outputs import write_outputs
 from jointid.diagnosis.terms import StateInfo
 from jointid.diagnosis.variants import dataset_states
 from conftest import diagnosis_rig, ladder_text, print_summary

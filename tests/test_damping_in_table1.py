@@ -1,7 +1,7 @@
 """Table 1 and the model FRFs from the identified joint damping (issue 40: "Table 1 and the FRFs then use the
 identified damping when the data carry zeta, and say 'assumed' when they do not"), and the two states compared.
 
-Known truth on the coarse rig (jointid.diagnosis.synth): hidden loss factors in the normal and the lateral joints
+Known truth on the coarse rig (jointid.synthetic.generate): hidden loss factors in the normal and the lateral joints
 plus a structural zeta0, the same in both states.  The stiffness comes from the FE polish (a start off the truth),
 the joint damping from the identify stage's path (joint_damping.params_entry), then the harmonic stage and rule
 table1 run as in the workflow.  Checked:
@@ -18,6 +18,7 @@ Run with -s to see the numbers.
 """
 import copy
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -63,14 +64,14 @@ def _run(tmp, cfg, model_file, polish, ds, name: str, with_damping: bool):
     df = run_table1([paths[s]["json"] for s in STATES], None, str(out / "table1.csv"), str(out / "table1.md"),
                     points_npz=[paths[s]["points"] for s in STATES], cfg=cfg, out_ranges=str(out / "ranges.csv"),
                     out_cases=str(out / "cases.csv"))
-    docs = {s: json.loads(open(paths[s]["json"]).read()) for s in STATES}
+    docs = {s: json.loads(Path(paths[s]["json"]).read_text()) for s in STATES}
     return df, docs, paths
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     from jointid.data.dataset import read_dataset, write_dataset
-    from jointid.diagnosis.synth import synthesise
+    from jointid.synthetic.generate import synthesise
     from jointid.fe.model import save_model
     from jointid.geometry.points import dof_labels
     from jointid.config.typed import ModelSpec
@@ -148,8 +149,8 @@ def test_table1_from_the_identified_damping_is_the_truths(runs, capsys):
         assert {m["source"] for m in per_mode} <= {"identified", "rigid"}
         assert len({round(m["damping_ratio"], 6) for m in per_mode if m["source"] == "identified"}) > 3  # per mode
         assert doc["damping_range"]["damping_ratio_grid"] == ["low", "value", "high"]
-    md = open(runs["damped"][2]["power_off"]["json"].replace("power_off/dynamic_stiffness.json",
-                                                               "tables/table1.md")).read()
+    md = Path(runs["damped"][2]["power_off"]["json"].replace("power_off/dynamic_stiffness.json",
+                                                               "tables/table1.md")).read_text()
     assert "identified damping's 95 % intervals" in md and "power_on: identified: ζ0" in md
     from jointid.reporting.table_sections import table1_html
 
@@ -163,13 +164,13 @@ def test_frequency_only_data_keep_the_assumed_damping(runs):
     assert "damping_source" not in df and "damping_note" not in df
     assert list(df.columns) == [c for c in damped.columns if c not in ("damping_source", "damping_note")]
     for s, doc in docs.items():
-        assert "joint_damping" not in json.loads(open(paths[s]["params"]).read())
+        assert "joint_damping" not in json.loads(Path(paths[s]["params"]).read_text())
         assert doc["damping"]["source"] == "assumed"
         z = {m["damping_ratio"] for m in doc["damping"]["per_mode"] if m["source"] != "rigid"}
         assert z == {runs["cfg"]["harmonic"]["damping"]["damping_ratio"]}
         assert {m["source"] for m in doc["damping"]["per_mode"]} <= {"modal", "rigid"}
     assert df["damping_ratio_low"].tolist() == [0.02, 0.02] and df["damping_ratio_high"].tolist() == [0.05, 0.05]
-    md = open(paths["power_off"]["json"].replace("power_off/dynamic_stiffness.json", "tables/table1.md")).read()
+    md = Path(paths["power_off"]["json"].replace("power_off/dynamic_stiffness.json", "tables/table1.md")).read_text()
     assert "Damping model: `modal`" in md and "ζ0" not in md and "identified damping" not in md
 
 
@@ -195,7 +196,7 @@ def test_the_states_compared(runs, tmp_path, capsys):
     page = damping_section_html(doc)
     assert shown(doc) and "Does the attraction change the joint loss factor?" in page and "eta_lateral" in page
     # a loss factor moved by 10 sd in one state is a change; the other parameters are not
-    recs = {s: json.loads(open(paths[s]["params"]).read())["joint_damping"] for s in STATES}
+    recs = {s: json.loads(Path(paths[s]["params"]).read_text())["joint_damping"] for s in STATES}
     on = copy.deepcopy(recs["power_on"])
     on["eta_normal"] = recs["power_off"]["eta_normal"] + 10 * recs["power_off"]["eta_normal_sd"]
     moved = states_comparison({"power_off": recs["power_off"], "power_on": on}, "power_off")["comparisons"][0]

@@ -15,7 +15,7 @@ import yaml
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis import effects as E
 from jointid.diagnosis import terms as T
-from jointid.diagnosis.history import append_history
+from jointid.reporting.diagnosis_history import append_history
 from jointid.diagnosis.statistics import identifiability, score_test
 from jointid.diagnosis.variants import EffectSpec, Variant
 from jointid.fe.reduced import ReducedSolver
@@ -337,7 +337,7 @@ def test_current_stage_gives_the_diagnosis_ladder_without_the_candidate_search(t
     same steps as the diagnosis, so its ladder equals the diagnosis' first ladder rows."""
     from conftest import diagnosis_rig
 
-    from jointid.diagnosis import synth
+    from jointid.synthetic import generate as synth
     from jointid.diagnosis.loop import diagnose
     from jointid.stages.diagnosis import run_current
 

@@ -292,6 +292,8 @@ def test_heal_stops_a_job_whose_snakemake_is_gone(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
     assert status == 0 and len(lines) == 1, lines
     assert lines[0].startswith(f"job identify (pid {proc.pid}, started ") and "stopped (SIGTERM)" in lines[0]
     assert not tmp.exists() and not target.exists() and jobs.running(tmp_path) == []

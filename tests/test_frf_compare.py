@@ -132,7 +132,7 @@ def synthetic(tmp_path_factory):
     """A synthetic dataset with a drive-point FRF (T05 y, 400 lines over 100-3500 Hz, every mode at zeta 0.02)
     from the coarse diagnosis rig, and the harmonic stage's config reading it (modal damping 0.02: the
     truth's)."""
-    from jointid.diagnosis.synth import write_synthetic
+    from jointid.synthetic.generate import write_synthetic
     from jointid.fe.model import save_model
 
     tmp = tmp_path_factory.mktemp("frf_synth")

@@ -13,10 +13,10 @@ import pandas as pd
 import pytest
 
 from jointid.diagnosis import effects as E
-from jointid.diagnosis import synth
-from jointid.diagnosis.history import history_row
+from jointid.synthetic import generate as synth
+from jointid.reporting.diagnosis_history import history_row
 from jointid.diagnosis.loop import diagnose
-from jointid.diagnosis.outputs import write_outputs
+from jointid.reporting.diagnosis_outputs import write_outputs
 from jointid.diagnosis.variants import dataset_states
 from jointid.data.dataset import read_dataset
 from conftest import diagnosis_rig, ladder_text, print_summary

@@ -14,10 +14,10 @@ import pytest
 
 from jointid.config import load_config
 from jointid.data.dataset import read_dataset
-from jointid.diagnosis import synth
+from jointid.synthetic import generate as synth
 from jointid.diagnosis import terms as T
-from jointid.diagnosis.hypotheses import LinkedLaw, fit_hypothesis, hypothesis_config, needs_own_model
-from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
+from jointid.reconstruction.hypotheses import LinkedLaw, fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
 from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
 from jointid.fe.model import build_model
@@ -227,7 +227,7 @@ def test_a_visible_mode_left_out_of_the_data_is_reported_missing(setup, tmp_path
         lo, hi = 0.97 * fs[fs < f].max(), 1.03 * fs[fs > f].min()
         assert any(lo < m["freq_Hz"] < hi for m in missing if m["state"] == state), (state, lo, f, hi, missing)
     assert all(s["n_unpaired_visible"] >= 1 for s in recs["paper_rig"]["states"])
-    # what the fit predicts for measurements not made (jointid.diagnosis.hypothesis_predictions): the
+    # what the fit predicts for measurements not made (jointid.reconstruction.predictions): the
     # carried mass of config.yaml's comment (table 11.06 + carriages 2.96 + motors 9.0 kg), a static
     # drive-point stiffness per state and direction, a shape per measured mode
     pred = recs["paper_rig"]["predictions"]

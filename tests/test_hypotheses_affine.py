@@ -1,7 +1,7 @@
 """Coefficient-only hypotheses on the run's model (issue 41, items 3 and 6).
 
 A hypothesis that changes only a part's material (Young's modulus, density, Poisson's ratio), or the
-motor mass, is a change of coefficients of the run's model (``diagnosis.hypotheses.needs_own_model``, ``fe.model.solid_coefficients``):
+motor mass, is a change of coefficients of the run's model (``reconstruction.hypotheses.needs_own_model``, ``fe.model.solid_coefficients``):
 fitted on the run's model it must give the fit it gives on a model built with the change (chi-square to
 1e-6 relative, AICc to 0.1), on the paper's data and the coarse mesh.  An attraction given by a
 hypothesis reaches its fit in place of the dataset's.
@@ -13,7 +13,7 @@ import pytest
 
 from jointid import io
 from jointid.config import load_config
-from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.reconstruction.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
 from jointid.diagnosis.terms import build_system
 from jointid.fe.model import build_model, save_model
 from jointid.stages.hypotheses import measured_states, run_hypothesis

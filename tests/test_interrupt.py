@@ -41,6 +41,8 @@ def _killed_writer(target: Path, sig: int) -> Path:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
     return tmp
 
 
@@ -140,6 +142,8 @@ def test_sigterm_to_a_stage_removes_its_temporary_files_and_exits_nonzero(tmp_pa
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
     assert rc == 128 + signal.SIGTERM
     assert not tmp.exists() and temporary_files(tmp_path) == []
     assert target.read_text() == "old result\n", "the previous result survives"

@@ -4,7 +4,7 @@
   back exact loss factors (and dashpot constants), intervals are calibrated over many noise draws, and a
   direction collinear with another is reported, not valued;
 * known truth on the coarse rig: hidden loss factors in the normal and the lateral joints plus a structural
-  zeta0 (jointid.diagnosis.synth), the stiffness identified by the FE polish, the damping fitted from the
+  zeta0 (jointid.synthetic.generate), the stiffness identified by the FE polish, the damping fitted from the
   polish's sensitivities (the identify stage's path, stage_record); each value inside its 95 % interval and
   Table 1 from the identified damping within 5 % of the truth's;
 * misstated noise: ratios with 10 % noise stated as 2 % give c_hat > 1, wider intervals, the truth covered.
@@ -182,7 +182,7 @@ def rig_polish(tmp_path_factory):
     from conftest import diagnosis_rig
     from jointid.data.dataset import read_dataset
     from jointid.data.dataset import write_dataset
-    from jointid.diagnosis.synth import synthesise
+    from jointid.synthetic.generate import synthesise
     from jointid.geometry.points import dof_labels
     from jointid.identification.polish import PolishFit, polish_on_model
     import pandas as pd
@@ -213,7 +213,7 @@ def state_cfg(rig, folder):
 def identified_table1(rig, rec, theta, state_truth):
     """Table 1 (min |F/X| over harmonic.band_Hz at the drive point, modal superposition) from the identified
     stiffness and damping, and the truth's from its modes and hidden damping."""
-    from jointid.diagnosis.synth import joint_shares
+    from jointid.synthetic.generate import joint_shares
     from jointid.fe.model import base_coefficients, joint_terms
     from jointid.identification.polish import solve_point
     from jointid.response.ranges import band_minimum
@@ -276,7 +276,7 @@ def test_hidden_joint_damping_recovered_on_the_coarse_rig(rig_polish, capsys):
 
 def test_energy_shares_from_the_polish_are_those_of_the_modes(rig_polish):
     """The identify stage's shares (the polish's sensitivities) equal phi^T K_j phi / w^2 of a fresh solve."""
-    from jointid.diagnosis.synth import joint_shares
+    from jointid.synthetic.generate import joint_shares
     from jointid.fe.model import base_coefficients, joint_terms
     from jointid.identification.polish import solve_point
     from jointid.data.dataset import read_dataset
@@ -292,7 +292,7 @@ def test_energy_shares_from_the_polish_are_those_of_the_modes(rig_polish):
 
 def test_misstated_noise_inflates_the_intervals(rig_polish, tmp_path, capsys):
     from jointid.data.dataset import read_dataset
-    from jointid.diagnosis.synth import write_synthetic
+    from jointid.synthetic.generate import write_synthetic
 
     rig = rig_polish
     folder = tmp_path / "misstated"

@@ -62,7 +62,7 @@ def test_records_read_back_exactly_and_count_hits():
 def test_a_fit_asked_again_is_evaluated_at_its_recorded_optimum(tmp_path):
     from conftest import diagnosis_rig
 
-    from jointid.diagnosis import synth
+    from jointid.synthetic import generate as synth
     from jointid.diagnosis.fitting import Diagnoser
     from jointid.diagnosis.variants import Variant
     from jointid.stages.diagnosis import _system_and_data
@@ -110,7 +110,7 @@ def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
     taken from the record (no search, the Sturm counts at its optimum not made again)."""
     from conftest import diagnosis_rig
 
-    from jointid.diagnosis import synth
+    from jointid.synthetic import generate as synth
     from jointid.diagnosis.loop import diagnose
     from jointid.stages.diagnosis import _system_and_data
 

@@ -20,9 +20,9 @@ import re
 import pytest
 
 from jointid.data.dataset import read_dataset
-from jointid.diagnosis import synth
+from jointid.synthetic import generate as synth
 from jointid.diagnosis.loop import diagnose
-from jointid.diagnosis.outputs import verdict_record
+from jointid.reporting.diagnosis_outputs import verdict_record
 from jointid.diagnosis.variants import dataset_states
 from conftest import diagnosis_rig
 
@@ -110,8 +110,8 @@ def test_c_a_lighter_moving_mass_is_covered_by_the_reconstruction_range(rig, tmp
     model, none of them the truth): those admissible by QAICc span the true mass, and the joint
     stiffness over them spans the true joints."""
     from jointid.config import load_config
-    from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
-    from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
+    from jointid.reconstruction.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+    from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
     from jointid.diagnosis.terms import build_system
 
     cfg = rig["cfg"]

@@ -1,4 +1,4 @@
-"""The measurement that would narrow the reconstruction (jointid.diagnosis.next_measurement): the
+"""The measurement that would narrow the reconstruction (jointid.reconstruction.next_measurement): the
 expected-gain arithmetic on analytic toys (three hypotheses with known predictions), no FE."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jointid.diagnosis.next_measurement import (ProposalOptions, ScalarCandidate, ShapePairCandidate, expected_gain,
+from jointid.reconstruction.next_measurement import (ProposalOptions, ScalarCandidate, ShapePairCandidate, expected_gain,
                                                 next_measurement_markdown, propose)
 from jointid.diagnosis.shape_proposal import pair_chi2
 from jointid.identification.model_error import akaike_weights

@@ -143,7 +143,7 @@ def table_widths(page: str) -> list[int]:
 
 
 def test_wide_frames_are_split_into_tables_of_eight_columns_at_most():
-    from jointid.diagnosis.page import html_table as diagnosis_table
+    from jointid.reporting.diagnosis_page import html_table as diagnosis_table
     from jointid.reporting.htmltable import MAX_COLUMNS, html_table
 
     df = pd.DataFrame({"state": ["power_off", "power_on"], **{f"c{i}": [1.5 * i, 2.5 * i] for i in range(12)},
@@ -157,7 +157,7 @@ def test_wide_frames_are_split_into_tables_of_eight_columns_at_most():
 
 
 def test_short_verdict_is_one_sentence():
-    from jointid.diagnosis.summary import short_verdict
+    from jointid.reporting.diagnosis_summary import short_verdict
 
     ranking = pd.DataFrame({"effect": ["em_preload", "base_support"], "support": ["moderately", "not"],
                             "delta_qaicc": [-8.38, -0.03], "removed_fraction": [0.468, 0.12]})

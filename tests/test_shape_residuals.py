@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from jointid.data.dataset import read_dataset, write_dataset
-from jointid.diagnosis import synth
+from jointid.synthetic import generate as synth
 from jointid.diagnosis.fitting import Diagnoser
 from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.variants import Variant, dataset_states

@@ -110,7 +110,7 @@ def test_a_warm_quick_half_agrees_with_a_cold_one(tmp_path):
     reports the same ladder to the certified tolerance; with reuse_subspace false nothing is kept."""
     from conftest import diagnosis_rig
 
-    from jointid.diagnosis import synth
+    from jointid.synthetic import generate as synth
     from jointid.stages.diagnosis import run_current
 
     rig = diagnosis_rig()

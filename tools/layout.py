@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 LAYERS = ["errors", "io_errors", "io", "yamlio", "threads", "correlate", "data", "config", "ema", "geometry", "fe",
-          "identification", "response", "diagnosis", "reporting", "stages", "api", "cli"]
+          "identification", "response", "diagnosis", "reconstruction", "synthetic", "reporting", "stages", "api", "cli"]
 
 
 def module_name(path: Path, root: Path) -> str:

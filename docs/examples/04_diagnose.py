@@ -2,7 +2,7 @@
 
 Run from the repository root:  python docs/examples/04_diagnose.py
 
-The "test" is synthesised from a truth the diagnosis never sees (jointid.diagnosis.synth): joint
+The "test" is synthesised from a truth the diagnosis never sees (jointid.synthetic.generate): joint
 stiffness, a library effect at a magnitude, noise.  `study.diagnose` calibrates the baseline, scores
 every library effect against the residual, refits the leading ones and gives a verdict
 (docs/effects.md).  With your own data, pass its folder or UFF file instead.

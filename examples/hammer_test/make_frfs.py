@@ -19,7 +19,7 @@ import yaml
 from jointid.yamlio import read_merged
 from jointid.config.typed import ModelSpec
 from jointid.diagnosis.effects import apply_effects, enabled_effects
-from jointid.diagnosis.synth import hysteretic_ratios, load_truth, truth_config
+from jointid.synthetic.generate import hysteretic_ratios, load_truth, truth_config
 from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system
 from jointid.ema.synthetic import frf_table, modal_frfs
 from jointid.fe.model import build_model

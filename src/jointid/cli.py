@@ -23,7 +23,7 @@ MODULES = {
     "diagnose": "jointid.diagnosis.__main__",
     "config": "jointid.config.__main__",
     "checks": "jointid.reporting.checks",
-    "synth": "jointid.diagnosis.synth",
+    "synth": "jointid.synthetic.generate",
     "uff": "jointid.data.uff",
     "data": "jointid.data.__main__",
     "ema": "jointid.ema.__main__",

@@ -39,7 +39,7 @@ if DIAG_DATASETS:
             ranking=f"{R}/diagnosis/{{dataset}}/ranking.csv",
             ladder=f"{R}/diagnosis/{{dataset}}/ladder.csv",
             page=f"{R}/diagnosis/{{dataset}}/index.html",
-            # written beside them on every run (jointid.diagnosis.outputs); declared so that a missing
+            # written beside them on every run (jointid.reporting.diagnosis_outputs); declared so that a missing
             # one is rebuilt (mac_<state>.csv is written only for states with measured shapes)
             verdict=f"{R}/diagnosis/{{dataset}}/verdict.json",
             combinations=f"{R}/diagnosis/{{dataset}}/combinations.csv",

@@ -21,7 +21,7 @@ def _hypothesis_cfg(wc):
 
 def _hypothesis_basis(wc):
     """The shared basis (rules/basis.smk) for a hypothesis on the run's model; none for one that builds its own."""
-    from jointid.diagnosis.hypotheses import needs_own_model
+    from jointid.reconstruction.hypotheses import needs_own_model
 
     return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
 

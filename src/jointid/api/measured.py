@@ -97,10 +97,10 @@ def identification(state: str, names: list[str], theta0: dict, f_meas, polish: d
 
 
 def write_diagnosis(res, out_dir, dataset_name: str, cfg: dict) -> None:
-    """The files rule ``diagnose`` writes for ``res`` (:func:`jointid.diagnosis.outputs.write_outputs`),
+    """The files rule ``diagnose`` writes for ``res`` (:func:`jointid.reporting.diagnosis_outputs.write_outputs`),
     with the time and the configuration's hash on the page."""
     from jointid.config import config_hash
-    from jointid.diagnosis.outputs import write_outputs
+    from jointid.reporting.diagnosis_outputs import write_outputs
 
     run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": config_hash(cfg)}
     write_outputs(res, out_dir, dataset_name, run)

@@ -303,10 +303,10 @@ class Study:
         return result
 
     def synthetic_dataset(self, truth: str | os.PathLike | Mapping, folder: str | os.PathLike) -> Dataset:
-        """Write a synthetic measured dataset with hidden effects (:mod:`jointid.diagnosis.synth`) to
+        """Write a synthetic measured dataset with hidden effects (:mod:`jointid.synthetic.generate`) to
         ``folder`` from a truth file or mapping (``tests/hidden/*.yaml`` are examples), solved on this
         study's model; returns the :class:`jointid.data.dataset.Dataset`."""
-        from jointid.diagnosis import synth
+        from jointid.synthetic import generate as synth
 
         if isinstance(truth, Mapping):
             synth.check_truth(dict(truth))

@@ -69,8 +69,7 @@ def write_modes_uff(path, points: pd.DataFrame, labels, freqs_Hz, shapes, *, dam
             node_nums=list(node.values()), load_case=1, mode_n=j + 1, modal_m=1.0, freq=float(f),
             modal_damp_vis=float(zeta[j]), modal_damp_his=0.0))
     with atomic_path(path) as tmp:
-        uff = pyuff.UFF(str(tmp))
-        uff.write_sets(sets, mode="overwrite")
+        _write_sets(pyuff.UFF(str(tmp)), sets)
 
 
 def write_frf_uff(path, points: pd.DataFrame, frf: pd.DataFrame, *, drive_point: str, drive_direction: str,
@@ -113,5 +112,17 @@ def write_frf_uff(path, points: pd.DataFrame, frf: pd.DataFrame, *, drive_point:
             x=g["freq_Hz"].to_numpy(float), ord_data_type=6, abscissa_spacing=0, abscissa_spec_data_type=18,
             ordinate_spec_data_type=8, orddenom_spec_data_type=13))
     with atomic_path(path) as tmp:
-        uff = pyuff.UFF(str(tmp))
+        _write_sets(pyuff.UFF(str(tmp)), sets)
+
+
+def _write_sets(uff, sets) -> None:
+    """``uff.write_sets(sets, mode="overwrite")``.  pyuff 2.4's ASCII writer of data set 58 leaves its file to
+    the garbage collector (it never calls close); the file is closed, and its data flushed, when the call
+    returns, before the atomic rename.  The ResourceWarning that close raises is pyuff's, and is silenced here."""
+    import gc
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResourceWarning)
         uff.write_sets(sets, mode="overwrite")
+        gc.collect()  # the writer's file is closed here, inside the filter

@@ -14,18 +14,17 @@ tables
     Result tables: ladder rows, ranking, parameters, comparison, drift.
 loop
     The driver :func:`diagnose` and its steps; the result :class:`Diagnosis`.
-page, outputs, history
-    The report page (figures, jinja2 template), the result files, the run history CSV.
-synth
-    Synthetic datasets with hidden effects (to prove the diagnosis).
 __main__
     The command line ``python -m jointid.diagnosis``.
+
+Elsewhere: the diagnosis's page, result files and run history are in :mod:`jointid.reporting`
+(``diagnosis_page``, ``diagnosis_outputs``, ``diagnosis_history``); the reconstruction hypotheses in
+:mod:`jointid.reconstruction`; synthetic datasets with hidden effects in :mod:`jointid.synthetic`.
 """
 
 import importlib
 
-_EXPORTS = {"append_history": "history", "history_row": "history", "Diagnosis": "loop", "diagnose": "loop",
-            "write_outputs": "outputs", "StateData": "variants", "dataset_states": "variants"}
+_EXPORTS = {"Diagnosis": "loop", "diagnose": "loop", "StateData": "variants", "dataset_states": "variants"}
 __all__ = sorted(_EXPORTS)
 
 

@@ -198,9 +198,10 @@ class ROM:
         n = self.n_modes if n_modes is None else int(n_modes)
         if not 0 < n <= self.size:
             raise ModelError(f"rom: n_modes = {n} must be between 1 and the basis size {self.size}")
+        matrices = self.reduced_matrices(k_coeffs, m_coeffs)  # an unknown term raises here, before the range check
         if check:
             self._check_range(k_coeffs, self.m_ref if m_coeffs is None else m_coeffs)
-        return (n, *self.reduced_matrices(k_coeffs, m_coeffs))
+        return (n, *matrices)
 
     def frequencies(self, k_coeffs: dict[str, float], m_coeffs: dict[str, float] | None = None,
                     n_modes: int | None = None, *, check: bool = True) -> np.ndarray:

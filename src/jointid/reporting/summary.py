@@ -119,7 +119,7 @@ def _table1_sentence(data: dict) -> str:
 
 
 def _diagnosis_sentences(data: dict) -> list[str]:
-    from jointid.diagnosis.summary import short_verdict
+    from jointid.reporting.diagnosis_summary import short_verdict
 
     diag = data.get("diagnosis") or {}
     if not diag:

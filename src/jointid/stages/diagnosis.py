@@ -13,10 +13,10 @@ from jointid import io
 from jointid.config import config_hash
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
-from jointid.diagnosis.history import append_history, history_row
+from jointid.reporting.diagnosis_history import append_history, history_row
 from jointid.diagnosis.loop import Diagnosis, diagnose
 from jointid.diagnosis.memo import FitMemo
-from jointid.diagnosis.outputs import write_outputs
+from jointid.reporting.diagnosis_outputs import write_outputs
 from jointid.diagnosis.terms import build_system
 from jointid.diagnosis.variants import dataset_states
 from jointid.fe import warmstart

@@ -3,7 +3,7 @@
 * **identified** (the dataset carries damping ratios and the identify stage identified the joint damping,
   :func:`jointid.identification.damping_law.usable_record`): every elastic mode of the band gets the
   identified law's ratio from its joint energy shares per direction at the identified parameters
-  (:func:`jointid.diagnosis.synth.joint_shares`); Table 1's range is the band minimum at the lower and upper
+  (:func:`jointid.synthetic.generate.joint_shares`); Table 1's range is the band minimum at the lower and upper
   ends of every mode's 95 % ratio interval (:func:`jointid.identification.damping_law.law_ratios`);
 * **measured** (ratios in the dataset, no usable identification): the configured model, the measured ratios
   of the paired modes copied over it (as before the identification existed);
@@ -112,7 +112,7 @@ def state_damping(cfg: dict, state: str, par: dict, model, modes, kc: dict, shar
                          + (", the measured ratios of the paired modes over it" if kind == MEASURED else "")
                          + ("" if "joint_damping" not in par else f" ({note})"))}
     from jointid.config.typed import ModelSpec
-    from jointid.diagnosis.synth import joint_shares
+    from jointid.synthetic.generate import joint_shares
     from jointid.fe.model import joint_terms
 
     fr = np.asarray(modes.freqs_Hz, float)

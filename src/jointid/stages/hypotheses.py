@@ -5,9 +5,9 @@
 * :func:`run_ranking` ranks the fitted hypotheses by QAICc (AICc with the model error of the best):
   ``results/hypotheses/ranking.csv``, ``spread.csv`` (joint parameters over the hypotheses within
   delta QAICc < 4: the reconstruction range), ``ranking.md`` and ``next_measurements.csv`` (the
-  measurement that would best narrow that range, :mod:`jointid.diagnosis.next_measurement`).
+  measurement that would best narrow that range, :mod:`jointid.reconstruction.next_measurement`).
 
-See :mod:`jointid.diagnosis.hypotheses` and docs/reconstruction.md, "Hypotheses".
+See :mod:`jointid.reconstruction.hypotheses` and docs/reconstruction.md, "Hypotheses".
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ from jointid import io
 from jointid.config import load_config
 from jointid.config.typed import ModelSpec
 from jointid.diagnosis.fitting import print_log
-from jointid.diagnosis.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
-from jointid.diagnosis.hypothesis_ranking import rank_hypotheses, reconstruction_ranges
-from jointid.diagnosis.next_measurement import ProposalOptions, next_measurement_markdown, propose
+from jointid.reconstruction.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
+from jointid.reconstruction.next_measurement import ProposalOptions, next_measurement_markdown, propose
 from jointid.diagnosis.terms import build_system
 from jointid.errors import ConfigError
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
@@ -45,7 +45,7 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
 
     The hypothesis's configuration is validated like config.yaml (its problems name the
     hypothesis).  It reuses the run's model (``matrices``) unless it changes the model beyond its
-    coefficients (geometry, support kind, mesh: :func:`~jointid.diagnosis.hypotheses.needs_own_model`);
+    coefficients (geometry, support kind, mesh: :func:`~jointid.reconstruction.hypotheses.needs_own_model`);
     then it builds its own.  A part's material (Young's modulus, density, Poisson's ratio), the motor
     mass and the like are coefficients of the run's model.
     An override of ``states.<state>.em_force_N`` is the hypothesis's attraction in that state and
@@ -101,7 +101,7 @@ def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv
     with ``linked_json`` (and ``cfg``, :data:`RANKING_CONFIG`) also the best hypothesis's linked fit
     per state with the rigidity of one carriage on its rail under its joints; with ``next_csv`` the
     candidate measurements over the admissible hypotheses, best first (``cfg['next_measurement']``,
-    :func:`jointid.diagnosis.next_measurement.propose`; ranking.md has them either way)."""
+    :func:`jointid.reconstruction.next_measurement.propose`; ranking.md has them either way)."""
     records = {}
     for path in fit_jsons:
         rec = io.read_json(path)

@@ -10,7 +10,7 @@ import pandas as pd
 from jointid import io
 from jointid.diagnosis.judging import SUPPORTED, parsimonious_order
 from jointid.diagnosis.loop import Diagnosis
-from jointid.diagnosis.page import html_page
+from jointid.reporting.diagnosis_page import html_page
 
 
 def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:

@@ -1,8 +1,8 @@
 """What a fitted hypothesis predicts for measurements not made yet (docs/reconstruction.md, "The
 measurement that would narrow the reconstruction").
 
-:func:`measurement_predictions` adds to a hypothesis's record (:func:`jointid.diagnosis.hypotheses.fit_hypothesis`)
-what the ranking job needs to judge candidate measurements (:mod:`jointid.diagnosis.next_measurement`):
+:func:`measurement_predictions` adds to a hypothesis's record (:func:`jointid.reconstruction.hypotheses.fit_hypothesis`)
+what the ranking job needs to judge candidate measurements (:mod:`jointid.reconstruction.next_measurement`):
 
 * ``moving_mass_kg``: the mass resting on the joints (table, carriages, motor primaries, and any mass an
   effect of the hypothesis adds), the weight of the moving part over g;

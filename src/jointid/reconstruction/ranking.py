@@ -1,7 +1,7 @@
 """The fitted reconstruction hypotheses compared: ranked by QAICc, broken fits listed apart, and the
 answers over the admissible ones (the reconstruction ranges).
 
-Reads the records of :func:`jointid.diagnosis.hypotheses.fit_hypothesis`.  The model error of the
+Reads the records of :func:`jointid.reconstruction.hypotheses.fit_hypothesis`.  The model error of the
 comparison comes from its best ranked hypothesis (:mod:`jointid.identification.model_error`) and is
 held fixed while all are judged (docs/reconstruction.md, "Hypotheses").
 """

@@ -1,12 +1,12 @@
 """The measurement that would narrow the reconstruction (docs/reconstruction.md, same title).
 
 Several hypotheses lie within ΔQAICc 4 of the best (the admissible ones,
-:func:`jointid.diagnosis.hypothesis_ranking.rank_hypotheses`), and their joint parameters differ.  For
+:func:`jointid.reconstruction.ranking.rank_hypotheses`), and their joint parameters differ.  For
 each candidate measurement this module asks: if one admissible hypothesis were the truth and the
 measurement were made, which hypotheses would stay admissible, and how wide would the range of the
 joint parameters over them be?
 
-Each hypothesis's record predicts the candidates (:mod:`jointid.diagnosis.hypothesis_predictions`):
+Each hypothesis's record predicts the candidates (:mod:`jointid.reconstruction.predictions`):
 
 * the weight of the moving part (``moving_mass_kg``), at ``weight_uncertainty_pct``;
 * the static drive-point stiffness per state and direction, at ``static_stiffness_uncertainty_pct`` and
@@ -289,7 +289,7 @@ def _rounded(x) -> np.ndarray:
 def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None, *,
             sigma_model_rel: float = 0.0, sigma_shape_rel: float = 0.0) -> tuple[pd.DataFrame, dict]:
     """The candidate measurements over the admissible hypotheses of a ranking (``rows`` of
-    :func:`~jointid.diagnosis.hypothesis_ranking.rank_hypotheses`), best first.
+    :func:`~jointid.reconstruction.ranking.rank_hypotheses`), best first.
 
     ``sigma_model_rel``: the frequency block's model error (relative), counted twice in a static
     stiffness; ``sigma_shape_rel``: the shape block's, beside the shape noise.  Returns the table

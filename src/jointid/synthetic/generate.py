@@ -1,6 +1,6 @@
 """Synthetic measured datasets with hidden effects (for proving the diagnosis).
 
-``python -m jointid.diagnosis.synth --truth TRUTH.yaml --out DIR [--config config.yaml ...]``
+``python -m jointid.synthetic.generate --truth TRUTH.yaml --out DIR [--config config.yaml ...]``
 
 A truth file describes the "real" rig: true joint stiffnesses, library effects at given magnitudes
 (``jointid.diagnosis.effects``), optional perturbations *outside* the library (decoys), optionally a finer mesh,
@@ -79,7 +79,7 @@ def load_truth(path) -> dict:
     truth = read_yaml(path, str(path)) or {}
     if not isinstance(truth, dict):
         raise ConfigError(f"{path}: the truth file is not a mapping of keys — see the example in "
-                          "jointid.diagnosis.synth")
+                          "jointid.synthetic.generate")
     check_truth(truth, str(path))
     return truth
 
@@ -217,7 +217,7 @@ def _conditions(noise: dict, states: dict, band_Hz, damped: bool, shapes: bool =
     mode in the band was measured (``band_Hz`` not None), the test's band.  With shapes, the stated
     ``shape_uncertainty_pct`` is ``noise.stated_shape_pct`` (default ``shape_pct``: the noise added is
     exactly that fraction of each mode's noise-free RMS over the measured directions)."""
-    conditions = {"source": f"synthetic dataset (jointid.diagnosis.synth), noise seed {int(noise['seed'])}",
+    conditions = {"source": f"synthetic dataset (jointid.synthetic.generate), noise seed {int(noise['seed'])}",
                   "frequency_uncertainty_pct": float(noise.get("stated_frequency_pct") or noise["frequency_pct"]),
                   "states": states}
     if band_Hz is not None:  # every mode in the band was measured: the test declares its band
@@ -345,7 +345,7 @@ def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: write the synthetic dataset of ``--truth`` to ``--out``; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m jointid.diagnosis.synth",
+    ap = argparse.ArgumentParser(prog="python -m jointid.synthetic.generate",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--truth", required=True, help="truth YAML file")
     ap.add_argument("--out", required=True, help="dataset folder to write")

@@ -16,7 +16,7 @@ from markupsafe import Markup, escape
 
 from jointid.diagnosis.effects import effect_table
 from jointid.diagnosis.loop import Diagnosis
-from jointid.diagnosis.summary import short_verdict
+from jointid.reporting.diagnosis_summary import short_verdict
 
 RANK_COLUMNS = ["rank", "effect", "removed_fraction", "delta_qaicc", "weight", "support", "explains",
                 "indistinguishable_from", "parameter", "estimate", "ci95_low", "ci95_high", "unit",
@@ -183,7 +183,7 @@ def _note_lines(df: pd.DataFrame, head: list, note_cols) -> list[str]:
 
 def _summary(res: Diagnosis) -> list[dict]:
     """The summary card: the verdict, the max errors, the leading candidate and the model error, one
-    sentence each (:func:`jointid.diagnosis.summary.short_verdict`)."""
+    sentence each (:func:`jointid.reporting.diagnosis_summary.short_verdict`)."""
     from jointid.correlate.pairing import error_summary
 
     def errors(summary: pd.DataFrame) -> str:
@@ -233,7 +233,7 @@ def html_page(res: Diagnosis, dataset: str, run: dict) -> str:
                                                                     "support", "removed_fraction", "explains"]],
                                          note_cols=("estimates",)),
               "next_measurements": html_table(res.next_measurements), "preload_curve": html_table(res.preload_curve)}
-    env = Environment(loader=PackageLoader("jointid.diagnosis", "templates"),
+    env = Environment(loader=PackageLoader("jointid.reporting", "templates"),
                       autoescape=select_autoescape(["html"]), keep_trailing_newline=True)
     return env.get_template(TEMPLATE).render(
         figs=figures(res), dataset=dataset, verdict=res.verdict, notes=res.notes, mac_states=list(res.mac),

@@ -35,7 +35,7 @@ import numpy as np
 
 from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
-from jointid.diagnosis.hypothesis_predictions import measurement_predictions
+from jointid.reconstruction.predictions import measurement_predictions
 from jointid.diagnosis.results import frequency_rows, log_interval
 from jointid.diagnosis.criteria import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
@@ -170,7 +170,7 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None
     Returns a JSON-ready record: chi-square, counts, AICc, parameters with 95 % intervals scaled by
     ``max(1, sqrt(chi2 / dof))``, per-state errors (misfits counted), the unpaired visible modes, the
     pairing, the profile over the preload classes and ``predictions``, what the fitted model predicts
-    for measurements not made yet (:func:`jointid.diagnosis.hypothesis_predictions.measurement_predictions`).  ``start_basis``: a basis of ``system`` to start
+    for measurements not made yet (:func:`jointid.reconstruction.predictions.measurement_predictions`).  ``start_basis``: a basis of ``system`` to start
     the reduced solver from (:mod:`jointid.stages.basis`).
     """
     law = LinkedLaw.from_config(cfg)
