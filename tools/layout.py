@@ -7,8 +7,9 @@ Prints one line per finding and exits 1 if there is any; prints nothing and exit
   ``if TYPE_CHECKING``) point only down the layers of ``LAYERS`` (docs/architecture.md), and no
   modules import each other in a cycle, not even for annotations: a lower layer defines the
   protocol it needs (e.g. :class:`jointid.fe.affine.AffineModel`).
-* No module is over 400 lines unless a comment among its first 40 lines starts with
-  ``# over 400 lines:`` and gives the reason; no function is over 80 lines unless a comment at its top
+* No module is over 600 lines unless a comment among its first 40 lines starts with
+  ``# over 600 lines:`` and gives the reason (one concern per module is the rule; the number only catches
+  a module that has become several, and no module should be cut to fit it); no function is over 80 lines unless a comment at its top
   (before or right after its docstring) starts with ``# long`` and gives the reason.
 * No function in the domain layers of ``CONFIG_FREE`` takes the whole configuration (a parameter
   named ``cfg`` or ``config``): they take the typed objects of :mod:`jointid.config.typed` or plain
@@ -66,7 +67,7 @@ def layer(mod: str) -> int:
     return LAYERS.index(parts[1]) if len(parts) > 1 and parts[1] in LAYERS else -1
 
 
-MAX_MODULE_LINES, MAX_FUNCTION_LINES, MAX_PARAMETERS = 400, 80, 8
+MAX_MODULE_LINES, MAX_FUNCTION_LINES, MAX_PARAMETERS = 600, 80, 8
 CONFIG_FREE = ("fe", "identification", "response", "correlate")
 """Layers whose functions take typed objects or numbers, never the whole configuration."""
 CONFIG_NAMES = ("cfg", "config")
@@ -107,11 +108,12 @@ def parameter_findings(path: Path, config_free: bool = False) -> list[str]:
 
 
 def size_findings(path: Path) -> list[str]:
-    """Modules over 400 lines and functions over 80 lines of ``path`` that carry no reason comment."""
+    """Modules over 600 lines and functions over 80 lines of ``path`` that carry no reason comment."""
     lines = path.read_text().splitlines()
     out = []
-    if len(lines) > MAX_MODULE_LINES and not any(ln.startswith("# over 400 lines:") for ln in lines[:40]):
-        out.append(f"{path}: {len(lines)} lines, no '# over 400 lines: <reason>' comment at its top")
+    mark = f"# over {MAX_MODULE_LINES} lines:"
+    if len(lines) > MAX_MODULE_LINES and not any(ln.startswith(mark) for ln in lines[:40]):
+        out.append(f"{path}: {len(lines)} lines, no '{mark} <reason>' comment at its top")
     for node in _functions(ast.parse("\n".join(lines))):
         n = node.end_lineno - node.lineno + 1
         if n <= MAX_FUNCTION_LINES:

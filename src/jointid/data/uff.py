@@ -1,4 +1,3 @@
-# over 400 lines: one importer (read, map nodes, modes, FRFs, merge) kept whole until the UFF rework
 """Import modal test data from Universal File Format (UFF/UNV) files into a dataset folder.
 
 Supported datasets (read with pyuff):

@@ -1,4 +1,3 @@
-# over 400 lines: the checks of the three CSV files share their row helpers (_float, _point, ...); split them when a fourth file comes
 """Checks of a dataset's CSV files (modes.csv, shapes.csv, frf.csv) and the problem collector.
 
 Every check adds one line per problem to a :class:`Problems` list, formatted

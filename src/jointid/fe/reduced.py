@@ -1,4 +1,3 @@
-# over 400 lines: the solver, its basis growth and its factorisation life cycle (released for other work, made again on use) are one state
 """Rayleigh-Ritz eigen-solver on an adaptively enriched subspace of an affine FE model.
 
 ``K(c) = K0 + sum c_a K_a``, ``M(m) = M0 + sum m_b M_b`` (a :class:`jointid.fe.affine.AffineModel`: the
