@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 import pandas as pd
@@ -27,9 +28,34 @@ from scipy.optimize import linear_sum_assignment
 
 from jointid.correlate.mac import mac
 
-__all__ = ["Pairing", "below_band", "pair_by_mac", "pair_by_shapes", "pair_by_frequency", "ordered_assignment",
+__all__ = ["PairedBy", "Pairing", "below_band", "pair_by_mac", "pair_by_shapes", "pair_by_frequency", "ordered_assignment",
            "pair_modes", "pair_shapeless", "pair_states_by_frequency", "frequency_errors", "shape_residuals",
            "point_residuals", "error_summary"]
+
+
+class PairedBy(str, Enum):
+    """How an identification paired its measured modes (``params.json``'s ``paired_by``; the value is the
+    text written there, so a record reads back as the same member)."""
+
+    MAC = "mac"
+    """By MAC against measured shapes."""
+    FREQUENCY = "frequency"
+    """By frequency alone, re-paired at every iterate (``identify.pairing: independent``)."""
+    FREQUENCY_SHARED = "frequency, shared by all states"
+    """By frequency alone, one pairing shared by all frequency-only states (``identify.pairing: shared``)."""
+
+    @property
+    def by_frequency(self) -> bool:
+        """Paired without shapes."""
+        return self is not PairedBy.MAC
+
+    @classmethod
+    def of(cls, record: dict) -> "PairedBy | None":
+        """The member a record's ``paired_by`` names (None where it names none)."""
+        try:
+            return cls(record.get("paired_by"))
+        except ValueError:
+            return None
 
 
 @dataclass

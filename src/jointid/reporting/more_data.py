@@ -12,7 +12,9 @@ from html import escape
 
 
 def _by_frequency(data: dict) -> bool:
-    return any(str(p.get("paired_by", "")).startswith("frequency") for p in data["params"].values())
+    from jointid.correlate.pairing import PairedBy
+
+    return any((PairedBy.of(p) or PairedBy.MAC).by_frequency for p in data["params"].values())
 
 
 def _tied(data: dict) -> list[str]:

@@ -270,6 +270,7 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
             f_final, polish, edge, rom, per_carriage, msgs) -> dict:
     # many parameters: one parameter per part of params.json that run_identify computed; a result dataclass is issue 38's next step
     """The content of ``params.json``."""
+    from jointid.correlate.pairing import PairedBy
     from jointid.identification.model_error import from_chi2  # scipy.optimize: not when the Snakefile imports us
 
     names, lower, upper = doc["names"], doc["lower"], doc["upper"]
@@ -289,8 +290,8 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
             "edge_extrapolation": edge,
             "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
                 doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
-            "paired_by": "mac" if shapes is not None else ("frequency, shared by all states" if fixed is not None
-                                                           else "frequency"),
+            "paired_by": (PairedBy.MAC if shapes is not None else PairedBy.FREQUENCY_SHARED if fixed is not None
+                          else PairedBy.FREQUENCY).value,
             "joint_pairing": joint_info,
             "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model,
             "residual_pct": 100 * (np.asarray(f_final) - f_meas) / f_meas,

@@ -36,7 +36,9 @@ def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes, rule=None):
     from jointid.identification.updating import verify_pairing
 
     f_meas = np.asarray(par["f_meas_Hz"])
-    if par.get("paired_by") == "frequency":  # the polish's rule: re-paired by frequency at its optimum
+    from jointid.correlate.pairing import PairedBy
+
+    if PairedBy.of(par) is PairedBy.FREQUENCY:  # the polish's rule: re-paired by frequency at its optimum
         from jointid.correlate.mac import mac
         from jointid.correlate.pairing import pair_by_frequency
 
@@ -60,12 +62,13 @@ def tied_pairings(par: dict, doc: dict, shapes) -> "pd.DataFrame":
     or the pairing was not shared by frequency."""
     import pandas as pd
 
+    from jointid.correlate.pairing import PairedBy
     from jointid.identification.ties import tied_alternatives
     from jointid.identification.updating import verify_pairing
 
     rows = []
     rec = par.get("joint_pairing") or {}
-    if str(par.get("paired_by", "")).startswith("frequency, shared") and rec.get("candidates"):
+    if PairedBy.of(par) is PairedBy.FREQUENCY_SHARED and rec.get("candidates"):
         for a, cols in enumerate(tied_alternatives(rec["candidates"], par["pairing_columns"]), start=1):
             index, _ = verify_pairing(doc, np.asarray(cols), shapes)
             rows += [{"alternative": a, "order": i + 1, "fe_mode": int(j) + 1} for i, j in enumerate(index)]
