@@ -13,7 +13,7 @@ import yaml
 
 from conftest import REPO, SNAKEMAKE, copy_workflow, tail, workflow_env
 
-pytestmark = [pytest.mark.slow, pytest.mark.extended]  # make test-all: a second whole workflow (about 3.5 min)
+pytestmark = [pytest.mark.slow, pytest.mark.extended]  # make test-all: a second whole workflow (55 s alone on 2 cores)
 
 EXAMPLE = "examples/single_carriage"
 
