@@ -66,7 +66,8 @@ def _csv_or_none(path: Path):
 
 def _diagnosis(inputs: dict) -> dict:
     """Per diagnosed dataset (its folder's name): ``verdict`` (verdict.json), ``ranking`` and
-    ``combinations`` (the CSVs beside it); empty when the run's report has no diagnosis."""
+    ``combinations`` (the CSVs beside it) and ``page`` (the path of its index.html, under this study's
+    results folder); empty when the run's report has no diagnosis."""
     import pandas as pd
 
     out = {}
@@ -75,7 +76,8 @@ def _diagnosis(inputs: dict) -> dict:
             ranking = _csv_or_none(p)
             out[p.parent.name] = {"verdict": io.read_json(p.with_name("verdict.json")),
                                   "ranking": pd.DataFrame() if ranking is None else ranking,
-                                  "combinations": _csv_or_none(p.with_name("combinations.csv"))}
+                                  "combinations": _csv_or_none(p.with_name("combinations.csv")),
+                                  "page": p.with_name("index.html").as_posix()}
     return out
 
 
