@@ -138,3 +138,15 @@ def test_examples_total_time(capsys):
     with capsys.disabled():
         print("\nexamples: " + ", ".join(f"{k} {v:.1f} s" for k, v in TIMES.items())
               + f"; total {sum(TIMES.values()):.1f} s")
+
+
+def test_the_shipped_defaults_make_a_study_without_a_file():
+    """``Study.default()``: the schema's defaults (the paper's rig and data), no config file read; overrides
+    merge on top as in ``from_config``."""
+    from jointid import Study
+    from jointid.config import load_config
+
+    study = Study.default({"mesh": {"element": "hex1"}})
+    assert study.config == load_config({}, {"mesh": {"element": "hex1"}})
+    assert study.config["measurements"]["dataset"] == "data/paper"
+    assert list(study.parameters()["parameter"])[:2] == ["k_normal_N_per_m3", "k_lateral_N_per_m3"]

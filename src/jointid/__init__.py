@@ -8,6 +8,7 @@ Study
     One validated configuration and the engineer's procedure on it:
 
     * ``Study.from_config(["config.yaml", ...], overrides=None)`` - load, merge and validate;
+      ``Study.default(overrides=None)`` - the shipped defaults (the paper's rig and data), no file;
     * ``.model()`` - the FE model of the rig (built once);
     * ``.modes(theta, n, state)`` - natural frequencies (Hz) and shapes at the measuring points
       at joint parameters ``theta`` (N/m^3) -> :class:`ModalResult`;

@@ -90,6 +90,15 @@ class Study:
             return cls(load_config(raw, overrides, source=source))
         return cls(load_config(path_or_dict, overrides))
 
+    @classmethod
+    def default(cls, overrides: Mapping | None = None) -> Study:
+        """The study of the shipped defaults (the configuration schema's: the paper's rig, joints and
+        data in ``data/paper``, relative to the working folder), with ``overrides`` deep-merged on top as in
+        :meth:`from_config`; no file is read."""
+        from jointid.config import load_config
+
+        return cls(load_config({}, overrides, source="the shipped defaults"))
+
     @property
     def config(self) -> dict:
         """The validated configuration (every default filled in).  Treat it as read-only: the cached
