@@ -397,3 +397,25 @@ def test_chi2_survival_is_scipy_stats_number_for_number(x, dof):
 
     ref = float(chi2.sf(x, dof))
     assert chi2_sf(x, dof) == ref or (np.isnan(ref) and np.isnan(chi2_sf(x, dof)))
+
+
+def test_an_effect_is_at_its_null_when_its_interval_reaches_test_variable_zero():
+    """Analytic: the test variable t of an effect is 0 at its null (mass 0, compliance of an infinite
+    stiffness).  With t = 0.3 and sd 0.1 the 95 % interval [0.104, 0.496] excludes the null; with sd 0.2
+    ([-0.092, 0.692]) it holds it.  Only the parameters the refit adds beyond the current model count."""
+    from types import SimpleNamespace
+
+    from jointid.diagnosis.loop import at_null
+
+    def fit(ts, sds, n_joint=2, n_slots_before=0):
+        x = np.r_[np.zeros(n_joint), ts]
+        cov = np.diag(np.r_[np.ones(n_joint), np.square(sds)])
+        variant = SimpleNamespace(n_params=len(x), slots=[None] * len(ts))
+        return SimpleNamespace(x=x, variant=variant, scaled_covariance=lambda: cov)
+
+    assert not at_null(fit([0.3], [0.1]), 0)
+    assert at_null(fit([0.3], [0.2]), 0)
+    assert at_null(fit([0.0], [0.0]), 0)
+    # an enabled effect far from its null (first slot) and a new one at its null: the new one decides
+    assert at_null(fit([2.0, 0.01], [0.1, 0.1]), 1)
+    assert not at_null(fit([0.01, 2.0], [0.1, 0.1]), 1)

@@ -136,11 +136,13 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     log("diagnosis: calibrating the baseline on all states")
     fit_base = diag.fit(base, x0, verify=not enabled)
     compare_tab, mac_mats, shape_res = tables or compare_tables(diag, base, fit_base.x)
-    fits, current, ladder_rows = calibrate_ladder(diag, fit_base, enabled, log)
+    fits, current, ladder_rows, rows, between_share = search(diag, fit_base, enabled, candidates, effects_cfg, opt, log)
+    better = None if enabled else better_basin(diag, current, fits, log)
+    if better is not None:  # step 4c: the baseline's calibration was in a worse basin; search again from the better
+        notes.append(better[1])
+        fits, current, ladder_rows, rows, between_share = search(diag, better[0], enabled, candidates, effects_cfg,
+                                                                 opt, log)
     current_table = compare_tables(diag, current.variant, current.x)[0]
-    current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects_cfg)
-    refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log, list(fits.values())[:-1])
-    profile_candidate(diag, current, rows, fits, alpha, log)
     combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
     absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]), me)
     tie_detail, nxt = explain_tie(diag, ranking, fits, me)
@@ -159,6 +161,49 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
                      timing_s=time.time() - t_start, solver=diag.solver, combinations=combos,
                      next_measurements=nxt, preload_curve=curve, identifiable=ident, absorbed=absorbed,
                      model_error=me)
+
+
+def search(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, effects_cfg, opt: dict, log):
+    """Steps 2-4: the ladder on the calibrated baseline, the candidates scored and the leading ones refitted.
+    Returns ``(fits, current model, ladder rows, candidate rows, between-state share)``."""
+    fits, current, ladder_rows = calibrate_ladder(diag, fit_base, enabled, log)
+    current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects_cfg)
+    alpha = float(opt["alpha"])
+    refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log, list(fits.values())[:-1])
+    profile_candidate(diag, current, rows, fits, alpha, log)
+    return fits, current, ladder_rows, rows, between_share
+
+
+def better_basin(diag: Diagnoser, current: Fit, fits: dict, log) -> tuple[Fit, str] | None:
+    """Step 4c: a candidate's refit that fits better than the current model while its effect's 95 % interval
+    holds the effect's null (:func:`at_null`) has found better joint parameters, not the effect: the current
+    model's calibration sat in a worse basin (e.g. frequencies only and few modes, where the pairing has more
+    than one fit).  The current model is refitted from each such refit's joints; the best of those that fit
+    better than the current model is returned, with a note, for the search to start again from it (once).
+    None when no refit qualifies or none of those fits better."""
+    p, q = current.variant.n_params, len(current.variant.slots)
+    tol = 1e-6 * max(current.chi2, 1.0)
+    best, via = None, None
+    for name, f in sorted(fits.items(), key=lambda kv: kv[1].chi2):
+        if not name.startswith("+") or f.chi2 >= current.chi2 - tol or not at_null(f, q):
+            continue
+        log(f"diagnosis: {name[1:]} fits better at its null: the current model refitted from its joints")
+        g = diag.fit(current.variant, f.x[:p], index=f.ev.index)
+        if g.chi2 < (best or current).chi2 - tol:
+            best, via = g, name[1:]
+    if best is None:
+        return None
+    return best, (f"the current model's first calibration was not its best fit: refitted from the joints of the "
+                  f"{via} refit (which fitted better with {via} at its null), its chi-square fell from "
+                  f"{current.chi2:.1f} to {best.chi2:.1f}; the candidates were scored and refitted again from it")
+
+
+def at_null(f: Fit, n_slots: int) -> bool:
+    """Whether every effect parameter ``f`` adds beyond the first ``n_slots`` has the effect's null (test
+    variable 0) inside its 95 % interval (the fit's scaled covariance)."""
+    cov = f.scaled_covariance()
+    p = f.variant.n_params - (len(f.variant.slots) - n_slots)
+    return all(float(f.x[j]) - 1.96 * np.sqrt(max(cov[j, j], 0.0)) <= 0.0 for j in range(p, f.variant.n_params))
 
 
 def check_enough_data(data: list[StateData], base: Variant) -> None:

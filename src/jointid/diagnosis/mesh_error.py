@@ -58,7 +58,6 @@ class MeshErrors:
     shift: list = field(default_factory=list)  # per state (n_measured,): ln(f_refined / f_mesh) of its model mode
     known: list = field(default_factory=list)  # per state (n_measured,): |f_refined / f_mesh - 1|
     n_dofs: tuple = (0, 0)  # the mesh's and the largest refined mesh's DOFs
-    seconds: float = 0.0
     model_shift: list = field(default_factory=list)  # per state (n_model,): every model mode's correction
     shapes: list = field(default_factory=list)  # per state (n_labels, n_model): the model shapes at the probe
 
@@ -80,9 +79,10 @@ class MeshErrors:
                 f"amount is counted as a known error beside the noise (the refined mesh's own error)")
 
     def to_json(self) -> dict:
-        """Exact JSON form (floats as hex), for :meth:`jointid.diagnosis.memo.FitMemo.put_value`."""
+        """Exact JSON form (floats as hex), for :meth:`jointid.diagnosis.memo.FitMemo.put_value`; no wall-clock
+        time in it (the memo is kept in the subspace file, which must be byte-identical run to run)."""
         hexes = lambda a: [float(v).hex() for v in np.ravel(a)]  # noqa: E731
-        return {"halved": list(self.halved), "n_dofs": list(self.n_dofs), "seconds": float(self.seconds),
+        return {"halved": list(self.halved), "n_dofs": list(self.n_dofs),
                 "shift": [hexes(c) for c in self.shift], "known": [hexes(k) for k in self.known],
                 "model_shift": [hexes(c) for c in self.model_shift],
                 "shapes": [{"shape": list(np.shape(p)), "values": hexes(p)} for p in self.shapes]}
@@ -92,7 +92,7 @@ class MeshErrors:
         """The inverse of :meth:`to_json`."""
         arr = lambda v: np.array([float.fromhex(x) for x in v])  # noqa: E731
         return cls(tuple(rec["halved"]), [arr(c) for c in rec["shift"]], [arr(k) for k in rec["known"]],
-                   tuple(rec["n_dofs"]), float(rec["seconds"]), [arr(c) for c in rec["model_shift"]],
+                   tuple(rec["n_dofs"]), [arr(c) for c in rec["model_shift"]],
                    [arr(p["values"]).reshape(p["shape"]) for p in rec["shapes"]])
 
     def record(self, data) -> list[dict]:
@@ -159,8 +159,7 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
         out.shift.append(shift)
         out.known.append(np.abs(np.expm1(shift)))
         log(f"diagnosis: mesh error of {d.name}: " + ", ".join(f"{100 * np.expm1(c):+.2f} %" for c in shift))
-    out.seconds = time.time() - t0
-    log(f"diagnosis: the mesh error in {out.seconds:.0f} s")  # the log's, not the results' (those stay byte-identical)
+    log(f"diagnosis: the mesh error in {time.time() - t0:.0f} s")  # the log's, not the results' (byte-identical)
     return out
 
 
