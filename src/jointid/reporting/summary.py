@@ -126,8 +126,7 @@ def _diagnosis_sentences(data: dict) -> list[str]:
         return ["The diagnosis is not part of this run."]
     texts = {n: short_verdict(d["verdict"]["explained_by"], d["ranking"], d.get("combinations")).rstrip(".")
              for n, d in diag.items()}
-    return [f"{name}: {t[:1].lower() + t[1:]} "
-            f"(page: {diag[name].get('page') or f'results/diagnosis/{name}/index.html'})." for name, t in texts.items()]
+    return [f"{name}: {t[:1].lower() + t[1:]} (page: {diag[name]['page']})." for name, t in texts.items()]
 
 
 def card_items(data: dict) -> list[dict]:
