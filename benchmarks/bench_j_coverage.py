@@ -504,15 +504,28 @@ def _slug(label: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_=." else "_" for ch in label).strip("_")
 
 
+def shard_of(cases: list[dict], shard: tuple[int, int] | None) -> list[dict]:
+    """Shard ``(k, n)`` of the cases: every n-th from the k-th (1-based), so that n processes share one
+    run's cases (each saves its own rows of the run; :func:`save` merges them case by case)."""
+    if shard is None:
+        return cases
+    k, n = shard
+    if not 1 <= k <= n:
+        raise SystemExit(f"--shard {k}/{n}: K must be 1..N")
+    return cases[k - 1::n]
+
+
 def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = None, rig: str = "coarse",
         options: dict | None = None, doc: bool = True, command: str = "", subset: str = "all",
-        only: tuple = ()) -> Result:
+        only: tuple = (), shard: tuple[int, int] | None = None) -> Result:
     from jointid.threads import limit_threads
 
     limit_threads(blas_threads or 1)
     options = dict(options or {})
     label = run_label(rig, options) + (" --quick" if quick else "") + (f" ({subset} only)" if subset != "all" else "")
-    todo = select(design(), quick, cases, rig, subset)
+    todo = shard_of(select(design(), quick, cases, rig, subset), shard)
+    if shard is not None:  # one of several processes: the page is written once all have run (--doc-only)
+        doc = False
     if only:  # a probe of named cases: a run of its own, never in the doc
         todo = [c for c in design() if c["case"] in only]
         label, doc = label + " (probe)", False
@@ -606,12 +619,20 @@ def save_run(df: pd.DataFrame, label: str, rig: str, options: dict, quick: bool,
 
 
 def save(df: pd.DataFrame, label: str) -> None:
-    """Replace the rows of run ``label`` in the CSV (the other runs' rows are kept)."""
+    """Replace the rows of run ``label`` in the CSV, case by case (the run's other cases, e.g. another
+    shard's, and the other runs' rows are kept), under a lock: shards of one run save side by side."""
+    import fcntl
+
     OUT.mkdir(parents=True, exist_ok=True)
-    if CSV.exists():
-        old = pd.read_csv(CSV)
-        df = pd.concat([old[old["run"] != label], df], ignore_index=True)
-    df.to_csv(CSV, index=False)
+    with open(CSV.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if CSV.exists():
+            old = pd.read_csv(CSV)
+            mine = (old["run"] == label) & old["case"].isin(set(df["case"]))
+            df = pd.concat([old[~mine], df], ignore_index=True)
+        tmp = CSV.with_suffix(".tmp")
+        df.to_csv(tmp, index=False)
+        tmp.replace(CSV)
 
 
 # ------------------------------------------------------------------ the page
@@ -741,11 +762,22 @@ def main(argv: list[str] | None = None) -> int:
     from .common import format_table, write_result
 
     res = run(quick=a.quick, cases=a.cases, rig=a.rig, options=parse_options(a.set), doc=not a.no_doc, subset=a.subset,
-              only=tuple(x for x in a.only.split(",") if x),
+              only=tuple(x for x in a.only.split(",") if x), shard=parse_shard(a.shard),
               command="python -m benchmarks.bench_j_coverage " + " ".join(argv if argv is not None else sys.argv[1:]))
     write_result(res, a.quick)
     print(format_table([res]))
     return 0
+
+
+def parse_shard(text: str | None) -> tuple[int, int] | None:
+    """``K/N`` -> ``(K, N)`` (None for no shard)."""
+    if not text:
+        return None
+    try:
+        k, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise SystemExit(f"--shard {text!r}: give K/N, e.g. 1/2") from None
+    return k, n
 
 
 def add_arguments(ap: argparse.ArgumentParser) -> None:
@@ -757,6 +789,8 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--only", default="", help="(j) a probe of the named cases (comma-separated), not in the doc")
     ap.add_argument("--subset", choices=("all", "shapes", "frequencies"), default="all",
                     help="(j) only the cases with shapes, or with frequencies only (default: all)")
+    ap.add_argument("--shard", default=None, metavar="K/N",
+                    help="(j) every N-th case from the K-th: N processes share one run (then --doc-only)")
     ap.add_argument("--set", action="append", metavar="KEY=VALUE",
                     help="(j) a diagnosis option, e.g. shape_residuals=true (repeatable)")
 

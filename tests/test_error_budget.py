@@ -7,16 +7,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from jointid.diagnosis.results import Evaluation, Fit, block_error, chi2_at, row_weights
+from jointid.diagnosis.results import Evaluation, Fit, block_error, chi2_at, whitener
 from jointid.diagnosis.criteria import chi2_p_value
-from jointid.identification.model_error import NO_MODEL_ERROR, estimate
+from jointid.identification.model_error import NO_MODEL_ERROR, ModelError, estimate, mode_correlation
 
 
-def _fit(r, J, rows, sigma, known=None, n_scales=0):
+def _fit(r, J, rows, sigma, known=None, n_scales=0, known_corr=None):
     r, J = np.asarray(r, float), np.asarray(J, float)
     ev = Evaluation(x=np.zeros(J.shape[1]), r=r, J=J, solutions=[], index=[], rows=rows, f_model=[],
                     n_scales=n_scales, sigma=np.asarray(sigma, float),
-                    known=None if known is None else np.asarray(known, float))
+                    known=None if known is None else np.asarray(known, float), known_corr=known_corr)
     return Fit(variant=SimpleNamespace(n_params=J.shape[1]), ev=ev, pairings=[])
 
 
@@ -53,7 +53,7 @@ def test_chi2_at_the_total_uncertainty_sums_the_blocks_at_their_own_errors():
     me = f.own_error()
     # at its own model error each block's chi-square equals its degrees of freedom
     assert chi2_at(f.ev, None, me) == pytest.approx(4.0 + 99.0, rel=1e-9)
-    w = row_weights(f.ev, None, me)
+    w = np.diag(whitener(f.ev, None, me)) ** 2
     np.testing.assert_allclose(w[:5], 1 / 5.0, rtol=1e-9)
     np.testing.assert_allclose(w[5:], 99.0 / 225.0, rtol=1e-9)
     # without a model error the shape rows count at their noise
@@ -78,7 +78,9 @@ def test_frequency_only_intervals_are_the_birge_rule():
     # with a per-row known error the rows are weighted by their total variance
     g = _fit([3.0, 4.0, 0, 0, 0, 0], J, [(0, m) for m in range(1, 7)], [0.01] * 6, known=[0.01, 0, 0, 0, 0, 0])
     me = g.own_error()
-    w = row_weights(g.ev, None, me)
+    w = np.full(6, 1.0)
+    w[0] = 0.01 ** 2 / (0.01 ** 2 + 0.01 ** 2 + me.sigma_model_rel ** 2)
+    w[1:] = 0.01 ** 2 / (0.01 ** 2 + me.sigma_model_rel ** 2)
     Jw = J * np.sqrt(w)[:, None]
     np.testing.assert_allclose(g.scaled_covariance(), np.linalg.inv(Jw.T @ Jw), rtol=1e-10)
 
@@ -96,14 +98,14 @@ def test_correlated_shape_rows_widen_the_interval_by_the_cluster_robust_variance
     J = np.ones((n_modes * n_dof, 1))
     indep = rng.standard_normal(n_modes * n_dof)
     f = _fit(indep, J, rows, sig)
-    base = np.linalg.pinv((J * np.sqrt(row_weights(f.ev, None, f.own_error()))[:, None]).T
-                          @ (J * np.sqrt(row_weights(f.ev, None, f.own_error()))[:, None]))
+    Jf = whitener(f.ev, None, f.own_error()) @ J
+    base = np.linalg.pinv(Jf.T @ Jf)
     ratio_indep = float(f.scaled_covariance()[0, 0] / base[0, 0])
     assert 1.0 <= ratio_indep < 2.0
     coherent = np.repeat(rng.standard_normal(n_modes), n_dof)  # each mode's rows move together
     g = _fit(coherent, J, rows, sig)
-    wg = np.sqrt(row_weights(g.ev, None, g.own_error()))[:, None]
-    base_g = np.linalg.pinv((J * wg).T @ (J * wg))
+    Jg = whitener(g.ev, None, g.own_error()) @ J
+    base_g = np.linalg.pinv(Jg.T @ Jg)
     ratio = float(g.scaled_covariance()[0, 0] / base_g[0, 0])
     assert ratio > 0.4 * n_dof, ratio
 
@@ -164,3 +166,50 @@ def test_a_parameter_the_data_barely_constrain_gets_an_open_interval_not_an_over
     lo, hi = log_interval(8e11, 0.1)
     assert lo == pytest.approx(8e11 * np.exp(-0.196)) and hi == pytest.approx(8e11 * np.exp(0.196))
     assert log_interval(8e11, 1e4) == (0.0, float("inf"))  # math.exp(19600) would raise OverflowError
+
+
+def test_mode_correlation_is_the_mac_matrix_with_rows_without_a_mode_apart():
+    a, b = np.array([1.0, 0.0, 0.0]), np.array([1.0, 1.0, 0.0])
+    R = mode_correlation(np.column_stack([a, b, 2 * a, np.zeros(3)]))
+    np.testing.assert_allclose(R[0], [1.0, 0.5, 1.0, 0.0])
+    np.testing.assert_allclose(R[3], [0.0, 0.0, 0.0, 1.0])
+    assert np.all(np.linalg.eigvalsh(R) > -1e-12)
+
+
+def test_a_mesh_error_shared_by_a_mode_in_two_states_cancels_in_their_difference():
+    """One mode measured in two states (rows 0, 1: the same model mode, MAC 1), noise s, known error k.
+    Analytic: C = s^2 I + k^2 [[1, 1], [1, 1]], so the common part (e0 + e1)/2 has variance
+    s^2/2 + k^2 and the difference e0 - e1 has 2 s^2: a between-state residual is judged at the noise
+    alone, a common one at the noise plus the mesh error."""
+    s, k = 0.001, 0.02
+    R = np.ones((2, 2))
+    diff, common = np.array([2.0, -2.0]), np.array([10.0, 10.0])  # residuals in units of s
+    for r, expect in ((diff, (0.004 ** 2) / (2 * s ** 2)),
+                      (common, 2 * (0.01 ** 2) / (2 * (s ** 2 / 2 + k ** 2)))):
+        got = NO_MODEL_ERROR.chi2_total(r, s, np.full(2, k), R)
+        assert got == pytest.approx(expect, rel=1e-9)
+        A = NO_MODEL_ERROR.whitener(np.full(2, s), np.full(2, k), R)
+        assert float((A @ r) @ (A @ r)) == pytest.approx(expect, rel=1e-9)
+    # independent known errors would discount the difference as much as the common part
+    assert NO_MODEL_ERROR.chi2_total(diff, s, np.full(2, k)) < 0.1 * NO_MODEL_ERROR.chi2_total(diff, s, np.full(2, k), R)
+
+
+def test_the_moment_equation_with_correlated_known_errors():
+    """sigma_m solves the weighted equation (identification/model_error.py) in the eigenbasis of
+    S + D R D: checked against a direct evaluation there, and R = I gives the independent result."""
+    rng = np.random.default_rng(3)
+    n, s = 6, 0.002
+    k = np.full(n, 0.01)
+    shapes = rng.standard_normal((5, 3))
+    P = np.hstack([shapes, shapes])  # three modes, each in two states
+    R = mode_correlation(P)
+    r = np.array([4.0, -3.0, 5.0, -4.0, 3.0, -5.0])  # differences between the states far above the noise
+    me = estimate(r, s, 1, known_rel=k, known_corr=R)
+    assert me.sigma_model_rel > 0
+    C = ModelError(sigma_model_rel=me.sigma_model_rel).covariance(np.full(n, s), k, R)
+    lam, Q = np.linalg.eigh(C)
+    e2 = (Q.T @ (r * s)) ** 2
+    assert float(np.sum(e2 / lam ** 2)) == pytest.approx((n - 1) / n * float(np.sum(1 / lam)), rel=1e-8)
+    indep = estimate(r, s, 1, known_rel=k, known_corr=np.eye(n))
+    assert indep.sigma_model_rel == pytest.approx(estimate(r, s, 1, known_rel=k).sigma_model_rel, rel=1e-9)
+    assert indep.sigma_model_rel < me.sigma_model_rel

@@ -32,15 +32,30 @@ def test_within_noise_changes_nothing():
 
 
 def test_known_part_reduces_the_model_error():
-    """Paule-Mandel with a known part: sum e^2 / (s^2 + k^2 + sm^2) = dof, solved exactly."""
+    """With a known part, the weighted equation sum w^2 e^2 = (n - k)/n sum w, w = 1/(s^2 + k^2 + sm^2),
+    solved exactly (module doc)."""
     s = np.array([0.01, 0.01, 0.02, 0.02, 0.01])
     e = np.array([0.05, -0.04, 0.03, -0.06, 0.02])
     k = np.full(5, 0.01)
     me = M.estimate(e / s, s, 1, known_rel=k)
-    total = s ** 2 + k ** 2 + me.sigma_model_rel ** 2
-    assert float(np.sum(e ** 2 / total)) == pytest.approx(4.0, rel=1e-9)
+    w = 1.0 / (s ** 2 + k ** 2 + me.sigma_model_rel ** 2)
+    assert float(np.sum(w * w * e ** 2)) == pytest.approx(4.0 / 5.0 * float(np.sum(w)), rel=1e-9)
     without = M.estimate(e / s, s, 1)
     assert me.sigma_model_rel < without.sigma_model_rel
+
+
+def test_known_part_that_dominates_some_rows_leaves_the_others_to_judge():
+    """Three rows carry a known error 20x their noise, three none; the residuals are 2x the noise
+    everywhere.  The weighted equation takes sigma_m from the rows that can show it (about
+    sqrt(4 - 1) s, as with those rows alone); the moment equation would count the dominated rows as
+    three degrees of freedom they do not carry and find less."""
+    n, s = 6, 0.001
+    r = np.array([2.0, -2.0, 2.0, -2.0, 2.0, -2.0])
+    k = np.array([0.02, 0.02, 0.02, 0.0, 0.0, 0.0])
+    me = M.estimate(r, s, 0, known_rel=k)
+    assert me.sigma_model_rel == pytest.approx(s * math.sqrt(3.0), rel=0.02)
+    moment = M.estimate(r[3:], s, 0).sigma_model_rel  # the free rows alone: the same answer
+    assert me.sigma_model_rel == pytest.approx(moment, rel=0.02)
 
 
 def test_weights_and_support():

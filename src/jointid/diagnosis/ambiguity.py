@@ -24,7 +24,7 @@ import pandas as pd
 
 from jointid.correlate.pairing import pair_by_shapes
 from jointid.diagnosis.judging import supported
-from jointid.diagnosis.results import frequency_rows, row_sigma, row_weights
+from jointid.diagnosis.results import frequency_rows, row_sigma, whitener
 from jointid.diagnosis.shape_proposal import accelerometer_rows
 from jointid.diagnosis.terms import StateInfo
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
@@ -60,9 +60,9 @@ def absorption(current, Jt: np.ndarray, data, shift_pct: float, me: ModelError =
     if peak <= 0 or ev.J.shape[1] == 0:
         return {"absorbed": False, "size_t": 0.0, "chi2_raw": 0.0, "chi2_left": 0.0, "bias_pct": {}}
     t = shift_pct / 100.0 / peak
-    w = np.sqrt(row_weights(ev, data, me))  # rows in units of the total uncertainty (1 without a model error)
-    d = jt * t * w
-    Jw = ev.J * w[:, None]
+    A = whitener(ev, data, me)  # rows in units of the total uncertainty (the identity without a model error)
+    d = A @ (jt * t)
+    Jw = A @ ev.J
     dx, *_ = np.linalg.lstsq(Jw, d, rcond=None)
     left = d - Jw @ dx
     var = current.variant

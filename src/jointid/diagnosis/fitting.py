@@ -42,6 +42,7 @@ from jointid.diagnosis.starts import (EIGEN_RTOL, START_DIGITS, TIE_RTOL, best_f
 from jointid.diagnosis.terms import System, is_solid_term, term_component
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
+from jointid.identification.model_error import mode_correlation
 from jointid.progress import stamp
 
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
@@ -200,7 +201,7 @@ class Diagnoser:
         """
         x = np.asarray(x, float)
         sols = self.solve_states(variant, x, refine=refine)
-        r, J, rows, new_index, fmod, mis, sig, kn = [], [], [], [], [], [], [], []
+        r, J, rows, new_index, fmod, mis, sig, kn, modes = [], [], [], [], [], [], [], [], []
         for si, (d, sol) in enumerate(zip(self.data, sols)):
             idx = np.array(index[si])
             if track is not None and track[si] is not None:
@@ -221,6 +222,9 @@ class Diagnoser:
             s_row = np.concatenate([d.mode_sigma()[ok], d.mode_sigma()[bad], d.mode_sigma()[near]])
             sig.append(s_row)
             kn.append(np.concatenate([d.mode_known()[ok], d.mode_known()[bad], d.mode_known()[near]]))
+            # the model mode of each row at the probe (an unpaired measured mode has none): whose mesh error it is
+            modes.append(np.hstack([sol.shapes[:, idx[ok]], np.zeros((sol.shapes.shape[0], len(bad))),
+                                    sol.shapes[:, cols]]))
             e_row = np.concatenate([np.log(f / fm), np.full(len(bad), np.log1p(UNPAIRED_ERROR)),
                                     np.log(sol.freqs_Hz[cols] / tgt)])
             r.append(e_row / s_row)
@@ -240,8 +244,9 @@ class Diagnoser:
             J.append(Jb / s_row[:, None])
             rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad] + [(si, 0)] * len(cols)
         known = np.concatenate(kn)
+        corr = mode_correlation(np.hstack(modes)) if known.any() else None
         ev = Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis,
-                        sigma=np.concatenate(sig), known=known if known.any() else None)
+                        sigma=np.concatenate(sig), known=known if known.any() else None, known_corr=corr)
         return self.shapes.extend(ev, self.solver, [variant.dcoefficients(x, d.info) for d in self.data])
 
     def _follow(self, sol: Solution, ref_Y: np.ndarray, idx: np.ndarray) -> np.ndarray:

@@ -18,8 +18,8 @@ from jointid.diagnosis.criteria import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
 from jointid.identification.model_error import ModelError, estimate
 
-__all__ = ["Evaluation", "Fit", "chi2_at", "log_interval", "frequency_rows", "refit_row", "row_known", "row_sigma", "row_weights",
-           "block_error"]
+__all__ = ["Evaluation", "Fit", "chi2_at", "log_interval", "frequency_rows", "refit_row", "row_known", "row_sigma",
+           "whitener", "block_error"]
 
 
 @dataclass
@@ -38,6 +38,8 @@ class Evaluation:
     sigma: np.ndarray | None = None  # per row: its stated uncertainty (frequency rows relative, shape rows
     # as a fraction of the mode's RMS); r = error / sigma
     known: np.ndarray | None = None  # per row: its known error (the mesh's, relative; 0 for shape rows)
+    known_corr: np.ndarray | None = None  # (frequency rows, frequency rows): the known errors' correlation, the
+    # MAC of the rows' model modes (a mode's mesh error is the same in every state); None: independent
 
 
 def log_interval(value: float, sd: float) -> tuple[float, float]:
@@ -73,6 +75,11 @@ def row_known(ev: Evaluation) -> np.ndarray:
     return np.zeros(int(f.sum())) if ev.known is None else np.asarray(ev.known, float)[f]
 
 
+def row_known_corr(ev: Evaluation) -> np.ndarray | None:
+    """The correlation of the frequency rows' known errors (None: independent, or none known)."""
+    return None if ev.known is None else ev.known_corr
+
+
 def _shape_sigma(ev: Evaluation) -> np.ndarray:
     f = frequency_rows(ev)
     return np.ones(int((~f).sum())) if ev.sigma is None else np.asarray(ev.sigma, float)[~f]
@@ -83,7 +90,8 @@ def block_error(ev: Evaluation, data: list[StateData] | None, n_params: int, *, 
     with their known errors and ``n_params`` fitted parameters, the shape rows (if any) with one best
     scale per measured shape.  The shape block is :attr:`ModelError.shape`."""
     f = frequency_rows(ev)
-    me = estimate(ev.r[f], row_sigma(ev, data), n_params, known_rel=row_known(ev), reference=reference)
+    me = estimate(ev.r[f], row_sigma(ev, data), n_params, known_rel=row_known(ev), known_corr=row_known_corr(ev),
+                  reference=reference)
     if f.all():
         return me
     shape = estimate(ev.r[~f], _shape_sigma(ev), ev.n_scales, reference=reference)
@@ -95,22 +103,26 @@ def chi2_at(ev: Evaluation, data: list[StateData], me: ModelError) -> float:
     stated noise, known error and the model error, the shape rows at their shape noise plus the shape
     block's model error (``me.shape``; none: their noise alone)."""
     f = frequency_rows(ev)
-    out = me.chi2_total(ev.r[f], row_sigma(ev, data), row_known(ev))
+    out = me.chi2_total(ev.r[f], row_sigma(ev, data), row_known(ev), row_known_corr(ev))
     if not f.all():
         rs = ev.r[~f]
         out += float(rs @ rs) if me.shape is None else me.shape.chi2_total(rs, _shape_sigma(ev))
     return out
 
 
-def row_weights(ev: Evaluation, data: list[StateData], me: ModelError) -> np.ndarray:
-    """Per residual row, the weight of its chi-square contribution at the total uncertainty of ``me``
-    (:meth:`ModelError.row_weights` for the frequency rows, and for the shape rows with ``me.shape``)."""
+def whitener(ev: Evaluation, data: list[StateData] | None, me: ModelError) -> np.ndarray:
+    """The matrix taking the evaluation's sigma-normalised rows to units of the total uncertainty of
+    ``me`` (:meth:`ModelError.whitener`): the frequency block with its known errors and their
+    correlation, the shape rows (diagonal) with ``me.shape``; ``A r`` has :func:`chi2_at` as its square
+    and ``A J`` gives the parameters' information."""
     f = frequency_rows(ev)
-    w = np.ones(len(ev.r))
-    w[f] = me.row_weights(row_sigma(ev, data), row_known(ev))
+    idx = np.flatnonzero(f)
+    A = np.eye(len(ev.r))
+    A[np.ix_(idx, idx)] = me.whitener(row_sigma(ev, data), row_known(ev), row_known_corr(ev))
     if not f.all() and me.shape is not None:
-        w[~f] = me.shape.row_weights(_shape_sigma(ev))
-    return w
+        rest = np.flatnonzero(~f)
+        A[rest, rest] = np.sqrt(me.shape.row_weights(_shape_sigma(ev)))
+    return A
 
 
 @dataclass
@@ -202,12 +214,12 @@ class Fit:
         and the hypotheses' rule); with shapes, each block is widened by its own model error."""
         if self.one_noise():
             return self.covariance() * self.interval_scale(extra_params) ** 2
-        w = row_weights(self.ev, None, self.own_error(extra_params))
-        J = self.ev.J * np.sqrt(w)[:, None]
+        A = whitener(self.ev, None, self.own_error(extra_params))
+        J = A @ self.ev.J
         cov = np.linalg.pinv(J.T @ J)
         if frequency_rows(self.ev).all():
             return cov
-        return cov * self._cluster_factor(cov, w, extra_params)
+        return cov * self._cluster_factor(cov, A, extra_params)
 
     def _clusters(self) -> dict:
         """Row numbers of each measured mode of each state (its frequency and shape rows); a misfit row
@@ -242,7 +254,7 @@ class Fit:
         ok = d > 0
         return float(max(1.0, np.mean(np.diag(robust)[ok] / d[ok]))) if ok.any() else 1.0
 
-    def _cluster_factor(self, cov: np.ndarray, w: np.ndarray, extra_params: int) -> float:
+    def _cluster_factor(self, cov: np.ndarray, A: np.ndarray, extra_params: int) -> float:
         """How much wider the cluster-robust (sandwich) variances are than ``cov``, at least 1.
 
         A model error of a mode shape is not noise: it moves all the mode's displacements together, so
@@ -256,8 +268,9 @@ class Fit:
         G = len(groups)
         if G <= p:
             return 1.0
-        wr = w * self.ev.r
-        U = np.array([self.ev.J[rows].T @ wr[rows] for rows in groups.values()])
+        Jw, rw = A @ self.ev.J, A @ self.ev.r  # whitened rows (the known errors' correlation mixes only
+        # frequency rows of one mode across states, which the clusters keep apart; an approximation there)
+        U = np.array([Jw[rows].T @ rw[rows] for rows in groups.values()])
         M = U.T @ U * G / (G - p)
         robust = cov @ M @ cov
         d = np.diag(cov)

@@ -6,11 +6,33 @@ and a model error ``sigma_m`` common to all modes, which is whatever the model c
 
     e_i ~ N(0, s_i^2 + k_i^2 + sigma_m^2)
 
+The known part may be correlated between rows: the mesh's remaining error belongs to a *mode*, so the
+same mode measured in two states carries the same error in both (``known_corr``, a correlation matrix,
+:func:`mode_correlation`).  The total covariance is then ``S + D R D + sigma_m^2 I`` with
+``S = diag(s_i^2)``, ``D = diag(k_i)``, and every chi-square below is the generalised one,
+``e^T C^-1 e``.  A difference between states then carries no mesh error, as it should: a refinement
+moves a mode's frequency alike in every state.
+
 ``sigma_m`` is estimated once per comparison, from its *reference fit*: the fit of least chi-square
 per degree of freedom among the models compared (for nested candidates, the most general; for
-non-nested reconstructions, the best), by the moment equation of Paule and Mandel (1982),
+non-nested reconstructions, the best).  Without a known part it solves the moment equation of Paule
+and Mandel (1982),
 
-    sum_i e_i^2 / (s_i^2 + k_i^2 + sigma_m^2) = n - k,        sigma_m >= 0,
+    sum_i e_i^2 / (s_i^2 + k_i^2 + sigma_m^2) = n - k,        sigma_m >= 0.
+
+With a known part, the rows' variances differ by orders of magnitude (a mesh error of 2 % beside a
+noise of 0.1 %), and the moment equation would let a row dominated by its known part count for a full
+degree of freedom while it carries almost no information on ``sigma_m``: an overstated known part then
+drives ``sigma_m`` down, and an understated noise goes unseen.  There ``sigma_m`` solves the
+likelihood's estimating equation instead, each row weighted by ``w_i = 1 / (s_i^2 + k_i^2 + sigma_m^2)``
+and the degrees of freedom spread over the rows (the maximum-likelihood equation of the random-effects
+model with the ``(n - k) / n`` correction of restricted likelihood for equal rows; Viechtbauer, J. Educ.
+Behav. Stat. 30, 2005),
+
+    sum_i w_i^2 e_i^2 = (n - k) / n  sum_i w_i,
+
+which equals the moment equation when all rows have the same variance.  With correlated known parts
+both equations are solved in the eigenbasis of ``S + D R D``, where the rows are independent.
 
 and then held fixed while every model of the comparison is judged.  With one stated uncertainty for
 all modes and no known part, this is the variance-inflation factor of quasi-likelihood,
@@ -34,7 +56,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 __all__ = ["ModelError", "NO_MODEL_ERROR", "estimate", "from_chi2", "qaicc", "akaike_weights", "support_text",
-           "SUPPORT_STRONG", "SUPPORT_SOME"]
+           "mode_correlation", "SUPPORT_STRONG", "SUPPORT_SOME"]
 
 SUPPORT_STRONG = 10.0
 """A model ahead by at least this much QAICc has strong support over the other (Burnham and Anderson,
@@ -102,13 +124,36 @@ class ModelError:
         k = np.zeros_like(s) if known_rel is None else np.asarray(known_rel, float)
         return (s ** 2 + k ** 2 + self.sigma_model_rel ** 2) * self.design_effect
 
-    def chi2_total(self, r, sigma_rel, known_rel=None) -> float:
-        """Chi-square at the total uncertainty of sigma-normalised residuals ``r`` (``r_i = e_i / s_i``)."""
+    def covariance(self, sigma_rel, known_rel=None, known_corr=None) -> np.ndarray:
+        """Total covariance of the rows ``(S + D R D + sigma_m^2 I)`` times :attr:`design_effect` (module
+        doc); ``known_corr`` None: the known parts are independent (``R = I``)."""
+        s = np.asarray(sigma_rel, float)
+        k = np.zeros_like(s) if known_rel is None else np.asarray(known_rel, float)
+        R = np.eye(len(s)) if known_corr is None else np.asarray(known_corr, float)
+        C = np.diag(s ** 2 + self.sigma_model_rel ** 2) + k[:, None] * R * k[None, :]
+        return C * self.design_effect
+
+    def chi2_total(self, r, sigma_rel, known_rel=None, known_corr=None) -> float:
+        """Chi-square at the total uncertainty of sigma-normalised residuals ``r`` (``r_i = e_i / s_i``);
+        with ``known_corr``, the generalised ``e^T C^-1 e`` (:meth:`covariance`)."""
         r = np.asarray(r, float)
         s = np.broadcast_to(np.asarray(sigma_rel, float), r.shape)
         e = r * s
-        return float(np.sum(e ** 2 / self.variances(s, None if known_rel is None
-                                                     else np.broadcast_to(known_rel, r.shape))))
+        k = None if known_rel is None else np.broadcast_to(known_rel, r.shape)
+        if known_corr is None or not len(r):
+            return float(np.sum(e ** 2 / self.variances(s, k)))
+        return float(e @ np.linalg.solve(self.covariance(s, k, known_corr), e))
+
+    def whitener(self, sigma_rel, known_rel=None, known_corr=None) -> np.ndarray:
+        """The matrix ``A`` that takes sigma-normalised rows (residuals ``r`` or Jacobian rows) to units
+        of the total uncertainty, ``A r = C^-1/2 e``: ``(A r)^T (A r)`` is :meth:`chi2_total` and
+        ``(A J)^T (A J)`` the information of the parameters.  Without ``known_corr`` it is diagonal,
+        ``diag(sqrt(row_weights))``."""
+        s = np.asarray(sigma_rel, float)
+        if known_corr is None:
+            return np.diag(np.sqrt(self.row_weights(s, known_rel)))
+        lam, Q = np.linalg.eigh(self.covariance(s, known_rel, known_corr))
+        return (Q / np.sqrt(np.maximum(lam, 1e-300))) @ Q.T * s[None, :]
 
     def row_weights(self, sigma_rel, known_rel=None) -> np.ndarray:
         """Per row ``s_i^2 / (s_i^2 + k_i^2 + sigma_m^2)``: what a chi-square contribution at the stated
@@ -161,7 +206,23 @@ NO_MODEL_ERROR = ModelError()
 """The exact-model likelihood (no model error): plain chi-square and AICc."""
 
 
-def estimate(r, sigma_rel, n_params: int, *, known_rel=None, reference: str = "") -> ModelError:
+def mode_correlation(shapes) -> np.ndarray:
+    """The correlation of rows whose errors belong to modes: ``MAC(phi_i, phi_j)`` of the rows' model
+    shapes ``shapes`` (n_dofs, n_rows); a column of zeros or NaN (a row without a mode) is correlated
+    with nothing.  The MAC matrix is positive semi-definite (the Hadamard square of the normalised Gram
+    matrix, Schur's product theorem) and has a unit diagonal, so it is a correlation matrix."""
+    P = np.nan_to_num(np.asarray(shapes, float))
+    norm = np.sqrt((P * P).sum(axis=0))
+    ok = norm > 0
+    G = np.zeros((P.shape[1], P.shape[1]))
+    Pn = P[:, ok] / norm[ok]
+    G[np.ix_(ok, ok)] = Pn.T @ Pn
+    R = G ** 2
+    np.fill_diagonal(R, 1.0)
+    return R
+
+
+def estimate(r, sigma_rel, n_params: int, *, known_rel=None, known_corr=None, reference: str = "") -> ModelError:
     """The model error of a reference fit with sigma-normalised residuals ``r`` and ``n_params`` fitted
     parameters (the Paule-Mandel moment equation of the module doc).
 
@@ -175,6 +236,9 @@ def estimate(r, sigma_rel, n_params: int, *, known_rel=None, reference: str = ""
         Parameters fitted (the degrees of freedom are ``max(n - n_params, 1)``).
     known_rel : (n,) array, optional
         A known part of the model error per row (relative), e.g. the mesh's discretisation error.
+    known_corr : (n, n) array, optional
+        The known parts' correlation between rows (:func:`mode_correlation`); None: independent.  The
+        moment equation is then solved in the eigenbasis of ``S + D R D``, where it is a sum again.
     """
     r = np.asarray(r, float)
     s = np.broadcast_to(np.asarray(sigma_rel, float), r.shape).astype(float)
@@ -185,15 +249,23 @@ def estimate(r, sigma_rel, n_params: int, *, known_rel=None, reference: str = ""
     noise = float(np.sqrt(np.mean(s ** 2))) if len(s) else 0.0
     known = float(np.sqrt(np.mean(k ** 2))) if len(k) else 0.0
     base = s ** 2 + k ** 2
+    if known_corr is not None and len(r) and k.any():  # the same sum in the eigenbasis of S + D R D
+        lam, Q = np.linalg.eigh(np.diag(s ** 2) + k[:, None] * np.asarray(known_corr, float) * k[None, :])
+        e2, base = (Q.T @ (r * s)) ** 2, np.maximum(lam, 0.0)
 
-    def excess(var_m: float) -> float:
-        return float(np.sum(e2 / (base + var_m))) - dof
+    if k.any():  # the weighted (likelihood) equation: rows dominated by the known part carry little weight
+        def excess(var_m: float) -> float:
+            w = 1.0 / (base + var_m)
+            return float(np.sum(e2 * w * w)) - dof / len(r) * float(np.sum(w))
+    else:
+        def excess(var_m: float) -> float:
+            return float(np.sum(e2 / (base + var_m))) - dof
 
     var_m = 0.0
     if len(r) and not k.any() and np.all(s == s[0]) and chi2 > dof:
         var_m = float(s[0]) ** 2 * (chi2 / dof - 1.0)  # one noise, no known part: the closed form
     elif len(r) and excess(0.0) > 0:
-        hi = max(float(np.max(e2)), 1e-30)
+        hi = max(float(np.max(e2)) * len(r), 1e-30)
         while excess(hi) > 0:
             hi *= 4
         var_m = brentq(excess, 0.0, hi, xtol=1e-16, rtol=1e-12)
