@@ -93,7 +93,8 @@ def identification(state: str, names: list[str], theta0: dict, f_meas, polish: d
         f_model_Hz=np.asarray(polish["f_fe"], float), tracking_mac=np.asarray(polish["mac"], float),
         paired_by=paired_by,
         chi2=float(polish["chi2"]), dof=int(polish["dof"]), iterations=int(polish["iterations"]),
-        on_bound=tuple(polish["on_bound"]), fixed=fixed, unpaired_visible=tuple(polish["unpaired_visible"]))
+        on_bound=tuple(polish["on_bound"]), fixed=fixed, unpaired_visible=tuple(polish["unpaired_visible"]),
+        shape_chi2=float(polish.get("shape_chi2") or 0.0), shape_dof=int(polish.get("shape_dof") or 0))
 
 
 def write_diagnosis(res, out_dir, dataset_name: str, cfg: dict) -> None:

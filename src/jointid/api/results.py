@@ -121,6 +121,9 @@ class Identification:
     unpaired_visible : tuple of dict
         Model modes the test would clearly have seen that no measured mode takes (``freq_Hz``,
         ``target_Hz``, ``misfit_pct``, ``visibility_rel``), each a misfit of the fit.
+    shape_chi2, shape_dof : float, int
+        The shape rows' chi-square at their stated (or estimated) uncertainty and their degrees of
+        freedom (rows less one scale per mode), where measured shapes were fitted; 0 and 0 without.
     """
 
     state: str
@@ -138,6 +141,8 @@ class Identification:
     on_bound: tuple[str, ...]
     fixed: dict[str, float]
     unpaired_visible: tuple[dict, ...] = ()
+    shape_chi2: float = 0.0
+    shape_dof: int = 0
 
     @property
     def residual_pct(self) -> np.ndarray:

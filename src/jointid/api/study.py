@@ -303,7 +303,8 @@ class Study:
         weights = weights * (d.noise_rms() / d.mode_sigma()) ** 2  # each mode in units of its own uncertainty
         fit = PolishFit(d.f_meas, start.shapes[:, pairing.model_index], joints.lower_N_per_m3, joints.upper_N_per_m3,
                         weights=weights, sigma_rel=d.noise_rms(),
-                        repair=meas_shapes is None, rule=d.rule)
+                        repair=meas_shapes is None, rule=d.rule,
+                        shapes=None if meas_shapes is None else d.shapes, shape_sigma_rel=d.shape_sigma_rel)
         polish = polish_on_model(self._settings.model, self.model(), names, np.array([start.theta[k] for k in names]),
                                  fit, max_iter=max_iter, log=log or _quiet)
         result = measured.identification(state, names, start.theta, d.f_meas, polish,

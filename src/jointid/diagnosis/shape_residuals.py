@@ -31,11 +31,12 @@ from dataclasses import replace
 
 import numpy as np
 
+from jointid.correlate.shape_rows import (MIN_SHAPE_UNCERTAINTY, normalised_shape, scaled_residual,
+                                          shape_noise_estimate)
 from jointid.fe.shape_derivative import probe_shape_derivatives
 
 __all__ = ["ShapeBlock", "ShapeTerms", "normalised_shape", "shape_block", "estimate_shape_uncertainty"]
 
-MIN_SHAPE_UNCERTAINTY = 1e-3  # an estimated shape uncertainty is at least 0.1 % (a perfect match is no noise level)
 
 
 class ShapeBlock:
@@ -56,23 +57,6 @@ class ShapeBlock:
         if not self.r:
             return np.zeros(0), np.zeros((0, self.p))
         return np.concatenate(self.r), np.vstack(self.J)
-
-
-def normalised_shape(psi: np.ndarray, eps: float) -> np.ndarray:
-    """A measured shape scaled to a noise-free RMS of one (its RMS over ``sqrt(1 + eps^2)``)."""
-    rms = float(np.sqrt(np.mean(psi ** 2)))
-    return psi * np.sqrt(1.0 + eps ** 2) / rms if rms > 0 else psi
-
-
-def scaled_residual(psi: np.ndarray, phi: np.ndarray, dphi: np.ndarray | None, eps: float):
-    """``(alpha phi - psi) / eps`` and its derivative ``(n, p)`` from ``dphi (n, p)`` (None: zero)."""
-    pp = float(phi @ phi)
-    alpha = float(phi @ psi) / pp if pp > 0 else 0.0
-    r = (alpha * phi - psi) / eps
-    if dphi is None or pp <= 0:
-        return r, np.zeros((len(psi), 0 if dphi is None else dphi.shape[1]))
-    dalpha = (dphi.T @ psi - 2.0 * alpha * (dphi.T @ phi)) / pp
-    return r, (np.outer(phi, dalpha) + alpha * dphi) / eps
 
 
 def shape_block(solver, data, sols, index, directions: list, eps: dict) -> ShapeBlock:
@@ -105,20 +89,15 @@ def shape_block(solver, data, sols, index, directions: list, eps: dict) -> Shape
 
 def estimate_shape_uncertainty(data, sols, index) -> float:
     """One shape uncertainty for the states given (``data``/``sols``/``index`` aligned) from the misfit of
-    their paired modes: ``e^2 = sum |psi - alpha phi|^2 / sum (n_m - 1)`` with ``psi`` at a measured RMS
-    of one, and ``eps = e / sqrt(1 - e^2)`` (the noise against the noise-free RMS).  It holds the model's
-    own shape error at that point as well as the noise: an upper bound of the noise."""
-    ss, dof = 0.0, 0
+    their paired modes (:func:`jointid.correlate.shape_rows.shape_noise_estimate`): an upper bound of
+    the noise."""
+    pairs = []
     for d, sol, idx in zip(data, sols, index):
         for m in range(d.shapes.shape[1]):
             ok = np.isfinite(d.shapes[:, m])
-            if idx[m] < 0 or ok.sum() < 2:
-                continue
-            r, _ = scaled_residual(normalised_shape(d.shapes[ok, m], 0.0), sol.shapes[ok, idx[m]], None, 1.0)
-            ss += float(r @ r)
-            dof += int(ok.sum()) - 1
-    e2 = min(ss / dof, 0.5) if dof else 0.0
-    return float(np.sqrt(e2 / (1.0 - e2))) if e2 > 0 else 0.0
+            if idx[m] >= 0:
+                pairs.append((d.shapes[ok, m], sol.shapes[ok, idx[m]]))
+    return shape_noise_estimate(pairs)
 
 
 class ShapeTerms:

@@ -37,6 +37,7 @@ from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
 from jointid.identification.rom import ROM, load_rom
 from jointid.identification.polish_fit import PolishFit
+from jointid.identification.polish_shapes import block_covariance, shape_rows, shape_sensitivity, start_uncertainty
 from jointid.identification.visibility import misfit_table
 from jointid.progress import Work, stamp
 
@@ -92,13 +93,16 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], terms: list[dict[str,
     residuals with exact sensitivities, and the frequency re-pairing pays for leaving them unpaired.
 
     Returns ``dict(theta, f_fe, index, mac, jacobian_log10, cov_log10, iterations, unpaired_visible,
-    chi2, dof)``.
+    chi2, dof)``, and with shape rows (``fit.shapes``) ``shape_chi2, shape_dof, shape_c_hat,
+    shape_uncertainty, cluster_factor`` (``jacobian_log10`` is always the frequency rows', relative).
     """
     f_meas, rule, sigma_rel = fit.f_meas_Hz, fit.rule, fit.sigma_rel
     lo, hi = np.log10(fit.lower_N_per_m3), np.log10(fit.upper_N_per_m3)
     y = np.log10(np.asarray(theta0, float))
     w = np.ones(len(f_meas)) if fit.weights is None else np.asarray(fit.weights, float)
     shapes_now = np.asarray(fit.ref_shapes)
+    with_shapes = fit.has_shapes and repair_min_Hz is None  # shape rows: a block of their own (polish_shapes)
+    eps = fit.shape_sigma_rel
     history = []
     best = None
     for it in range(max_iter + 1):
@@ -125,13 +129,23 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], terms: list[dict[str,
         if extra:  # a part of d ln f / d log10 theta that the solve knows beyond phi (e.g. a correction factor's)
             dlnf = dlnf + np.asarray(extra[0])[rows]
         J = (sw * f_all / target)[:, None] * dlnf
+        n_freq, modes = len(r), np.zeros(0, int)
+        if with_shapes:  # frequency rows in units of their noise, then the shape rows
+            if eps is None:
+                eps = start_uncertainty(fit.shapes, shapes, index)
+            dshape = shape_sensitivity(stiff, phi, (2 * np.pi * freqs) ** 2, shapes, terms, 10 ** y, index)
+            rs, Js, modes = shape_rows(fit.shapes, eps, shapes, index, dshape)
+            r, J = np.concatenate([r / sigma_rel, rs]), np.vstack([J / sigma_rel, Js])
         history.append(float(r @ r))
         if best is None or history[-1] < best[0]:
             best = (history[-1], y.copy(), f.copy(), index.copy(), macs.copy(), J.copy(), np.array(freqs),
-                    None if vis is None else vis.copy())
-        log(f"  FE polish it {it}: max |error| {100 * np.abs(r[:len(f_meas)] / np.sqrt(w)).max():.3f} %"
-            + (f" (+{pen.size} unpaired visible, max misfit {100 * np.abs(r[len(f_meas):]).max():.2f} %)"
-               if pen.size else "") + ", " + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
+                    None if vis is None else vis.copy(), r.copy(), n_freq, modes)
+        rel = r[:n_freq] * (sigma_rel if with_shapes else 1.0)
+        log(f"  FE polish it {it}: max |error| {100 * np.abs(rel[:len(f_meas)] / np.sqrt(w)).max():.3f} %"
+            + (f" (+{pen.size} unpaired visible, max misfit {100 * np.abs(rel[len(f_meas):]).max():.2f} %)"
+               if pen.size else "") + (f", shapes chi2 {float(r[n_freq:] @ r[n_freq:]):.1f} for {len(r) - n_freq} rows"
+                                      if with_shapes else "")
+            + ", " + ", ".join(f"{n}={10**v:.4g}" for n, v in zip(names, y)))
         shapes_now = shapes[:, index]
         if it == max_iter:
             break
@@ -143,8 +157,16 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], terms: list[dict[str,
             y = y_new
             break
         y = y_new
-    chi2_raw, y, f, index, macs, J, freqs, vis = best
-    cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
+    chi2_raw, y, f, index, macs, J, freqs, vis, r, n_freq, modes = best
+    blocks = {}
+    if with_shapes:  # each block at its own lack of fit, the cluster-robust check (polish_shapes)
+        blocks = block_covariance(J, r, n_freq, len(y), modes)
+        cov = blocks.pop("cov")
+        chi2_raw = blocks["chi2"] * sigma_rel ** 2  # the frequency block's, as without shapes
+        blocks.update(shape_uncertainty=eps, dof=None)
+        J = J[:n_freq] * sigma_rel  # the frequency rows' Jacobian, relative (as without shapes)
+    else:
+        cov = sigma_rel**2 * np.linalg.pinv(J.T @ J)
     band = (np.min(f_meas), np.max(f_meas))
     unpaired = [float(freqs[j]) for j in range(len(freqs))
                 if band[0] <= freqs[j] <= band[1] and j not in set(index.tolist())]
@@ -153,15 +175,20 @@ def fe_polish(solve, theta0: np.ndarray, names: list[str], terms: list[dict[str,
             "unpaired_in_band_Hz": unpaired, "unpaired_visible": visible,
             "chi2": chi2_raw / sigma_rel**2, "dof": max(1, len(f_meas) - len(y)),
             "cov_log10": cov, "iterations": it, "cost_history": history,
-            "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3]}
+            "on_bound": [n for n, v, a, b in zip(names, y, lo, hi) if min(v - a, b - v) < 1e-3],
+            **{k: v for k, v in blocks.items() if k not in ("chi2", "dof")}}
 
 
 def polish_intervals(polish: dict) -> tuple[float, np.ndarray, np.ndarray]:
     """``(scale, ci95_low, ci95_high)`` of a polish record (:func:`fe_polish`): the Gauss-Newton covariance
     in log10, widened by ``scale = max(1, sqrt(chi2 / dof))``: when the fit is worse than the stated
-    frequency uncertainty, a model error, not the noise, sets the scatter."""
+    frequency uncertainty, a model error, not the noise, sets the scatter.  With shape rows in the fit
+    (:mod:`jointid.identification.polish_shapes`) each block is widened by its own lack of fit inside
+    ``cov_log10``, and ``scale`` is 1."""
     theta = np.asarray(polish["theta"], float)
     scale = float(max(1.0, np.sqrt(polish["chi2"] / polish["dof"])))
+    if polish.get("shape_dof"):  # with shape rows the covariance already holds each block's lack of fit
+        scale = 1.0
     sd = scale * np.sqrt(np.clip(np.diag(polish["cov_log10"]), 0, None))
     return scale, theta * 10 ** (-1.96 * sd), theta * 10 ** (1.96 * sd)
 

@@ -32,6 +32,13 @@ class PolishFit:
         Frequency-only data: re-pair the measured modes by frequency at every iterate.
     rule : VisibilityRule, optional
         Modes the test would clearly have seen count as misfits when no measured mode takes them.
+    shapes : ndarray, shape (n_labels, n_meas), optional
+        Measured shapes at the solve's probe labels (NaN where not measured).  Where given, every
+        measured mode adds its shape rows to the fit (:mod:`jointid.correlate.shape_rows`), a block
+        judged with its own model error.
+    shape_sigma_rel : float, optional
+        Stated shape uncertainty (fraction of each mode's RMS); None: estimated from the misfit at the
+        start (an upper bound of the noise).
     """
 
     f_meas_Hz: np.ndarray
@@ -42,3 +49,10 @@ class PolishFit:
     sigma_rel: float = 0.01
     repair: bool = False
     rule: VisibilityRule | None = None
+    shapes: np.ndarray | None = None
+    shape_sigma_rel: float | None = None
+
+    @property
+    def has_shapes(self) -> bool:
+        """Whether any measured mode has a shape at two or more DOFs (shape rows in the fit)."""
+        return self.shapes is not None and bool((np.isfinite(self.shapes).sum(axis=0) >= 2).any())

@@ -177,7 +177,6 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None
     linked = _forces_differ(data)
     classes = law.preload_classes_N if linked else (law.preload_classes_N[0],)
     diag = Diagnoser(system, cfg, data, start_basis=start_basis, log=log)
-    diag.shapes.disable()  # the hypotheses' records and QAICc count frequency rows only (issue 40: not yet)
     profile, best = [], None
     x_prev = None
     index = None

@@ -256,14 +256,29 @@ def _polish_step(spec: ModelSpec, state: str, names: list[str], fit, surface_the
     return theta, ci_lo, ci_hi, polish["f_fe"], polish, edge
 
 
-def _polish_fit(cfg: dict, doc: dict, pairing, f_meas, sigma_pct: float, weights, repair: bool, rule):
-    """What the FE polish fits (:class:`jointid.identification.polish.PolishFit`): the measured modes,
-    following the surface model's reference shapes of their paired modes, in the configured bounds."""
+def _polish_fit(cfg: dict, state: str, doc: dict, pairing, measured: tuple, weights, fixed, rule):
+    # many parameters: the state, its surface and pairing, the measured modes with their weights and the test
+    """What the FE polish fits (:class:`jointid.identification.polish.PolishFit`): the measured modes
+    ``measured`` (:func:`measured_modes`), following the surface model's reference shapes of their paired
+    modes, in the configured bounds; their measured shapes, where there are any, as a block of rows of
+    their own (at the dataset's stated shape uncertainty, else estimated).  Frequency-only data paired
+    each state by itself (``fixed`` None) are re-paired at every iterate."""
     from jointid.identification.polish import PolishFit
 
+    f_meas, shapes, sigma_pct = measured
+    shape_pct = None if shapes is None else stated_shape_uncertainty(cfg, state)
     b_lo, b_hi = parameter_bounds(cfg)
     return PolishFit(f_meas, np.asarray(doc["ref_shapes"])[:, pairing], b_lo, b_hi, weights=weights,
-                     sigma_rel=sigma_pct / 100, repair=repair, rule=rule)
+                     sigma_rel=sigma_pct / 100, repair=shapes is None and fixed is None, rule=rule, shapes=shapes,
+                     shape_sigma_rel=None if shape_pct is None else float(shape_pct) / 100)
+
+
+def stated_shape_uncertainty(cfg: dict, state: str) -> float | None:
+    """The dataset's ``shape_uncertainty_pct`` (conditions.yaml; None: not stated, the polish estimates it)."""
+    from jointid.data.dataset import read_dataset
+
+    value = read_dataset(dataset_folder(cfg, state)).conditions.get("shape_uncertainty_pct")
+    return None if value is None else float(value)
 
 
 def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
@@ -271,7 +286,6 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
     # many parameters: one parameter per part of params.json that run_identify computed; a result dataclass is issue 38's next step
     """The content of ``params.json``."""
     from jointid.correlate.pairing import PairedBy
-    from jointid.identification.model_error import from_chi2  # scipy.optimize: not when the Snakefile imports us
 
     names, lower, upper = doc["names"], doc["lower"], doc["upper"]
     return {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
@@ -286,7 +300,9 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
                 "chi2": polish["chi2"], "dof": polish["dof"], "interval_scale": polish["interval_scale"],
                 "iterations": polish["iterations"], "cost_history": polish["cost_history"],
                 "f_fe_Hz": polish["f_fe"], "mac": polish["mac"],
-                "certificate": polish["certificate"].to_record() if polish.get("certificate") else None},
+                "certificate": polish["certificate"].to_record() if polish.get("certificate") else None,
+                **{k: polish[k] for k in ("shape_chi2", "shape_dof", "shape_c_hat", "shape_uncertainty",
+                                          "cluster_factor") if k in polish}},
             "edge_extrapolation": edge,
             "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
                 doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
@@ -300,8 +316,21 @@ def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_p
             "on_bound": res.on_bound if polish is None else polish["on_bound"],
             "n_starts_agreeing": res.n_starts_agreeing, "warnings": msgs,
             "frequency_uncertainty_pct": sigma_pct,
-            "model_error": None if polish is None else from_chi2(
-                polish["chi2"], polish["dof"], sigma_pct / 100, reference=f"identify[{state}]").record()}
+            "model_error": None if polish is None else _model_error(polish, sigma_pct, state)}
+
+
+def _model_error(polish: dict, sigma_pct: float, state: str) -> dict:
+    """The polish's model error record: the frequency block's, and the shape block's where shapes are fitted
+    (in units of their stated noise)."""
+    from dataclasses import replace
+
+    from jointid.identification.model_error import from_chi2
+
+    me = from_chi2(polish["chi2"], polish["dof"], sigma_pct / 100, reference=f"identify[{state}]")
+    if polish.get("shape_dof"):
+        me = replace(me, shape=from_chi2(polish["shape_chi2"], polish["shape_dof"], polish["shape_uncertainty"],
+                                         reference=f"identify[{state}]"))
+    return me.record()
 
 
 def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
@@ -358,7 +387,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
         msgs.append("mesh.extrapolate_edges needs identify.fe_polish: the frequencies fitted are those of the "
                     "base mesh")
     if matrices and cfg["identify"].get("fe_polish", True):
-        fit = _polish_fit(cfg, doc, pairing, f_meas, sigma_pct, weights, shapes is None and fixed is None, vis_rule)
+        fit = _polish_fit(cfg, state, doc, pairing, (f_meas, shapes, sigma_pct), weights, fixed, vis_rule)
         theta, ci_lo, ci_hi, f_final, polish, edge = _polish_step(
             ModelSpec.from_config(cfg), state, doc["names"], fit, res.theta, matrices, rom, edges)
         msgs += _polish_notes(polish, shapes)
