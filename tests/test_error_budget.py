@@ -213,3 +213,20 @@ def test_the_moment_equation_with_correlated_known_errors():
     indep = estimate(r, s, 1, known_rel=k, known_corr=np.eye(n))
     assert indep.sigma_model_rel == pytest.approx(estimate(r, s, 1, known_rel=k).sigma_model_rel, rel=1e-9)
     assert indep.sigma_model_rel < me.sigma_model_rel
+
+
+def test_a_known_part_of_each_rows_own_beside_the_shared_one():
+    """known_budget: a shared part k (correlated by R) and an own part u per row.  Analytic: one mode in
+    two states, k = 2 %, u = 0.3 % and 0.4 %: the difference of the two rows carries u0^2 + u1^2 of known
+    variance, the mean (k^2 + (u0^2 + u1^2)/4)."""
+    from jointid.identification.model_error import known_budget
+
+    k, R = known_budget(np.array([0.02, 0.02]), np.ones((2, 2)), np.array([0.003, 0.004]))
+    np.testing.assert_allclose(k, np.sqrt(0.02 ** 2 + np.array([0.003, 0.004]) ** 2))
+    C = k[:, None] * R * k[None, :]
+    assert float(np.array([1, -1]) @ C @ np.array([1, -1])) == pytest.approx(0.003 ** 2 + 0.004 ** 2, rel=1e-12)
+    assert float(np.array([0.5, 0.5]) @ C @ np.array([0.5, 0.5])) == pytest.approx(
+        0.02 ** 2 + (0.003 ** 2 + 0.004 ** 2) / 4, rel=1e-12)
+    assert np.allclose(np.diag(R), 1.0) and np.all(np.linalg.eigvalsh(R) > -1e-12)
+    k0, R0 = known_budget(np.zeros(3), np.eye(3), np.zeros(3))
+    assert R0 is None and not k0.any()

@@ -71,3 +71,50 @@ def test_the_correction_follows_each_model_mode_and_blends_mixed_ones():
     assert np.allclose(mixed.freqs_Hz, [1000.0 * np.exp(shift.mean())])
     plain = sol([a], [1000.0])
     assert correct(SimpleNamespace(mesh_reference=None), plain) is plain
+
+
+def test_the_mesh_errors_change_with_the_joints_is_its_energy_share_change():
+    """Known truth: the correction of one halving class (thickness) computed at two joint stiffnesses,
+    1.35x apart (as em_preload makes between two states).  Its first-order change predicted at the
+    first point from the energy shares (``mesh_error._shares``, the gradient of :func:`drift`) must
+    match the change actually found, to 35 % of it on every mode whose correction moves by more than
+    0.02 % (and in sign): the part of the mesh error that differs between two states is known, not
+    zero and not the whole correction."""
+    from types import SimpleNamespace
+
+    from jointid.config.typed import ModelSpec
+    from jointid.diagnosis import mesh_error as me
+    from jointid.diagnosis.terms import baseline_coefficients, build_system
+    from jointid.fe.modal import solve_modes
+    from jointid.fe.model import build_model
+
+    rig = diagnosis_rig()
+    cfg, spec = rig["cfg"], ModelSpec.from_config(rig["cfg"])
+    coarse = build_system(rig["model"], cfg)
+    fine = build_system(build_model(spec, halve=("thickness",)), cfg)
+
+    def state(theta):
+        kc, mc = baseline_coefficients(coarse, spec, theta)
+        m = solve_modes(coarse.K(kc), coarse.M(mc), 8, fixed=coarse.fixed)
+        lam = (2 * np.pi * m.freqs_Hz) ** 2
+        return SimpleNamespace(kc=kc, mc=mc, freqs_Hz=m.freqs_Hz, shapes=coarse.probe @ m.phi, phi=m.phi, lam=lam)
+
+    a = state({"k_normal_N_per_m3": 7e11, "k_lateral_N_per_m3": 6e11})
+    b = state({"k_normal_N_per_m3": 7e11 * 1.35, "k_lateral_N_per_m3": 6e11 * 1.35})
+    shift_a, (fk, fm) = me._class_shift(fine, a, 8, shares=True)
+    shift_b, _ = me._class_shift(fine, b, 8)
+    ck, cm = me._shares(coarse, a.phi, a.lam, a)
+    predicted = np.zeros(len(shift_a))
+    for fine_g, coarse_g, now, ref in ((fk, ck, b.kc, a.kc), (fm, cm, b.mc, a.mc)):
+        for t in coarse_g:
+            predicted += 0.5 * np.nan_to_num(fine_g[t] - coarse_g[t]) * (now.get(t, 0.0) - ref.get(t, 0.0))
+    from jointid.correlate.pairing import pair_by_shapes
+
+    follow, _ = pair_by_shapes(a.shapes, b.shapes, threshold=0.8)
+    ok = follow >= 0
+    actual = shift_b[follow[ok]] - shift_a[ok]
+    pred = predicted[ok]
+    moved = np.abs(actual) > 2e-4
+    assert moved.sum() >= 2, actual
+    assert np.all(np.sign(pred[moved]) == np.sign(actual[moved])), (pred, actual)
+    assert np.all(np.abs(pred - actual)[moved] <= 0.35 * np.abs(actual)[moved]), (pred, actual)

@@ -42,7 +42,7 @@ from jointid.diagnosis.starts import (EIGEN_RTOL, START_DIGITS, TIE_RTOL, best_f
 from jointid.diagnosis.terms import System, is_solid_term, term_component
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
-from jointid.identification.model_error import mode_correlation
+from jointid.identification.model_error import known_budget, mode_correlation
 from jointid.progress import stamp
 
 UNPAIRED_ERROR = 0.10  # a measured mode without a model partner counts as a 10 % frequency error
@@ -114,6 +114,11 @@ class Diagnoser:
                 break
         # the mesh's correction, where the budget has one (jointid.diagnosis.mesh_error), follows each model mode
         return [mesh_error.correct(d, s) for d, s in zip(self.data, sols)]
+
+    def lift(self, Y: np.ndarray) -> np.ndarray:
+        """Full-space vectors of reduced vectors ``Y`` (of this or an earlier, smaller basis)."""
+        V = self.solver.V
+        return V @ pad_to_basis(Y, V.shape[1])
 
     def pair(self, sols: list[Solution]) -> list[correlate.Pairing]:
         """Pair measured and model modes per state: by MAC where shapes are measured; frequency-only
@@ -201,7 +206,7 @@ class Diagnoser:
         """
         x = np.asarray(x, float)
         sols = self.solve_states(variant, x, refine=refine)
-        r, J, rows, new_index, fmod, mis, sig, kn, modes = [], [], [], [], [], [], [], [], []
+        r, J, rows, new_index, fmod, mis, sig, kn, modes, own = [], [], [], [], [], [], [], [], [], []
         for si, (d, sol) in enumerate(zip(self.data, sols)):
             idx = np.array(index[si])
             if track is not None and track[si] is not None:
@@ -225,6 +230,10 @@ class Diagnoser:
             # the model mode of each row at the probe (an unpaired measured mode has none): whose mesh error it is
             modes.append(np.hstack([sol.shapes[:, idx[ok]], np.zeros((sol.shapes.shape[0], len(bad))),
                                     sol.shapes[:, cols]]))
+            # half the mesh correction's first-order change since its reference (applied in solve_states): this
+            # state's own uncertainty (jointid.diagnosis.mesh_error)
+            u = 0.5 * np.abs(mesh_error.drift(d, sol))
+            own.append(np.concatenate([u[idx[ok]], np.zeros(len(bad)), u[cols]]))
             e_row = np.concatenate([np.log(f / fm), np.full(len(bad), np.log1p(UNPAIRED_ERROR)),
                                     np.log(sol.freqs_Hz[cols] / tgt)])
             r.append(e_row / s_row)
@@ -243,8 +252,7 @@ class Diagnoser:
                 Jb[at, j] = dlam / (2 * np.maximum(sub.lam, 1e-9))
             J.append(Jb / s_row[:, None])
             rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad] + [(si, 0)] * len(cols)
-        known = np.concatenate(kn)
-        corr = mode_correlation(np.hstack(modes)) if known.any() else None
+        known, corr = known_budget(np.concatenate(kn), mode_correlation(np.hstack(modes)), np.concatenate(own))
         ev = Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis,
                         sigma=np.concatenate(sig), known=known if known.any() else None, known_corr=corr)
         return self.shapes.extend(ev, self.solver, [variant.dcoefficients(x, d.info) for d in self.data])

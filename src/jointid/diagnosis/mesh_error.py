@@ -24,6 +24,19 @@ as the mesh check does, finds less than half of it).
   docs/reconstruction.md), the refined mesh's remaining error is at most the step it just took,
   ``r / (1 - r) |c_m| <= |c_m|``.
 
+* Where a fit moves a state's coefficients away from the point where the correction was computed (an
+  effect that stiffens the joints of one state only, e.g. ``em_preload``), the mesh error moves with
+  them.  Its **first-order change** is known: ``d c_m / d coef_t = (e_t,refined - e_t,mesh) / 2`` with
+  ``e_t = phi^T K_t phi / lambda`` for a stiffness term and ``-phi^T M_t phi`` for a mass term (the
+  mode's energy share of the term per unit coefficient, mass-normalised ``phi``), summed over the
+  classes like the shifts.  :func:`drift` gives it at every fit point, and :func:`correct` adds it to
+  the correction (kept between zero and twice the state's largest correction: a refinement only
+  lowers a frequency).  Half of it is counted as a known error of the row's own, independent between
+  states (the first order holds to about a third of the change, tests/test_mesh_error.py), beside the
+  part the states share (:func:`jointid.diagnosis.fitting.Diagnoser.evaluate`).  So a difference
+  between states is corrected for the mesh error that differs between them, and not judged at the
+  noise alone.
+
 A mode the refined mesh cannot follow (MAC < 0.8) takes the largest shift of its state, and an
 unpaired measured mode the largest known error of the paired ones: the mesh error of a mode the check
 cannot see is not taken to be zero.  The corrections are computed
@@ -38,7 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MeshErrors", "correct", "estimate_mesh_errors", "mesh_budget", "FOLLOW_MAC"]
+__all__ = ["MeshErrors", "correct", "drift", "estimate_mesh_errors", "mesh_budget", "FOLLOW_MAC"]
 
 FOLLOW_MAC = 0.8
 """A refined-mesh mode follows a model mode when their MAC at the measuring points is at least this."""
@@ -60,14 +73,17 @@ class MeshErrors:
     n_dofs: tuple = (0, 0)  # the mesh's and the largest refined mesh's DOFs
     model_shift: list = field(default_factory=list)  # per state (n_model,): every model mode's correction
     shapes: list = field(default_factory=list)  # per state (n_labels, n_model): the model shapes at the probe
+    gradient: list = field(default_factory=list)  # per state: d(model_shift)/d(coefficient) (:func:`drift`):
+    # {"kc": {term: coefficient at the reference}, "mc": {...}, "gk": {term: (n_model,)}, "gm": {term: (n_model,)}}
 
     def apply(self, data: list) -> None:
         """Replace every state of the list ``data`` (aligned with this) by a copy with its correction and
         known error (the caller's state objects are left as they were)."""
         from dataclasses import replace
 
-        data[:] = [replace(d, mesh_reference=(p, c), known_rel=k)
-                   for d, p, c, k in zip(data, self.shapes, self.model_shift, self.known)]
+        grads = self.gradient or [None] * len(self.shapes)
+        data[:] = [replace(d, mesh_reference=(p, c, g), known_rel=k)
+                   for d, p, c, k, g in zip(data, self.shapes, self.model_shift, self.known, grads)]
 
     def note(self, data) -> str:
         """One sentence for the notes of the diagnosis."""
@@ -82,18 +98,27 @@ class MeshErrors:
         """Exact JSON form (floats as hex), for :meth:`jointid.diagnosis.memo.FitMemo.put_value`; no wall-clock
         time in it (the memo is kept in the subspace file, which must be byte-identical run to run)."""
         hexes = lambda a: [float(v).hex() for v in np.ravel(a)]  # noqa: E731
+        grad = [{"kc": {t: float(v).hex() for t, v in g["kc"].items()},
+                 "mc": {t: float(v).hex() for t, v in g["mc"].items()},
+                 "gk": {t: hexes(v) for t, v in g["gk"].items()}, "gm": {t: hexes(v) for t, v in g["gm"].items()}}
+                for g in self.gradient]
         return {"halved": list(self.halved), "n_dofs": list(self.n_dofs),
                 "shift": [hexes(c) for c in self.shift], "known": [hexes(k) for k in self.known],
                 "model_shift": [hexes(c) for c in self.model_shift],
-                "shapes": [{"shape": list(np.shape(p)), "values": hexes(p)} for p in self.shapes]}
+                "shapes": [{"shape": list(np.shape(p)), "values": hexes(p)} for p in self.shapes],
+                "gradient": grad}
 
     @classmethod
     def from_json(cls, rec: dict) -> "MeshErrors":
         """The inverse of :meth:`to_json`."""
         arr = lambda v: np.array([float.fromhex(x) for x in v])  # noqa: E731
+        grad = [{"kc": {t: float.fromhex(v) for t, v in g["kc"].items()},
+                 "mc": {t: float.fromhex(v) for t, v in g["mc"].items()},
+                 "gk": {t: arr(v) for t, v in g["gk"].items()}, "gm": {t: arr(v) for t, v in g["gm"].items()}}
+                for g in rec.get("gradient", [])]
         return cls(tuple(rec["halved"]), [arr(c) for c in rec["shift"]], [arr(k) for k in rec["known"]],
                    tuple(rec["n_dofs"]), [arr(c) for c in rec["model_shift"]],
-                   [arr(p["values"]).reshape(p["shape"]) for p in rec["shapes"]])
+                   [arr(p["values"]).reshape(p["shape"]) for p in rec["shapes"]], grad)
 
     def record(self, data) -> list[dict]:
         """Rows ``state, mode, mesh_correction_pct, mesh_known_error_pct`` for a table."""
@@ -106,7 +131,7 @@ class MeshErrors:
 
 
 def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tuple, *, n_modes: int,
-                         log=print) -> MeshErrors:
+                         lift=None, log=print) -> MeshErrors:
     # many parameters: the model (spec, cfg, system), the states with their solutions and pairing, the refinement
     """Each measured mode's mesh correction and known error (see the module doc).
 
@@ -127,6 +152,9 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
         The cells bisected (``mesh_check.halve``).
     n_modes : int
         Modes solved on the refined mesh.
+    lift : callable, optional
+        ``lift(Y)``: the full-space modes of reduced vectors ``Y`` (the diagnosis's reduced solver); with it
+        the first-order change of the correction with the coefficients is estimated too (:func:`drift`).
     """
     import time
 
@@ -138,17 +166,29 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
     log(f"diagnosis: the mesh error: each state again with the {', '.join(halve)} cells halved, one at a time")
     out = MeshErrors(tuple(halve), n_dofs=(int(system.n_dofs), 0))
     total = [np.zeros(len(sol.freqs_Hz)) for sol in sols]
+    coarse = [None if lift is None else _shares(system, lift(sol.Y), sol.lam, sol) for sol in sols]
+    grads = [None if c is None else {"kc": dict(sol.kc), "mc": dict(sol.mc),
+                                     "gk": {t: np.zeros(len(sol.freqs_Hz)) for t in c[0]},
+                                     "gm": {t: np.zeros(len(sol.freqs_Hz)) for t in c[1]}}
+             for c, sol in zip(coarse, sols)]
     for cls in halve:
         fine = build_system(build_model(spec, halve=(cls,)), cfg)
         out.n_dofs = (out.n_dofs[0], max(out.n_dofs[1], int(fine.n_dofs)))
-        done = []  # (coefficients, shift) of the states solved: states at equal coefficients share one solve
+        done = []  # (coefficients, result) of the states solved: states at equal coefficients share one solve
         for k, sol in enumerate(sols):
             same = next((c for (kc, mc), c in done if kc == sol.kc and mc == sol.mc), None)
-            shift = _class_shift(fine, sol, n_modes) if same is None else same
-            done.append(((sol.kc, sol.mc), shift))
+            res = _class_shift(fine, sol, n_modes, coarse[k] is not None) if same is None else same
+            done.append(((sol.kc, sol.mc), res))
+            shift, fine_shares = res
             total[k] = total[k] + shift
+            if grads[k] is not None:  # d c / d coef: half the change of the energy share (module doc)
+                for key, j in (("gk", 0), ("gm", 1)):
+                    for t, g in grads[k][key].items():
+                        if t in fine_shares[j]:
+                            g += 0.5 * np.nan_to_num(fine_shares[j][t] - coarse[k][j][t])  # not followed: 0
         del fine
         release_heap()
+    out.gradient = [] if any(g is None for g in grads) else grads
     for d, sol, idx, model_shift in zip(data, sols, index, total):
         idx = np.asarray(idx, int)
         paired = model_shift[idx[idx >= 0]]  # an unpaired measured mode: the largest of the paired ones
@@ -163,20 +203,44 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
     return out
 
 
-def _class_shift(fine, sol, n_modes: int) -> np.ndarray:
+def _class_shift(fine, sol, n_modes: int, shares: bool = False):
     """One state's log shift of every model mode when the cells of one class are halved: the refined
-    modes followed by MAC at the probe; a mode not followed takes the state's largest shift."""
+    modes followed by MAC at the probe; a mode not followed takes the state's largest shift.  Returns
+    ``(shift, energy shares)``: with ``shares``, :func:`_shares` of the followed refined modes, aligned
+    with the model modes (a mode not followed: the model's own, i.e. no change), else empty."""
     from jointid.correlate.pairing import pair_by_shapes
     from jointid.fe.modal import solve_modes
 
     modes = solve_modes(fine.K(sol.kc), fine.M(sol.mc), n_modes, fixed=fine.fixed)
     follow, _ = pair_by_shapes(sol.shapes, fine.probe @ modes.phi, threshold=FOLLOW_MAC)
+    follow = np.asarray(follow)
     shift = np.full(len(sol.freqs_Hz), np.nan)
-    seen = np.flatnonzero(np.asarray(follow) >= 0)
-    shift[seen] = np.log(modes.freqs_Hz[np.asarray(follow)[seen]] / sol.freqs_Hz[seen])
+    seen = np.flatnonzero(follow >= 0)
+    shift[seen] = np.log(modes.freqs_Hz[follow[seen]] / sol.freqs_Hz[seen])
     ok = np.isfinite(shift)
     worst = shift[ok][np.argmax(np.abs(shift[ok]))] if ok.any() else 0.0
-    return np.where(ok, shift, worst)
+    found = ({}, {})
+    if shares:
+        lam = (2 * np.pi * modes.freqs_Hz[follow[seen]]) ** 2
+        gk, gm = _shares(fine, modes.phi[:, follow[seen]], lam, sol)
+        found = tuple({t: _aligned(v, seen, len(shift)) for t, v in g.items()} for g in (gk, gm))
+    return np.where(ok, shift, worst), found
+
+
+def _aligned(values: np.ndarray, seen: np.ndarray, n: int) -> np.ndarray:
+    out = np.full(n, np.nan)
+    out[seen] = values
+    return out
+
+
+def _shares(system, phi: np.ndarray, lam: np.ndarray, sol) -> tuple[dict, dict]:
+    """``d ln lambda / d coef`` of every stiffness term of ``sol.kc`` (``phi^T K_t phi / lambda``) and mass
+    term of ``sol.mc`` (``-phi^T M_t phi``) for the modes ``phi`` (full space, made mass-normalised here)."""
+    M = system.M(sol.mc)
+    phi = phi / np.sqrt(np.maximum(np.einsum("ij,ij->j", phi, M @ phi), 1e-300))
+    gk = {t: np.einsum("ij,ij->j", phi, system.stiffness[t] @ phi) / lam for t in sol.kc if t in system.stiffness}
+    gm = {t: -np.einsum("ij,ij->j", phi, system.mass[t] @ phi) for t in sol.mc if t in system.mass}
+    return gk, gm
 
 
 def correct(d, sol):
@@ -191,13 +255,40 @@ def correct(d, sol):
         return sol
     from dataclasses import replace
 
+    shapes, model_shift = d.mesh_reference[:2]
+    c = _blend(shapes, sol, model_shift) + drift(d, sol)
+    # a refinement only lowers a frequency, and the correction stays of its size where the first order
+    # is stretched: at most twice the state's largest
+    c = np.clip(c, 2.0 * min(float(np.min(model_shift)), 0.0), 0.0)
+    return replace(sol, freqs_Hz=sol.freqs_Hz * np.exp(c))
+
+
+def _blend(shapes, sol, values: np.ndarray) -> np.ndarray:
+    """Per model mode of ``sol``, ``values`` of the reference modes (``shapes`` at the probe) weighted by
+    MAC² (their mean where no reference mode is like it)."""
     from jointid.correlate.pairing import mac
 
-    shapes, model_shift = d.mesh_reference
     w = mac(shapes, sol.shapes) ** 2  # (n_reference, n_modes)
     total = w.sum(axis=0)
-    c = np.where(total > 1e-12, (w.T @ model_shift) / np.maximum(total, 1e-12), float(np.mean(model_shift)))
-    return replace(sol, freqs_Hz=sol.freqs_Hz * np.exp(c))
+    return np.where(total > 1e-12, (w.T @ values) / np.maximum(total, 1e-12), float(np.mean(values)))
+
+
+def drift(d, sol) -> np.ndarray:
+    """Per model mode of ``sol``, the first-order change of its log mesh correction since the point where
+    it was computed: ``sum_t (d c / d coef_t) (coef_t - coef_t,ref)`` over the stiffness and mass terms
+    (module doc), blended over the reference modes as :func:`correct` does; zeros where the state has
+    no correction or no gradient."""
+    ref = d.mesh_reference
+    if ref is None or len(ref) < 3 or ref[2] is None:
+        return np.zeros(len(sol.freqs_Hz))
+    shapes, g = ref[0], ref[2]
+    change = np.zeros(shapes.shape[1])
+    for key, coef, now in (("gk", "kc", sol.kc), ("gm", "mc", sol.mc)):
+        for t, grad in g[key].items():
+            dc = float(now.get(t, 0.0)) - float(g[coef].get(t, 0.0))
+            if dc:
+                change = change + grad * dc
+    return _blend(shapes, sol, change)
 
 
 def mesh_budget(diag, base, x0, notes: list, log) -> None:
@@ -229,7 +320,7 @@ def mesh_budget(diag, base, x0, notes: list, log) -> None:
         index = [p.model_index for p in diag.pair(sols)]
         diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
         errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
-                                      n_modes=diag.n_modes, log=log)
+                                      n_modes=diag.n_modes, lift=diag.lift, log=log)
         if key is not None:
             diag.memo.put_value(key, errors.to_json())
     errors.apply(diag.data)

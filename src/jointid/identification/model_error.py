@@ -56,7 +56,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 __all__ = ["ModelError", "NO_MODEL_ERROR", "estimate", "from_chi2", "qaicc", "akaike_weights", "support_text",
-           "mode_correlation", "SUPPORT_STRONG", "SUPPORT_SOME"]
+           "mode_correlation", "known_budget", "SUPPORT_STRONG", "SUPPORT_SOME"]
 
 SUPPORT_STRONG = 10.0
 """A model ahead by at least this much QAICc has strong support over the other (Burnham and Anderson,
@@ -220,6 +220,22 @@ def mode_correlation(shapes) -> np.ndarray:
     R = G ** 2
     np.fill_diagonal(R, 1.0)
     return R
+
+
+def known_budget(shared, corr, own) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(k, R)`` of a known part made of a ``shared`` part per row, correlated by ``corr``, and an ``own``
+    part per row, independent of every other row: ``D R D = diag(shared) corr diag(shared) + diag(own^2)``,
+    ``k = sqrt(shared^2 + own^2)``.  ``R`` is again a correlation matrix (unit diagonal, positive
+    semi-definite as a sum of two such covariances).  ``R`` is None where no row has a known part."""
+    shared, own = np.asarray(shared, float), np.asarray(own, float)
+    k = np.sqrt(shared ** 2 + own ** 2)
+    if not k.any():
+        return k, None
+    C = shared[:, None] * np.asarray(corr, float) * shared[None, :] + np.diag(own ** 2)
+    safe = np.where(k > 0, k, 1.0)
+    R = C / np.outer(safe, safe)
+    np.fill_diagonal(R, 1.0)
+    return k, R
 
 
 def estimate(r, sigma_rel, n_params: int, *, known_rel=None, known_corr=None, reference: str = "") -> ModelError:
