@@ -258,6 +258,7 @@ def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile
             "residual_sigma_rel": [float(v) for v in fit.row_sigma(data)],
             "shape_chi2": blocks[1][1] if len(blocks) > 1 else 0.0,
             "shape_dof": blocks[1][2] if len(blocks) > 1 else 0,
+            "shape_design_effect": fit.shape_design_effect(),  # rows that move together count less (ranking)
             "lowest_freq_Hz": lowest,
             "parameters": params, "states": states, "unpaired_visible": fit.unpaired_visible(data),
             "variant": fit.variant.name}

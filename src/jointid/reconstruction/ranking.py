@@ -61,8 +61,10 @@ def hypotheses_model_error(records: dict) -> ModelError:
     else:
         sig = rec["residual_sigma_rel"]
     me = estimate(r, sig, rec["n_params"], reference=f"hypothesis {name}")
-    if rec.get("shape_dof"):  # the shape rows: a block with its own model error (in units of their noise)
-        me = replace(me, shape=from_chi2(rec["shape_chi2"], rec["shape_dof"], 1.0, reference=f"hypothesis {name}"))
+    if rec.get("shape_dof"):  # the shape rows: a block with its own model error (in units of their noise);
+        # their rows move together within a mode and count as fewer (the diagnosis's design effect)
+        shape = from_chi2(rec["shape_chi2"], rec["shape_dof"], 1.0, reference=f"hypothesis {name}")
+        me = replace(me, shape=replace(shape, design_effect=float(rec.get("shape_design_effect") or 1.0)))
     return me
 
 
