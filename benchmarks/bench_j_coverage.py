@@ -63,7 +63,8 @@ Targets (issue 50, never bent here): effect cases found >= 90 %; no-effect cases
 claimed >= 90 %; the intervals hold the truth >= 90 % for effect parameters and joints alike; no cell
 of the splits by noise statement and by shapes below 80 %.
 
-``python -m benchmarks j [--quick] [--cases N] [--rig coarse|default] [--set KEY=VALUE ...]``, or
+``python -m benchmarks j [--quick] [--cases N] [--rig coarse|default] [--set KEY=VALUE ...] [--shard K/N]``
+(``--shard``: every N-th case from the K-th, so that N processes share one run; then ``--doc-only``), or
 ``python -m benchmarks.bench_j_coverage`` with the same options (plus ``--no-doc``).  ``--set`` passes
 ``diagnosis`` options (e.g. ``--set shape_residuals=true``); each option set is a *run* of its own in
 the CSV and in ``docs/validation.md`` (a rerun replaces its own rows only).  ``--quick``: 6 cases
