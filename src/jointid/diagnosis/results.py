@@ -16,7 +16,7 @@ import numpy as np
 
 from jointid.diagnosis.criteria import aicc, chi2_p_value
 from jointid.diagnosis.variants import StateData, Variant
-from jointid.identification.model_error import ModelError, estimate
+from jointid.identification.model_error import ModelError, cluster_factor, estimate
 
 __all__ = ["Evaluation", "Fit", "chi2_at", "log_interval", "frequency_rows", "refit_row", "row_known", "row_sigma",
            "whitener", "block_error"]
@@ -263,19 +263,9 @@ class Fit:
         ``M = G/(G - p) sum_g u_g u_g^T``, ``u_g = J_g^T W_g r_g`` (Liang and Zeger 1986), allows any
         correlation inside a mode.  The intervals take the larger of the two: the whole covariance is
         scaled by the largest ratio of the sandwich's variance to ``cov``'s."""
-        groups = self._clusters()
-        p = self.k + extra_params
-        G = len(groups)
-        if G <= p:
-            return 1.0
         Jw, rw = A @ self.ev.J, A @ self.ev.r  # whitened rows (the known errors' correlation mixes only
         # frequency rows of one mode across states, which the clusters keep apart; an approximation there)
-        U = np.array([Jw[rows].T @ rw[rows] for rows in groups.values()])
-        M = U.T @ U * G / (G - p)
-        robust = cov @ M @ cov
-        d = np.diag(cov)
-        ok = d > 0
-        return float(max(1.0, np.max(np.diag(robust)[ok] / d[ok]))) if ok.any() else 1.0
+        return cluster_factor(cov, Jw, rw, self._clusters().values(), self.k + extra_params)
 
     def one_noise(self) -> bool:
         """One block (no shape rows), one stated noise and no known error."""

@@ -56,7 +56,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 __all__ = ["ModelError", "NO_MODEL_ERROR", "estimate", "from_chi2", "qaicc", "akaike_weights", "support_text",
-           "mode_correlation", "known_budget", "SUPPORT_STRONG", "SUPPORT_SOME"]
+           "mode_correlation", "known_budget", "cluster_factor", "SUPPORT_STRONG", "SUPPORT_SOME"]
 
 SUPPORT_STRONG = 10.0
 """A model ahead by at least this much QAICc has strong support over the other (Burnham and Anderson,
@@ -220,6 +220,22 @@ def mode_correlation(shapes) -> np.ndarray:
     R = G ** 2
     np.fill_diagonal(R, 1.0)
     return R
+
+
+def cluster_factor(cov: np.ndarray, Jw: np.ndarray, rw: np.ndarray, groups, n_params: int) -> float:
+    """How much wider the cluster-robust (sandwich) variances are than ``cov``, at least 1: ``cov M cov``
+    with ``M = G/(G - p) sum_g u_g u_g^T``, ``u_g = Jw_g^T rw_g`` over the clusters ``groups`` (lists of row
+    numbers of the whitened Jacobian ``Jw`` and residuals ``rw``; Liang and Zeger 1986); the largest ratio
+    over the parameters.  1 when there are no more clusters than parameters."""
+    groups = list(groups)
+    G = len(groups)
+    if G <= n_params:
+        return 1.0
+    U = np.array([Jw[g].T @ rw[g] for g in groups])
+    robust = cov @ (U.T @ U * G / (G - n_params)) @ cov
+    d = np.diag(cov)
+    ok = d > 0
+    return float(max(1.0, np.max(np.diag(robust)[ok] / d[ok]))) if ok.any() else 1.0
 
 
 def known_budget(shared, corr, own) -> tuple[np.ndarray, np.ndarray | None]:

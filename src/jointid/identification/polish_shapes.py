@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointid.correlate.shape_rows import normalised_shape, scaled_residual, shape_noise_estimate
+from jointid.identification.model_error import cluster_factor
 
 __all__ = ["shape_sensitivity", "shape_rows", "start_uncertainty", "block_covariance"]
 
@@ -100,14 +101,6 @@ def block_covariance(J: np.ndarray, r: np.ndarray, n_freq: int, n_params: int, m
         groups.setdefault(k, []).append(k)
     for k, m in enumerate(modes):
         groups.setdefault(int(m), []).append(n_freq + k)
-    G, factor = len(groups), 1.0
-    if G > n_params:
-        wr = np.sqrt(w) * r
-        U = np.array([Jw[g].T @ wr[g] for g in groups.values()])
-        robust = cov @ (U.T @ U * G / (G - n_params)) @ cov
-        d = np.diag(cov)
-        ok = d > 0
-        if ok.any():
-            factor = float(max(1.0, np.max(np.diag(robust)[ok] / d[ok])))
+    factor = cluster_factor(cov, Jw, np.sqrt(w) * r, groups.values(), n_params)
     return {"cov": cov * factor, "chi2": chi2_f, "dof": dof_f, "shape_chi2": chi2_s, "shape_dof": dof_s,
             "shape_c_hat": chi2_s / dof_s, "cluster_factor": factor}
