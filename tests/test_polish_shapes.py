@@ -41,6 +41,34 @@ def test_shape_sensitivity_is_exact_with_all_modes_kept():
     np.testing.assert_allclose(got[:, :, 0], fd, rtol=1e-5, atol=1e-8)
 
 
+def test_close_modes_leave_their_rotation_out_of_both_shape_derivatives():
+    # diagonal K0, M = I: the modes are the unit vectors and the derivative of mode 0 along dK is
+    # dK[k, 0] / (lam_0 - lam_k) on every other mode k (analytic); modes 0 and 1 are 0.05 % apart
+    from types import SimpleNamespace
+
+    from jointid.fe.reduced import Solution
+    from jointid.fe.shape_derivative import CLOSE_MODE_GAP, close_modes, probe_shape_derivatives
+
+    lam = np.array([1.0, 1.001, 2.0, 3.5, 5.0])
+    n = len(lam)
+    rng = np.random.default_rng(7)
+    B = rng.standard_normal((n, n))
+    dK = B + B.T
+    probe = rng.standard_normal((3, n))
+    want = np.array([dK[k, 0] / (lam[0] - lam[k]) if k > 1 else 0.0 for k in range(n)])  # mode 1 left out
+    assert 1.001 - 1.0 < CLOSE_MODE_GAP and list(close_modes(lam, lam[0])) == [1]
+    # the polish's modal superposition (theta 1: d/dlog10 theta carries ln 10)
+    sup = shape_sensitivity({"d": dK}, np.eye(n), lam, probe, [{"d": 1.0}], np.array([1.0]), [0])
+    np.testing.assert_allclose(sup[:, 0, 0], probe @ want * np.log(10), rtol=1e-12, atol=1e-12)
+    # the diagnosis's bordered Nelson solve on the same pencil
+    solver = SimpleNamespace(Kr={"K0": np.diag(lam), "d": dK}, Mr={"M0": np.eye(n)}, PV=probe)
+    sol = Solution(np.sqrt(lam) / (2 * np.pi), lam, np.eye(n), lam, np.eye(n), {}, {}, probe)
+    nel = probe_shape_derivatives(solver, sol, [0], [({"d": 1.0}, {})])
+    np.testing.assert_allclose(nel[:, 0, 0], probe @ want, rtol=1e-9, atol=1e-12)
+    # without the close mode the rotation term is 1000 times the others: what is left out
+    assert abs(dK[1, 0] / (lam[0] - lam[1])) > 100 * np.abs(want).max()
+
+
 def test_block_covariance_weights_each_block_by_its_own_lack_of_fit():
     # two frequency rows (noise right: chi2/dof <= 1) and shape rows at 3x their noise, one parameter
     J = np.array([[1.0], [2.0], [1.0], [1.0], [1.0], [1.0]])

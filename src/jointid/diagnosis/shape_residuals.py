@@ -19,7 +19,8 @@ are wrong, and its derivative vanishes at MAC = 1 (Gauss-Newton stalls).  The di
 Gaussian with unit variance per row, so chi-square, AICc and the score tests keep their meaning.
 
 Sensitivities are exact for the reduced model (:func:`jointid.fe.shape_derivative.probe_shape_derivatives`,
-Nelson's method on the subspace).  A measured mode without a model partner keeps its rows with the
+Nelson's method on the subspace), less the rotation between modes closer than 0.5 % in frequency
+(:data:`jointid.fe.shape_derivative.CLOSE_MODE_GAP`).  A measured mode without a model partner keeps its rows with the
 model's part zero (``alpha = 0``: MAC 0), so the number of rows never depends on the pairing.
 The model error (:mod:`jointid.identification.model_error`) is a frequency error: it weights the
 frequency rows only (:func:`jointid.diagnosis.results.frequency_rows`).

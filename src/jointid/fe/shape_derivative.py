@@ -11,6 +11,14 @@ normalisation row (Nelson 1976, in the bordered form of Lee, Jung and Lee 1999) 
 solution is the exact derivative of the Ritz vector, hence of the probe shapes ``P V y``.  It is exact for
 the reduced model, which is the full model's answer to the solver tolerance where the subspace holds the
 first-order responses ``A^-1 (dK - lambda dM) phi`` (it is seeded with them per parameter direction).
+
+Close modes.  Where another Ritz value lies within :data:`CLOSE_MODE_GAP` (relative) of ``lambda``, the
+derivative's part along that mode, ``(z^T g) / (lambda - lambda_z)``, is the rotation of the two shapes
+into each other.  Near a veering it is thousands of times the shapes' other sensitivities and holds only
+over a parameter step far below the gap, so one pair of close modes would dominate every Gauss-Newton
+step and every score test (it made an elastic base look collinear with the joints on a coarse-rig case).
+That part is left out: the derivative is held M-orthogonal to the close modes (one more border row
+each).  The residuals themselves stay exact; only their Jacobian leaves out the within-pair rotation.
 """
 
 from __future__ import annotations
@@ -20,7 +28,23 @@ import scipy.linalg as sla
 
 from jointid.fe.reduced import Solution, pad_to_basis
 
-__all__ = ["reduced_pencil", "probe_shape_derivatives"]
+__all__ = ["CLOSE_MODE_GAP", "close_modes", "reduced_pencil", "probe_shape_derivatives"]
+
+CLOSE_MODE_GAP = 1e-2
+"""Two modes whose eigenvalues differ by less than this fraction (0.5 % in frequency) are close: the
+rotation of their shapes into each other is left out of the shape derivatives."""
+
+
+def close_modes(lam_all: np.ndarray, lam: float, gap: float = CLOSE_MODE_GAP) -> np.ndarray:
+    """Indices of the eigenvalues of ``lam_all`` within ``gap`` (relative) of ``lam``, the mode itself
+    (the one nearest ``lam``) left out."""
+    lam_all = np.asarray(lam_all, float)
+    if not len(lam_all):
+        return np.zeros(0, int)
+    d = np.abs(lam_all - lam)
+    self_k = int(np.argmin(d))
+    near = np.flatnonzero(d < gap * max(abs(lam), 1e-30))
+    return near[near != self_k]
 
 
 def _combine(red: dict, coeffs: dict, base: str | None) -> np.ndarray:
@@ -63,16 +87,20 @@ def probe_shape_derivatives(solver, sol: Solution, modes, directions: list[tuple
     dK = [_combine(solver.Kr, dkc, None) for dkc, _ in directions]
     dM = [_combine(solver.Mr, dmc, None) for _, dmc in directions]
     Y = pad_to_basis(sol.Y, r)
+    Y_all = pad_to_basis(sol.Y_all, r)
     out = np.zeros((solver.PV.shape[0], len(modes), len(directions)))
-    B = np.zeros((r + 1, r + 1))
     for k, i in enumerate(modes):
         y, lam = Y[:, i], float(sol.lam[i])
         My = M @ y
+        Z = M @ Y_all[:, close_modes(sol.lam_all, lam)]  # the close modes' borders (module docstring)
+        nb = 1 + Z.shape[1]
+        B = np.zeros((r + nb, r + nb))
         B[:r, :r] = K - lam * M
         B[:r, r] = My
         B[r, :r] = My
-        B[r, r] = 0.0
-        rhs = np.zeros((r + 1, len(directions)))
+        B[:r, r + 1:] = Z
+        B[r + 1:, :r] = Z.T
+        rhs = np.zeros((r + nb, len(directions)))
         for j, (a, b) in enumerate(zip(dK, dM)):
             g = a @ y - lam * (b @ y)
             dlam = float(y @ g)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointid.correlate.shape_rows import normalised_shape, scaled_residual, shape_noise_estimate
+from jointid.fe.shape_derivative import CLOSE_MODE_GAP
 from jointid.identification.model_error import cluster_factor
 
 __all__ = ["shape_sensitivity", "shape_rows", "start_uncertainty", "block_covariance"]
@@ -31,16 +32,17 @@ def shape_sensitivity(stiffness: dict, phi: np.ndarray, lam: np.ndarray, probe_s
     the probe ``probe_shapes``): for a stiffness change ``dK``, ``d phi_j = sum_{k != j} phi_k
     (phi_k^T dK phi_j) / (lambda_j - lambda_k)`` (the mass-normalisation term vanishes without a mass
     change).  The modes left out of the solve are left out of the sum: a Jacobian for Gauss-Newton,
-    whose objective stays exact.  Near-equal eigenvalues are held apart by 1e-9 of the larger."""
+    whose objective stays exact.  Modes closer than :data:`jointid.fe.shape_derivative.CLOSE_MODE_GAP`
+    are left out of each other's sum too (their rotation into each other holds only over a step far
+    below their gap: :mod:`jointid.fe.shape_derivative`)."""
     cols = np.asarray(cols, int)
     out = np.zeros((probe_shapes.shape[0], len(cols), len(theta)))
     for i, (tm, th) in enumerate(zip(terms, theta)):
         KP = sum(c * (stiffness[t] @ phi[:, cols]) for t, c in tm.items())  # (dofs, len(cols))
         G = phi.T @ KP  # (n_modes, len(cols)): phi_k^T dK phi_j
         gap = lam[cols][None, :] - lam[:, None]
-        tiny = 1e-9 * np.maximum(np.abs(lam[cols])[None, :], np.abs(lam)[:, None])
-        gap = np.where(np.abs(gap) < tiny, np.copysign(tiny, gap + 0.0), gap)
-        C = G / gap
+        close = np.abs(gap) < CLOSE_MODE_GAP * np.maximum(np.abs(lam[cols])[None, :], np.abs(lam)[:, None])
+        C = np.where(close, 0.0, G / np.where(close, 1.0, gap))
         C[cols, np.arange(len(cols))] = 0.0
         out[:, :, i] = (probe_shapes @ C) * th * np.log(10)
     return out
