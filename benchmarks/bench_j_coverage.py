@@ -70,8 +70,9 @@ of the splits by noise statement and by shapes below 80 %.
 the CSV and in ``docs/validation.md`` (a rerun replaces its own rows only).  ``--quick``: 6 cases
 (``QUICK_CASES``: one of each kind and stratum, coarse rig), no doc.  The datasets are kept in
 ``benchmarks/out/coverage_data/<rig>/<case>`` (keyed by the truth's hash; synthesised again when
-``jointid/synthetic/generate.py`` changes): a second run with other options does not synthesise again.  One reduced solver is reused from case to case (``diagnose(...,
-solver=)``, as the hidden-effect tests do): its subspace only grows and every answer is certified.
+``jointid/synthetic/generate.py`` changes): a second run with other options does not synthesise again.  Each case
+starts from a fresh reduced solver, as a user's run does: a case's answer does not depend on the cases
+run before it (a reused, grown subspace once changed which candidates a case refitted).
 """
 
 from __future__ import annotations
@@ -205,7 +206,7 @@ def select(cases: list[dict], quick: bool, n: int | None, rig: str, subset: str 
 
 # ------------------------------------------------------------------ running
 class Runner:
-    """The rig, the truth model (built once per rig) and the reused reduced solver."""
+    """The rig and the truth model (built once per rig)."""
 
     def __init__(self, rig: str, log=print):
         from .common import diagnosis_rig
@@ -257,9 +258,7 @@ class Runner:
         ds = read_dataset(folder, measuring_points=rig["system"].meta["points"])
         data = dataset_states(ds, rig["system"], rig["cfg"])
         cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), **options}}
-        res = diagnose(rig["system"], cfg, data, solver=rig["solver"], log=lambda m: None)
-        rig["solver"] = res.solver
-        return res
+        return diagnose(rig["system"], cfg, data, log=lambda m: None)
 
 
 # ------------------------------------------------------------------ scoring
