@@ -21,7 +21,7 @@ from dataclasses import replace
 from jointid.diagnosis.results import Fit, block_error, chi2_at
 from jointid.identification.model_error import ModelError, akaike_weights, qaicc, support_text
 
-__all__ = ["SUPPORTED", "effect_set", "fit_label", "judge_fits", "model_error_of", "parsimonious_order", "qaicc_of",
+__all__ = ["SUPPORTED", "effect_set", "fit_label", "judge_fits", "model_error_of", "parsimonious_order", "qaicc_of", "unconfirmed_pairs",
            "supported"]
 
 SUPPORTED = ("strongly", "moderately")
@@ -90,19 +90,30 @@ def effect_set(name: str) -> frozenset:
     return frozenset(p.strip() for p in str(name).split("+") if p.strip())
 
 
-def parsimonious_order(candidates, tie: float) -> list[str]:
+def parsimonious_order(candidates, tie: float, no_gain=()) -> list[str]:
     """The candidate names ``[(delta_qaicc, name), ...]`` best first, except that a combination at the
     top yields the lead to the smallest of its own sub-models within ``tie`` of it (fewest effects, then
     least QAICc): the extra effect is then not supported against the simpler model, so the simpler model
     is the answer (Burnham & Anderson 2002, sec. 2.6: an added parameter that does not lower AIC by more
-    than its penalty is not supported)."""
+    than its penalty is not supported).  A combination named in ``no_gain`` (it does not predict the
+    modes left out better than its singles: :mod:`jointid.diagnosis.predictive`) yields to its best
+    sub-model whatever the QAICc difference."""
     ranked = sorted(candidates, key=lambda c: c[0])
     if not ranked:
         return []
     d0, best = ranked[0]
+    weak = {effect_set(n) for n in no_gain}
     inner = [(len(effect_set(n)), d, n) for d, n in ranked[1:]
-             if d - d0 < tie and effect_set(n) < effect_set(best)]
+             if (d - d0 < tie or effect_set(best) in weak) and effect_set(n) < effect_set(best)]
     if not inner:
         return [n for _, n in ranked]
     lead = min(inner)[2]
     return [lead] + [n for _, n in ranked if n != lead]
+
+
+def unconfirmed_pairs(combos) -> list[str]:
+    """The pairs of a combinations table (``effects`` ``a+b``) that do not predict the left-out modes
+    better than their singles (``predicts`` False; :func:`jointid.diagnosis.predictive.check_pairs`)."""
+    if not len(combos) or "predicts" not in combos:
+        return []
+    return [str(e) for e, ok in zip(combos["effects"], combos["predicts"]) if ok is False or ok == 0]

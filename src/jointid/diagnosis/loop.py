@@ -32,6 +32,7 @@ from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, print_log, refit
 from jointid.diagnosis.judging import judge_fits, model_error_of
 from jointid.diagnosis.mesh_error import mesh_budget
+from jointid.diagnosis.predictive import check_pairs
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
 from jointid.diagnosis.statistics import identifiability, score_candidate, state_contrasts
@@ -360,6 +361,7 @@ def combine_and_judge(diag: Diagnoser, current: Fit, rows: list, fits: dict, opt
     combos = combinations(diag, current, rows, fits, opt, log) if needed and not any_explains else []
     me = model_error_of({**fits, "current": current}, diag.data)
     current_weight = judge_fits(current, fits, [r[0] for r in rows], combos, diag.data, me)
+    check_pairs(combos, fits, diag.data, me)
     ranking = ranking_frame([r[0] for r in rows])
     ranking.attrs["tie_delta_aicc"] = float(opt["tie_delta_aicc"])
     ranking.attrs["model_error"] = me

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from jointid.diagnosis.judging import SUPPORTED, parsimonious_order
+from jointid.diagnosis.judging import SUPPORTED, parsimonious_order, unconfirmed_pairs
 from jointid.diagnosis.results import Fit
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 
@@ -251,7 +251,7 @@ def _supported(f: Findings, judged: pd.DataFrame) -> pd.DataFrame:
     window: :func:`jointid.diagnosis.judging.parsimonious_order`)."""
     sup = judged[judged["support"].isin(SUPPORTED)]
     tie = float(f.ranking.attrs.get("tie_delta_aicc", 4.0))
-    order = parsimonious_order(zip(sup["delta_qaicc"], sup["name"]), tie)
+    order = parsimonious_order(zip(sup["delta_qaicc"], sup["name"]), tie, unconfirmed_pairs(f.combinations))
     return sup.set_index("name", drop=False).loc[order].reset_index(drop=True)
 
 
@@ -293,9 +293,30 @@ def partial_text(f: Findings) -> str:
     if others:
         txt += (f" Within ΔQAICc < {tie:g} of it, {' or '.join(others)} do as well: the data cannot tell them "
                 "apart.")
+    txt += unconfirmed_text(f, sup, str(b["name"]))
     return txt + (f" A model error of about {100 * me.sigma_model_rel:.2g} % per mode remains "
                   f"({me.sigma_model_rel / me.sigma_noise_rel:.1f} times the stated noise of "
                   f"{100 * me.sigma_noise_rel:.2g} %) that no listed effect or pair explains.")
+
+
+def unconfirmed_text(f: Findings, sup: pd.DataFrame, lead: str) -> str:
+    """The sentence on the pairs that extend ``lead``, fit better, and do not predict the modes left out
+    better (:mod:`jointid.diagnosis.predictive`): why the lead is the simpler model ("" when none)."""
+    weak = set(unconfirmed_pairs(f.combinations))
+    d_lead = float(sup.set_index("name").loc[lead, "delta_qaicc"]) if lead in set(sup["name"]) else np.inf
+    out = []
+    for _, c in f.combinations.iterrows() if len(f.combinations) else []:
+        names = str(c["effects"]).split("+")
+        if str(c["effects"]) not in weak or lead not in names or not c["delta_qaicc"] < d_lead:
+            continue
+        extra = next(n for n in names if n != lead)
+        delta = c["prediction_delta"]
+        how = ("its parameter rests on one mode alone" if not np.isfinite(delta)
+               else f"leave-one-mode-out ΔPRESS {delta:+.3g} ± {c['prediction_se']:.2g}")
+        out.append(f" {lead} + {extra} fits better (ΔQAICc {daicc(c['delta_qaicc'])}) but predicts the modes "
+                   f"left out no better than {c['prediction_vs']} alone ({how}): {extra} is not confirmed by "
+                   "the data.")
+    return "".join(out)
 
 
 def between_states_text(ranking: pd.DataFrame, between_share: float) -> str:

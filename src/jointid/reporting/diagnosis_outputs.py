@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.diagnosis.judging import SUPPORTED, parsimonious_order
+from jointid.diagnosis.judging import SUPPORTED, parsimonious_order, unconfirmed_pairs
 from jointid.diagnosis.loop import Diagnosis
 from jointid.reporting.diagnosis_page import html_page
 
@@ -46,7 +46,8 @@ def supported_names(res: Diagnosis) -> list[str]:
         if len(df) and "support" in df:
             ok = df[df["support"].isin(SUPPORTED)]
             out += list(zip(ok["delta_qaicc"], ok[col].astype(str)))
-    return parsimonious_order(out, float(res.ranking.attrs.get("tie_delta_aicc", 4.0)))
+    return parsimonious_order(out, float(res.ranking.attrs.get("tie_delta_aicc", 4.0)),
+                              unconfirmed_pairs(res.combinations))
 
 
 def verdict_record(res: Diagnosis, dataset: str, run: dict) -> dict:

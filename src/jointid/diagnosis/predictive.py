@@ -1,0 +1,113 @@
+"""Leave-one-mode-out prediction: does a second effect predict the modes it was not fitted to?
+
+A pair of effects always fits at least as well as either of its singles, and with ten or so pairs tried
+the best of them is chosen: its gain in chi-square is partly the selection (Yao, Vehtari, Simpson and
+Gelman 2018: when no candidate is exactly true, judge models by prediction).  Here every measured mode
+(its frequency rows in every state and its shape rows) is left out in turn and predicted by the fit to
+the others, to first order (the deleted residual of linear least squares for a group of rows,
+``e_(-g) = (I - H_gg)^-1 e_g``, with ``H`` the hat matrix of the whitened Jacobian; Cook and Weisberg
+1982).  The rows are whitened at the diagnosis's total uncertainty (stated noise, the mesh's known
+error, the model error), so the leave-one-mode-out sum ``PRESS`` is in units of that uncertainty.
+
+A pair leads its own single only when it predicts the left-out modes better than the single does
+(:func:`prediction_gain` negative).  A second effect that rests on one mode alone cannot do so: with
+that mode left out its parameter is free, and its prediction of the mode is unbounded
+(``I - H_gg`` singular: ``inf``).  Such an effect may be real, but the data cannot confirm it by
+prediction; the verdict says so and names the single.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointid.diagnosis.results import Fit, whitener
+from jointid.identification.model_error import ModelError
+
+__all__ = ["check_pairs", "mode_groups", "leave_one_mode_out", "prediction_gain"]
+
+_SINGULAR = 1e-8  # 1 - h below this: the group alone determines a parameter (no prediction without it)
+
+
+def mode_groups(rows: list) -> dict:
+    """Row numbers of each measured mode over all states (its frequency rows ``(state, m)`` and its
+    shape rows ``(state, -m)``); an unpaired visible model mode's row ``(state, 0)`` is a group of its
+    own, keyed by its state and its order there."""
+    groups: dict = {}
+    seen: dict = {}
+    for k, (si, m) in enumerate(rows):
+        if m != 0:
+            groups.setdefault(abs(int(m)), []).append(k)
+        else:
+            j = seen[si] = seen.get(si, -1) + 1
+            groups[("misfit", si, j)] = [k]
+    return groups
+
+
+def leave_one_mode_out(f: Fit, data, me: ModelError) -> dict:
+    """Per mode group (:func:`mode_groups`): the squared whitened error of that mode predicted by the
+    fit without it (first order); ``inf`` where the group alone determines a parameter."""
+    A = whitener(f.ev, data, me)
+    z, G = A @ f.ev.r, A @ f.ev.J
+    H = G @ np.linalg.pinv(G.T @ G) @ G.T
+    out = {}
+    for key, idx in mode_groups(f.ev.rows).items():
+        idx = np.asarray(idx)
+        I_H = np.eye(len(idx)) - H[np.ix_(idx, idx)]
+        if np.linalg.eigvalsh(0.5 * (I_H + I_H.T)).min() < _SINGULAR:
+            out[key] = np.inf
+            continue
+        e = np.linalg.solve(I_H, z[idx])
+        out[key] = float(e @ e)
+    return out
+
+
+def prediction_gain(big: Fit, small: Fit, data, me: ModelError) -> tuple[float, float]:
+    """``(delta, se)``: the leave-one-mode-out PRESS of ``big`` less that of ``small`` over the modes
+    both fit (negative: ``big`` predicts better), and the standard error of that sum from its per-mode
+    spread.  A mode that only ``small`` predicts (``big`` infinite) makes ``delta`` ``inf``; modes
+    neither predicts are left out."""
+    return _gain(leave_one_mode_out(big, data, me), leave_one_mode_out(small, data, me))
+
+
+def _gain(b: dict, a: dict) -> tuple[float, float]:
+    """:func:`prediction_gain` from the per-mode PRESS of the larger (``b``) and smaller (``a``) fits."""
+    d = []
+    for key in a.keys() & b.keys():
+        if np.isinf(a[key]) and np.isinf(b[key]):
+            continue
+        if np.isinf(b[key]):
+            return np.inf, np.inf
+        d.append(b[key] - a[key])
+    if not d:
+        return 0.0, 0.0
+    d = np.asarray(d)
+    return float(d.sum()), float(np.sqrt(len(d) * d.var()))
+
+
+def check_pairs(combos: list[dict], fits: dict, data, me: ModelError) -> None:
+    """Fill each pair's row (naming ``effects`` ``a+b``) with its prediction against each of its singles
+    that was refitted (:func:`prediction_gain`), the worse of the two kept: ``predicts`` (the pair
+    predicts the left-out modes better than every single it extends), ``prediction_delta``,
+    ``prediction_se`` and ``prediction_vs`` (the single compared)."""
+    cache: dict = {}
+
+    def press(label):
+        if label not in cache:
+            cache[label] = leave_one_mode_out(fits[label], data, me)
+        return cache[label]
+
+    for row in combos:
+        a, b = str(row["effects"]).split("+")
+        pair = "+" + str(row["effects"])
+        worst = None
+        for single in ("+" + a, "+" + b):
+            if single not in fits:
+                continue
+            delta, se = _gain(press(pair), press(single))
+            if worst is None or delta > worst[0]:
+                worst = (delta, se, single[1:])
+        if worst is None:
+            row.update({"predicts": True, "prediction_delta": np.nan, "prediction_se": np.nan, "prediction_vs": ""})
+            continue
+        row.update({"predicts": bool(worst[0] < 0), "prediction_delta": worst[0], "prediction_se": worst[1],
+                    "prediction_vs": worst[2]})
