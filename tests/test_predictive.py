@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from jointid.diagnosis.judging import parsimonious_order
-from jointid.diagnosis.predictive import leave_one_mode_out, prediction_gain
+from jointid.diagnosis.predictive import check_pairs, leave_one_mode_out, prediction_gain
 from jointid.diagnosis.results import Evaluation, Fit
 from jointid.identification.model_error import ModelError
 
@@ -61,6 +61,17 @@ def test_an_effect_seen_by_one_mode_is_not_confirmed_and_one_seen_by_several_is(
     # an effect in the data, against the joints alone: it predicts every left-out mode better
     delta, se = prediction_gain(single, _fit(joints, y, rows), None, ME)
     assert delta < -2 * se < 0
+    # the rows of combinations.csv: the spurious pair names mode 1; the true effect on top of the other
+    # single (a pair whose second effect is in the data) predicts better than that single
+    fits = {"+a": single, "+b": _fit(np.hstack([joints, one_mode]), y, rows), "+a+b": spurious_pair}
+    rows_out = [{"effects": "a+b"}]
+    check_pairs(rows_out, fits, None, ME)
+    r = rows_out[0]
+    assert r["predicts"] is False and r["prediction_vs"] == "a" and r["prediction_worst_mode"] == 1
+    fits = {"+b": fits["+b"], "+a+b": spurious_pair}  # only b refitted: a+b against b alone
+    rows_out = [{"effects": "a+b"}]
+    check_pairs(rows_out, fits, None, ME)
+    assert rows_out[0]["predicts"] is True and rows_out[0]["prediction_delta"] < 0
 
 
 def test_an_unconfirmed_pair_yields_to_its_single_beyond_the_tie():
@@ -68,3 +79,23 @@ def test_an_unconfirmed_pair_yields_to_its_single_beyond_the_tie():
     assert parsimonious_order(cands, 4.0)[0] == "a+b"  # 10 apart: outside the tie window
     assert parsimonious_order(cands, 4.0, no_gain=["a+b"])[0] == "a"
     assert parsimonious_order(cands, 4.0, no_gain=["b+a"])[0] == "a"  # either order of the pair
+
+
+def test_the_verdict_says_why_a_better_fitting_pair_yields():
+    import pandas as pd
+
+    from jointid.diagnosis.verdict import Findings, unconfirmed_text
+
+    combos = pd.DataFrame([{"effects": "em_preload+feed_stiffness", "delta_qaicc": -1210.3, "predicts": False,
+                            "prediction_delta": np.inf, "prediction_se": np.inf, "prediction_vs": "em_preload",
+                            "prediction_worst_mode": 1},
+                           {"effects": "em_preload+rail_fixing", "delta_qaicc": -1196.0, "predicts": False,
+                            "prediction_delta": 2.4, "prediction_se": 0.9, "prediction_vs": "em_preload",
+                            "prediction_worst_mode": 6, "prediction_worst_pair": 5.2,
+                            "prediction_worst_single": 4.3}])
+    f = Findings(current=None, ranking=pd.DataFrame(), alpha=0.05, combinations=combos)
+    sup = pd.DataFrame({"name": ["em_preload"], "delta_qaicc": [-1200.7]})
+    txt = unconfirmed_text(f, sup, "em_preload")
+    assert "em_preload + feed_stiffness fits better (ΔQAICc -1210.3)" in txt
+    assert "with mode 1 left out, feed_stiffness's parameter is free" in txt
+    assert "rail_fixing" not in txt  # it does not fit better than the lead: nothing to explain

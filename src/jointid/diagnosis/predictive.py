@@ -71,24 +71,34 @@ def prediction_gain(big: Fit, small: Fit, data, me: ModelError) -> tuple[float, 
 
 def _gain(b: dict, a: dict) -> tuple[float, float]:
     """:func:`prediction_gain` from the per-mode PRESS of the larger (``b``) and smaller (``a``) fits."""
-    d = []
-    for key in a.keys() & b.keys():
+    return _compare(b, a)[:2]
+
+
+def _compare(b: dict, a: dict) -> tuple[float, float, object]:
+    """``(delta, se, worst mode)``: :func:`_gain` and the mode whose prediction the larger fit worsens most
+    (None when it worsens none)."""
+    d, keys = [], []
+    for key in sorted(a.keys() & b.keys(), key=str):
         if np.isinf(a[key]) and np.isinf(b[key]):
             continue
         if np.isinf(b[key]):
-            return np.inf, np.inf
+            return np.inf, np.inf, key
         d.append(b[key] - a[key])
+        keys.append(key)
     if not d:
-        return 0.0, 0.0
+        return 0.0, 0.0, None
     d = np.asarray(d)
-    return float(d.sum()), float(np.sqrt(len(d) * d.var()))
+    worst = keys[int(np.argmax(d))] if d.max() > 0 else None
+    return float(d.sum()), float(np.sqrt(len(d) * d.var())), worst
 
 
 def check_pairs(combos: list[dict], fits: dict, data, me: ModelError) -> None:
     """Fill each pair's row (naming ``effects`` ``a+b``) with its prediction against each of its singles
     that was refitted (:func:`prediction_gain`), the worse of the two kept: ``predicts`` (the pair
     predicts the left-out modes better than every single it extends), ``prediction_delta``,
-    ``prediction_se`` and ``prediction_vs`` (the single compared)."""
+    ``prediction_se``, ``prediction_vs`` (the single compared) and, for the mode whose prediction the
+    pair worsens most, ``prediction_worst_mode`` (its number; 0 for none or an unpaired model mode) with
+    the two fits' prediction errors there (``prediction_worst_pair``, ``prediction_worst_single``)."""
     cache: dict = {}
 
     def press(label):
@@ -101,13 +111,17 @@ def check_pairs(combos: list[dict], fits: dict, data, me: ModelError) -> None:
         pair = "+" + str(row["effects"])
         worst = None
         for single in ("+" + a, "+" + b):
-            if single not in fits:
-                continue
-            delta, se = _gain(press(pair), press(single))
-            if worst is None or delta > worst[0]:
-                worst = (delta, se, single[1:])
+            if single in fits:
+                delta, se, mode = _compare(press(pair), press(single))
+                if worst is None or delta > worst[0]:
+                    worst = (delta, se, single, mode)
+        row.update({"predicts": True, "prediction_delta": np.nan, "prediction_se": np.nan, "prediction_vs": "",
+                    "prediction_worst_mode": 0, "prediction_worst_pair": np.nan, "prediction_worst_single": np.nan})
         if worst is None:
-            row.update({"predicts": True, "prediction_delta": np.nan, "prediction_se": np.nan, "prediction_vs": ""})
             continue
-        row.update({"predicts": bool(worst[0] < 0), "prediction_delta": worst[0], "prediction_se": worst[1],
-                    "prediction_vs": worst[2]})
+        delta, se, single, mode = worst
+        row.update({"predicts": bool(delta < 0), "prediction_delta": delta, "prediction_se": se,
+                    "prediction_vs": single[1:]})
+        if isinstance(mode, int):
+            row.update({"prediction_worst_mode": mode, "prediction_worst_pair": press(pair)[mode],
+                        "prediction_worst_single": press(single)[mode]})

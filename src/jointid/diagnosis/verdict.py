@@ -310,9 +310,15 @@ def unconfirmed_text(f: Findings, sup: pd.DataFrame, lead: str) -> str:
         if str(c["effects"]) not in weak or lead not in names or not c["delta_qaicc"] < d_lead:
             continue
         extra = next(n for n in names if n != lead)
-        delta = c["prediction_delta"]
-        how = ("its parameter rests on one mode alone" if not np.isfinite(delta)
-               else f"leave-one-mode-out ΔPRESS {delta:+.3g} ± {c['prediction_se']:.2g}")
+        delta, mode = c["prediction_delta"], int(c.get("prediction_worst_mode", 0) or 0)
+        if not np.isfinite(delta):
+            how = f"with mode {mode} left out, {extra}'s parameter is free: it rests on that mode alone"
+        else:
+            how = (f"leave-one-mode-out, the summed squared prediction error rises by {delta:.3g} ± "
+                   f"{c['prediction_se']:.2g}")
+            if mode > 0:
+                how += (f"; mode {mode} left out is predicted at {c['prediction_worst_pair']:.3g} against "
+                        f"{c['prediction_worst_single']:.3g} by {c['prediction_vs']} alone")
         out.append(f" {lead} + {extra} fits better (ΔQAICc {daicc(c['delta_qaicc'])}) but predicts the modes "
                    f"left out no better than {c['prediction_vs']} alone ({how}): {extra} is not confirmed by "
                    "the data.")
