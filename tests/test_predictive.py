@@ -1,9 +1,10 @@
 """Leave-one-mode-out prediction of the diagnosis's pairs (jointid.diagnosis.predictive).
 
-Analytic reference: for a linear model the first-order deleted residual of a group of rows is exact, so
-it must equal the residual of a least-squares refit without that group.  Known truth: data drawn from
-one effect plus noise, a second candidate that sees one mode alone fits better and is not confirmed;
-a second effect that is in the data and seen by several modes is confirmed."""
+Analytic reference: for a linear Gaussian model the score of a group of rows must equal -2 log of the
+predictive density of a least-squares refit without that group (mean and parameter uncertainty).
+Known truth: data drawn from one effect plus noise, a second candidate that sees one mode alone fits
+better and is not confirmed; a second effect that is in the data and seen by several modes is
+confirmed."""
 
 from types import SimpleNamespace
 
@@ -33,17 +34,18 @@ def _rows(n_modes: int, n_states: int = 2) -> list:
 ME = ModelError(sigma_noise_rel=SIGMA)
 
 
-def test_first_order_deletion_equals_the_refit_without_the_mode():
+def test_the_score_is_the_predictive_density_of_the_refit_without_the_mode():
     rng = np.random.default_rng(3)
     rows = _rows(6)
     J = rng.standard_normal((len(rows), 3))
     y = J @ np.array([1.0, -2.0, 0.5]) + rng.standard_normal(len(rows))
     got = leave_one_mode_out(_fit(J, y, rows), None, ME)
-    for mode in range(1, 7):
+    for mode in range(1, 7):  # y_g given the rest: mean J_g x_(-g), covariance I + J_g (J_-g^T J_-g)^-1 J_g^T
         out = np.array([m == mode for _, m in rows])
         x = np.linalg.lstsq(J[~out], y[~out], rcond=None)[0]
         e = J[out] @ x - y[out]
-        assert got[mode] == pytest.approx(float(e @ e), rel=1e-9)
+        V = np.eye(int(out.sum())) + J[out] @ np.linalg.inv(J[~out].T @ J[~out]) @ J[out].T
+        assert got[mode] == pytest.approx(float(e @ np.linalg.solve(V, e)) + np.linalg.slogdet(V)[1], rel=1e-9)
 
 
 def test_an_effect_seen_by_one_mode_is_not_confirmed_and_one_seen_by_several_is():

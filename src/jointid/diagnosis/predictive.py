@@ -4,16 +4,22 @@ A pair of effects always fits at least as well as either of its singles, and wit
 the best of them is chosen: its gain in chi-square is partly the selection (Yao, Vehtari, Simpson and
 Gelman 2018: when no candidate is exactly true, judge models by prediction).  Here every measured mode
 (its frequency rows in every state and its shape rows) is left out in turn and predicted by the fit to
-the others, to first order (the deleted residual of linear least squares for a group of rows,
-``e_(-g) = (I - H_gg)^-1 e_g``, with ``H`` the hat matrix of the whitened Jacobian; Cook and Weisberg
-1982).  The rows are whitened at the diagnosis's total uncertainty (stated noise, the mesh's known
-error, the model error), so the leave-one-mode-out sum ``PRESS`` is in units of that uncertainty.
+the others.  The score is the log predictive density of the left-out rows, exact for a linear Gaussian
+model with the parameters' uncertainty in the prediction (Cook and Weisberg 1982 for the deleted
+residual): with ``z`` the whitened residuals, ``H`` the hat matrix of the whitened Jacobian and ``g`` the
+mode's rows,
+
+    -2 log p(z_g | z_-g) = z_g^T (I - H_gg)^-1 z_g - log det(I - H_gg) + const.
+
+The rows are whitened at the diagnosis's total uncertainty (stated noise, the mesh's known error, the
+model error).  Unlike the squared deleted residual, this score does not explode where a mode carries
+most of a parameter: the prediction is then uncertain and says so.
 
 A pair leads its own single only when it predicts the left-out modes better than the single does
 (:func:`prediction_gain` negative).  A second effect that rests on one mode alone cannot do so: with
-that mode left out its parameter is free, and its prediction of the mode is unbounded
-(``I - H_gg`` singular: ``inf``).  Such an effect may be real, but the data cannot confirm it by
-prediction; the verdict says so and names the single.
+that mode left out its parameter is free (``I - H_gg`` singular: ``inf``) or poorly known.  Such an
+effect may be real, but the data cannot confirm it by prediction; the verdict says so and names the
+single.
 """
 
 from __future__ import annotations
@@ -44,8 +50,9 @@ def mode_groups(rows: list) -> dict:
 
 
 def leave_one_mode_out(f: Fit, data, me: ModelError) -> dict:
-    """Per mode group (:func:`mode_groups`): the squared whitened error of that mode predicted by the
-    fit without it (first order); ``inf`` where the group alone determines a parameter."""
+    """Per mode group (:func:`mode_groups`): ``-2 log`` of the predictive density of that mode's rows by
+    the fit without it (the module doc; the constant left out); ``inf`` where the group alone
+    determines a parameter."""
     A = whitener(f.ev, data, me)
     z, G = A @ f.ev.r, A @ f.ev.J
     H = G @ np.linalg.pinv(G.T @ G) @ G.T
@@ -56,21 +63,20 @@ def leave_one_mode_out(f: Fit, data, me: ModelError) -> dict:
         if np.linalg.eigvalsh(0.5 * (I_H + I_H.T)).min() < _SINGULAR:
             out[key] = np.inf
             continue
-        e = np.linalg.solve(I_H, z[idx])
-        out[key] = float(e @ e)
+        out[key] = float(z[idx] @ np.linalg.solve(I_H, z[idx]) - np.linalg.slogdet(I_H)[1])
     return out
 
 
 def prediction_gain(big: Fit, small: Fit, data, me: ModelError) -> tuple[float, float]:
-    """``(delta, se)``: the leave-one-mode-out PRESS of ``big`` less that of ``small`` over the modes
-    both fit (negative: ``big`` predicts better), and the standard error of that sum from its per-mode
-    spread.  A mode that only ``small`` predicts (``big`` infinite) makes ``delta`` ``inf``; modes
+    """``(delta, se)``: the leave-one-mode-out score (:func:`leave_one_mode_out`) of ``big`` less that of
+    ``small``, summed over the modes both fit (negative: ``big`` predicts better), and the standard error
+    of that sum from its per-mode spread.  A mode that only ``small`` predicts (``big`` infinite) makes ``delta`` ``inf``; modes
     neither predicts are left out."""
     return _gain(leave_one_mode_out(big, data, me), leave_one_mode_out(small, data, me))
 
 
 def _gain(b: dict, a: dict) -> tuple[float, float]:
-    """:func:`prediction_gain` from the per-mode PRESS of the larger (``b``) and smaller (``a``) fits."""
+    """:func:`prediction_gain` from the per-mode scores of the larger (``b``) and smaller (``a``) fits."""
     return _compare(b, a)[:2]
 
 
@@ -101,7 +107,7 @@ def check_pairs(combos: list[dict], fits: dict, data, me: ModelError) -> None:
     the two fits' prediction errors there (``prediction_worst_pair``, ``prediction_worst_single``)."""
     cache: dict = {}
 
-    def press(label):
+    def score(label):
         if label not in cache:
             cache[label] = leave_one_mode_out(fits[label], data, me)
         return cache[label]
@@ -112,7 +118,7 @@ def check_pairs(combos: list[dict], fits: dict, data, me: ModelError) -> None:
         worst = None
         for single in ("+" + a, "+" + b):
             if single in fits:
-                delta, se, mode = _compare(press(pair), press(single))
+                delta, se, mode = _compare(score(pair), score(single))
                 if worst is None or delta > worst[0]:
                     worst = (delta, se, single, mode)
         row.update({"predicts": True, "prediction_delta": np.nan, "prediction_se": np.nan, "prediction_vs": "",
@@ -123,5 +129,5 @@ def check_pairs(combos: list[dict], fits: dict, data, me: ModelError) -> None:
         row.update({"predicts": bool(delta < 0), "prediction_delta": delta, "prediction_se": se,
                     "prediction_vs": single[1:]})
         if isinstance(mode, int):
-            row.update({"prediction_worst_mode": mode, "prediction_worst_pair": press(pair)[mode],
-                        "prediction_worst_single": press(single)[mode]})
+            row.update({"prediction_worst_mode": mode, "prediction_worst_pair": score(pair)[mode],
+                        "prediction_worst_single": score(single)[mode]})

@@ -314,7 +314,7 @@ def unconfirmed_text(f: Findings, sup: pd.DataFrame, lead: str) -> str:
         if not np.isfinite(delta):
             how = f"with mode {mode} left out, {extra}'s parameter is free: it rests on that mode alone"
         else:
-            how = (f"leave-one-mode-out, the summed squared prediction error rises by {delta:.3g} ± "
+            how = (f"leave-one-mode-out, -2 log of the predictive density rises by {delta:.3g} ± "
                    f"{c['prediction_se']:.2g}")
             if mode > 0:
                 how += (f"; mode {mode} left out is predicted at {c['prediction_worst_pair']:.3g} against "
