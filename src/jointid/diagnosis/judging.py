@@ -21,8 +21,8 @@ from dataclasses import replace
 from jointid.diagnosis.results import Fit, block_error, chi2_at
 from jointid.identification.model_error import ModelError, akaike_weights, qaicc, support_text
 
-__all__ = ["SUPPORTED", "effect_set", "fit_label", "judge_fits", "model_error_of", "parsimonious_order", "qaicc_of", "unconfirmed_pairs",
-           "supported"]
+__all__ = ["SUPPORTED", "effect_set", "fit_label", "judge_fits", "model_error_of", "parsimonious_order", "qaicc_of",
+           "supported", "unconfirmed_pairs"]
 
 SUPPORTED = ("strongly", "moderately")
 """The ``support`` values of a candidate the data support against the current model."""
@@ -116,4 +116,4 @@ def unconfirmed_pairs(combos) -> list[str]:
     better than their singles (``predicts`` False; :func:`jointid.diagnosis.predictive.check_pairs`)."""
     if not len(combos) or "predicts" not in combos:
         return []
-    return [str(e) for e, ok in zip(combos["effects"], combos["predicts"]) if ok is False or ok == 0]
+    return [str(e) for e, ok in zip(combos["effects"], combos["predicts"]) if not ok]  # NaN: not checked

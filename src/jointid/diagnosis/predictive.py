@@ -70,19 +70,15 @@ def leave_one_mode_out(f: Fit, data, me: ModelError) -> dict:
 def prediction_gain(big: Fit, small: Fit, data, me: ModelError) -> tuple[float, float]:
     """``(delta, se)``: the leave-one-mode-out score (:func:`leave_one_mode_out`) of ``big`` less that of
     ``small``, summed over the modes both fit (negative: ``big`` predicts better), and the standard error
-    of that sum from its per-mode spread.  A mode that only ``small`` predicts (``big`` infinite) makes ``delta`` ``inf``; modes
-    neither predicts are left out."""
-    return _gain(leave_one_mode_out(big, data, me), leave_one_mode_out(small, data, me))
-
-
-def _gain(b: dict, a: dict) -> tuple[float, float]:
-    """:func:`prediction_gain` from the per-mode scores of the larger (``b``) and smaller (``a``) fits."""
-    return _compare(b, a)[:2]
+    of that sum from its per-mode spread.  A mode that only ``small`` predicts (``big`` infinite) makes
+    ``delta`` ``inf``; modes neither predicts are left out."""
+    return _compare(leave_one_mode_out(big, data, me), leave_one_mode_out(small, data, me))[:2]
 
 
 def _compare(b: dict, a: dict) -> tuple[float, float, object]:
-    """``(delta, se, worst mode)``: :func:`_gain` and the mode whose prediction the larger fit worsens most
-    (None when it worsens none)."""
+    """``(delta, se, worst mode)`` from the per-mode scores of the larger (``b``) and smaller (``a``) fits:
+    :func:`prediction_gain` and the mode whose prediction the larger fit worsens most (None when it
+    worsens none)."""
     d, keys = [], []
     for key in sorted(a.keys() & b.keys(), key=str):
         if np.isinf(a[key]) and np.isinf(b[key]):
