@@ -48,10 +48,12 @@ refined solve.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["MeshErrors", "correct", "drift", "estimate_mesh_errors", "mesh_budget", "FOLLOW_MAC"]
+__all__ = ["MeshErrors", "MeshReference", "correct", "drift", "estimate_mesh_errors", "mesh_budget", "shape_known",
+           "FOLLOW_MAC"]
 
 FOLLOW_MAC = 0.8
 """A refined-mesh mode follows a model mode when their MAC at the measuring points is at least this."""
@@ -59,6 +61,29 @@ FOLLOW_MAC = 0.8
 DEFAULT_HALVE = ("length", "thickness", "width")
 """The cell classes halved one at a time (``diagnosis.mesh_error_halve``): the three axes, whose summed
 shifts are a uniform refinement's to first order."""
+
+
+class ClassShift(NamedTuple):
+    """One halving class's change of one state's model modes (:func:`_class_shift`)."""
+
+    shift: np.ndarray  # (n_model,) log frequency shift; a mode not followed: the state's largest
+    shares: tuple  # ({stiffness term: (n_model,)}, {mass term: (n_model,)}) of the refined modes, or two empty dicts
+    shape_change: np.ndarray  # (n_labels, n_model): refined probe shape scaled to the model's, less the model's
+    lost: np.ndarray  # (n_model,): known relative shape error of a mode not followed (0 where followed)
+
+
+@dataclass(frozen=True)
+class MeshReference:
+    """One state's mesh correction at the point it was computed (:attr:`StateData.mesh_reference`): the model
+    shapes at the probe that identify the modes, their log frequency corrections, the corrections' gradient in
+    the coefficients (None: not known), and the change of each mode's probe shape on the refined meshes with
+    the known error of a mode no refined mesh could follow (None: shapes not corrected)."""
+
+    shapes: np.ndarray  # (n_labels, n_model)
+    model_shift: np.ndarray  # (n_model,)
+    gradient: dict | None = None
+    shape_shift: np.ndarray | None = None  # (n_labels, n_model), in the units of ``shapes``
+    shape_floor: np.ndarray | None = None  # (n_model,): relative to the mode's RMS; 0 where followed
 
 
 @dataclass
@@ -75,15 +100,21 @@ class MeshErrors:
     shapes: list = field(default_factory=list)  # per state (n_labels, n_model): the model shapes at the probe
     gradient: list = field(default_factory=list)  # per state: d(model_shift)/d(coefficient) (:func:`drift`):
     # {"kc": {term: coefficient at the reference}, "mc": {...}, "gk": {term: (n_model,)}, "gm": {term: (n_model,)}}
+    shape_shift: list = field(default_factory=list)  # per state (n_labels, n_model): refined minus mesh probe shape
+    shape_floor: list = field(default_factory=list)  # per state (n_model,): known shape error of a mode not followed
 
     def apply(self, data: list) -> None:
         """Replace every state of the list ``data`` (aligned with this) by a copy with its correction and
         known error (the caller's state objects are left as they were)."""
         from dataclasses import replace
 
-        grads = self.gradient or [None] * len(self.shapes)
-        data[:] = [replace(d, mesh_reference=(p, c, g), known_rel=k)
-                   for d, p, c, k, g in zip(data, self.shapes, self.model_shift, self.known, grads)]
+        n = len(self.shapes)
+        grads = self.gradient or [None] * n
+        dshape = self.shape_shift or [None] * n
+        floor = self.shape_floor or [None] * n
+        data[:] = [replace(d, mesh_reference=MeshReference(p, c, g, ds, fl), known_rel=k)
+                   for d, p, c, k, g, ds, fl in zip(data, self.shapes, self.model_shift, self.known, grads,
+                                                     dshape, floor)]
 
     def note(self, data) -> str:
         """One sentence for the notes of the diagnosis."""
@@ -106,7 +137,9 @@ class MeshErrors:
                 "shift": [hexes(c) for c in self.shift], "known": [hexes(k) for k in self.known],
                 "model_shift": [hexes(c) for c in self.model_shift],
                 "shapes": [{"shape": list(np.shape(p)), "values": hexes(p)} for p in self.shapes],
-                "gradient": grad}
+                "gradient": grad,
+                "shape_shift": [{"shape": list(np.shape(p)), "values": hexes(p)} for p in self.shape_shift],
+                "shape_floor": [hexes(f) for f in self.shape_floor]}
 
     @classmethod
     def from_json(cls, rec: dict) -> "MeshErrors":
@@ -116,9 +149,10 @@ class MeshErrors:
                  "mc": {t: float.fromhex(v) for t, v in g["mc"].items()},
                  "gk": {t: arr(v) for t, v in g["gk"].items()}, "gm": {t: arr(v) for t, v in g["gm"].items()}}
                 for g in rec.get("gradient", [])]
+        mats = lambda key: [arr(p["values"]).reshape(p["shape"]) for p in rec.get(key, [])]  # noqa: E731
         return cls(tuple(rec["halved"]), [arr(c) for c in rec["shift"]], [arr(k) for k in rec["known"]],
-                   tuple(rec["n_dofs"]), [arr(c) for c in rec["model_shift"]],
-                   [arr(p["values"]).reshape(p["shape"]) for p in rec["shapes"]], grad)
+                   tuple(rec["n_dofs"]), [arr(c) for c in rec["model_shift"]], mats("shapes"), grad,
+                   mats("shape_shift"), [arr(f) for f in rec.get("shape_floor", [])])
 
     def record(self, data) -> list[dict]:
         """Rows ``state, mode, mesh_correction_pct, mesh_known_error_pct`` for a table."""
@@ -166,6 +200,8 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
     log(f"diagnosis: the mesh error: each state again with the {', '.join(halve)} cells halved, one at a time")
     out = MeshErrors(tuple(halve), n_dofs=(int(system.n_dofs), 0))
     total = [np.zeros(len(sol.freqs_Hz)) for sol in sols]
+    dshape = [np.zeros(np.shape(sol.shapes)) for sol in sols]  # summed over the classes like the shifts
+    floor = [np.zeros(len(sol.freqs_Hz)) for sol in sols]
     coarse = [None if lift is None else _shares(system, lift(sol.Y), sol.lam, sol) for sol in sols]
     grads = [None if c is None else {"kc": dict(sol.kc), "mc": dict(sol.mc),
                                      "gk": {t: np.zeros(len(sol.freqs_Hz)) for t in c[0]},
@@ -179,8 +215,10 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
             same = next((c for (kc, mc), c in done if kc == sol.kc and mc == sol.mc), None)
             res = _class_shift(fine, sol, n_modes, coarse[k] is not None) if same is None else same
             done.append(((sol.kc, sol.mc), res))
-            shift, fine_shares = res
-            total[k] = total[k] + shift
+            total[k] = total[k] + res.shift
+            dshape[k] = dshape[k] + res.shape_change
+            floor[k] = np.maximum(floor[k], res.lost)
+            fine_shares = res.shares
             if grads[k] is not None:  # d c / d coef: half the change of the energy share (module doc)
                 for key, j in (("gk", 0), ("gm", 1)):
                     for t, g in grads[k][key].items():
@@ -189,16 +227,20 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
         del fine
         release_heap()
     out.gradient = [] if any(g is None for g in grads) else grads
-    for d, sol, idx, model_shift in zip(data, sols, index, total):
+    for d, sol, idx, model_shift, moved, lost in zip(data, sols, index, total, dshape, floor):
         idx = np.asarray(idx, int)
         paired = model_shift[idx[idx >= 0]]  # an unpaired measured mode: the largest of the paired ones
         worst = paired[np.argmax(np.abs(paired))] if len(paired) else 0.0
         shift = np.where(idx >= 0, model_shift[np.maximum(idx, 0)], worst)
         out.model_shift.append(model_shift)
         out.shapes.append(np.asarray(sol.shapes, float))
+        out.shape_shift.append(moved)
+        out.shape_floor.append(lost)
         out.shift.append(shift)
         out.known.append(np.abs(np.expm1(shift)))
-        log(f"diagnosis: mesh error of {d.name}: " + ", ".join(f"{100 * np.expm1(c):+.2f} %" for c in shift))
+        rel = _relative_change(moved, sol.shapes)[np.maximum(idx, 0)]
+        log(f"diagnosis: mesh error of {d.name}: " + ", ".join(f"{100 * np.expm1(c):+.2f} %" for c in shift)
+            + "; shapes " + ", ".join(f"{100 * v:.2f} %" if i >= 0 else "-" for v, i in zip(rel, idx)) + " of their RMS")
     log(f"diagnosis: the mesh error in {time.time() - t0:.0f} s")  # the log's, not the results' (byte-identical)
     return out
 
@@ -206,25 +248,34 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
 def _class_shift(fine, sol, n_modes: int, shares: bool = False):
     """One state's log shift of every model mode when the cells of one class are halved: the refined
     modes followed by MAC at the probe; a mode not followed takes the state's largest shift.  Returns
-    ``(shift, energy shares)``: with ``shares``, :func:`_shares` of the followed refined modes, aligned
-    with the model modes (a mode not followed: the model's own, i.e. no change), else empty."""
+    ``(shift, energy shares, shape change, lost)``: with ``shares``, :func:`_shares` of the followed refined
+    modes, aligned with the model modes (a mode not followed: the model's own, i.e. no change), else empty;
+    the change of each followed mode's probe shape (the refined shape scaled to the model's by least
+    squares, less the model's; zero where not followed); and per mode the known shape error of a mode not
+    followed (the largest relative change of the followed ones; zero where followed).  A :class:`ClassShift`."""
     from jointid.correlate.pairing import pair_by_shapes
     from jointid.fe.modal import solve_modes
 
     modes = solve_modes(fine.K(sol.kc), fine.M(sol.mc), n_modes, fixed=fine.fixed)
-    follow, _ = pair_by_shapes(sol.shapes, fine.probe @ modes.phi, threshold=FOLLOW_MAC)
+    refined = fine.probe @ modes.phi
+    follow, _ = pair_by_shapes(sol.shapes, refined, threshold=FOLLOW_MAC)
     follow = np.asarray(follow)
     shift = np.full(len(sol.freqs_Hz), np.nan)
     seen = np.flatnonzero(follow >= 0)
     shift[seen] = np.log(modes.freqs_Hz[follow[seen]] / sol.freqs_Hz[seen])
     ok = np.isfinite(shift)
     worst = shift[ok][np.argmax(np.abs(shift[ok]))] if ok.any() else 0.0
+    moved = np.zeros(np.shape(sol.shapes))
+    a, b = sol.shapes[:, seen], refined[:, follow[seen]]
+    moved[:, seen] = b * (np.sum(a * b, axis=0) / np.maximum(np.sum(b * b, axis=0), 1e-300)) - a
+    rel = np.linalg.norm(moved[:, seen], axis=0) / np.maximum(np.linalg.norm(a, axis=0), 1e-300)
+    lost = np.where(ok, 0.0, float(np.max(rel, initial=0.0)))
     found = ({}, {})
     if shares:
         lam = (2 * np.pi * modes.freqs_Hz[follow[seen]]) ** 2
         gk, gm = _shares(fine, modes.phi[:, follow[seen]], lam, sol)
         found = tuple({t: _aligned(v, seen, len(shift)) for t, v in g.items()} for g in (gk, gm))
-    return np.where(ok, shift, worst), found
+    return ClassShift(np.where(ok, shift, worst), found, moved, lost)
 
 
 def _aligned(values: np.ndarray, seen: np.ndarray, n: int) -> np.ndarray:
@@ -243,34 +294,71 @@ def _shares(system, phi: np.ndarray, lam: np.ndarray, sol) -> tuple[dict, dict]:
     return gk, gm
 
 
+def _relative_change(moved: np.ndarray, shapes: np.ndarray) -> np.ndarray:
+    """Per mode, the norm of a shape change relative to the norm of the shape."""
+    return np.linalg.norm(moved, axis=0) / np.maximum(np.linalg.norm(shapes, axis=0), 1e-300)
+
+
 def correct(d, sol):
-    """The solution ``sol`` of state ``d`` with the mesh's correction applied to its frequencies
-    (``sol`` itself where the state has none).  Each model mode takes the corrections of the modes at
-    the point they were computed, weighted by MAC² at the probe: a mode that continues one of them
-    (MAC near 1) takes its correction, two close modes that mix take a blend, and the correction moves
-    continuously with the parameters (a hard match would jump when a MAC crosses a threshold, and the
-    fit's objective with it).  The correction so stays with the model mode when close modes change
-    order or pairing during a fit."""
-    if d.mesh_reference is None:
+    """The solution ``sol`` of state ``d`` with the mesh's correction applied to its frequencies and, where
+    the reference has them, its probe shapes (``sol`` itself where the state has none).  Each model mode
+    takes the corrections of the modes at the point they were computed, weighted by MAC² at the probe: a
+    mode that continues one of them (MAC near 1) takes its correction, two close modes that mix take a
+    blend, and the correction moves continuously with the parameters (a hard match would jump when a MAC
+    crosses a threshold, and the fit's objective with it).  The correction so stays with the model mode
+    when close modes change order or pairing during a fit.  A shape change is carried over in the scale
+    and sign of the mode it is applied to (:func:`shape_change`)."""
+    ref = d.mesh_reference
+    if ref is None:
         return sol
     from dataclasses import replace
 
-    shapes, model_shift = d.mesh_reference[:2]
-    c = _blend(shapes, sol, model_shift) + drift(d, sol)
+    c = _blend(ref.shapes, sol, ref.model_shift) + drift(d, sol)
     # a refinement only lowers a frequency, and the correction stays of its size where the first order
     # is stretched: at most twice the state's largest
-    c = np.clip(c, 2.0 * min(float(np.min(model_shift)), 0.0), 0.0)
-    return replace(sol, freqs_Hz=sol.freqs_Hz * np.exp(c))
+    c = np.clip(c, 2.0 * min(float(np.min(ref.model_shift)), 0.0), 0.0)
+    shapes = sol.shapes if ref.shape_shift is None else sol.shapes + shape_change(ref, sol.shapes)
+    return replace(sol, freqs_Hz=sol.freqs_Hz * np.exp(c), shapes=shapes)
+
+
+def _weights(ref_shapes: np.ndarray, shapes: np.ndarray) -> np.ndarray:
+    """MAC² of the reference modes (rows) with the modes ``shapes`` (columns), each column summing to one
+    (equal weights where no reference mode is like it)."""
+    from jointid.correlate.pairing import mac
+
+    w = mac(ref_shapes, shapes) ** 2  # (n_reference, n_modes)
+    total = w.sum(axis=0)
+    return np.where(total > 1e-12, w / np.maximum(total, 1e-12), 1.0 / max(len(w), 1))
 
 
 def _blend(shapes, sol, values: np.ndarray) -> np.ndarray:
     """Per model mode of ``sol``, ``values`` of the reference modes (``shapes`` at the probe) weighted by
     MAC² (their mean where no reference mode is like it)."""
-    from jointid.correlate.pairing import mac
+    return _weights(shapes, sol.shapes).T @ values
 
-    w = mac(shapes, sol.shapes) ** 2  # (n_reference, n_modes)
-    total = w.sum(axis=0)
-    return np.where(total > 1e-12, (w.T @ values) / np.maximum(total, 1e-12), float(np.mean(values)))
+
+def shape_change(ref: MeshReference, shapes: np.ndarray) -> np.ndarray:
+    """The mesh's change of the probe shapes ``shapes`` (n_labels, n): each reference mode's change
+    carried to a mode in proportion to its projection on the reference mode (so in that mode's scale and
+    sign), MAC²-weighted over the reference modes as :func:`correct` does."""
+    proj = (ref.shapes.T @ shapes) / np.maximum(np.sum(ref.shapes ** 2, axis=0), 1e-300)[:, None]
+    return ref.shape_shift @ (_weights(ref.shapes, shapes) * proj)
+
+
+def shape_known(d, shapes: np.ndarray, rows: np.ndarray, mode: int) -> np.ndarray | None:
+    """The known error of the probe entries ``rows`` (a mask or index) of mode ``mode`` of ``shapes``
+    (n_labels, n; already corrected), relative to the mode's RMS over those entries: the size of the
+    correction itself (the refined meshes' own error, at most the step they took, as for the frequencies;
+    module doc), and for a mode no refined mesh could follow the largest relative change of the followed
+    ones.  None where the state has no shape correction."""
+    ref = d.mesh_reference
+    if ref is None or ref.shape_shift is None:
+        return None
+    phi = shapes[:, [mode]]
+    change = shape_change(ref, phi)[rows, 0]
+    rms = float(np.sqrt(np.mean(phi[rows, 0] ** 2)))
+    floor = 0.0 if ref.shape_floor is None else float((_weights(ref.shapes, phi).T @ ref.shape_floor)[0])
+    return np.sqrt((change / max(rms, 1e-300)) ** 2 + floor ** 2)
 
 
 def drift(d, sol) -> np.ndarray:
@@ -279,16 +367,16 @@ def drift(d, sol) -> np.ndarray:
     (module doc), blended over the reference modes as :func:`correct` does; zeros where the state has
     no correction or no gradient."""
     ref = d.mesh_reference
-    if ref is None or len(ref) < 3 or ref[2] is None:
+    if ref is None or ref.gradient is None:
         return np.zeros(len(sol.freqs_Hz))
-    shapes, g = ref[0], ref[2]
-    change = np.zeros(shapes.shape[1])
+    g = ref.gradient
+    change = np.zeros(ref.shapes.shape[1])
     for key, coef, now in (("gk", "kc", sol.kc), ("gm", "mc", sol.mc)):
         for t, grad in g[key].items():
             dc = float(now.get(t, 0.0)) - float(g[coef].get(t, 0.0))
             if dc:
                 change = change + grad * dc
-    return _blend(shapes, sol, change)
+    return _blend(ref.shapes, sol, change)
 
 
 def mesh_budget(diag, base, x0, notes: list, log) -> None:

@@ -37,7 +37,8 @@ class Evaluation:
     n_scales: int = 0  # best scales of the shape rows (one per measured shape: nuisance parameters)
     sigma: np.ndarray | None = None  # per row: its stated uncertainty (frequency rows relative, shape rows
     # as a fraction of the mode's RMS); r = error / sigma
-    known: np.ndarray | None = None  # per row: its known error (the mesh's, relative; 0 for shape rows)
+    known: np.ndarray | None = None  # per row: its known error (the mesh's; frequency rows relative, shape rows
+    # as a fraction of the mode's RMS)
     known_corr: np.ndarray | None = None  # (frequency rows, frequency rows): the known errors' correlation, the
     # MAC of the rows' model modes (a mode's mesh error is the same in every state); None: independent
 
@@ -85,6 +86,12 @@ def _shape_sigma(ev: Evaluation) -> np.ndarray:
     return np.ones(int((~f).sum())) if ev.sigma is None else np.asarray(ev.sigma, float)[~f]
 
 
+def _shape_known(ev: Evaluation) -> np.ndarray | None:
+    """The known error of every shape row (the mesh's, relative to its mode's RMS); None: none known."""
+    f = frequency_rows(ev)
+    return None if ev.known is None or f.all() else np.asarray(ev.known, float)[~f]
+
+
 def block_error(ev: Evaluation, data: list[StateData] | None, n_params: int, *, reference: str = "") -> ModelError:
     """The model error of one evaluation, each block on its own (:func:`estimate`): the frequency rows
     with their known errors and ``n_params`` fitted parameters, the shape rows (if any) with one best
@@ -94,7 +101,7 @@ def block_error(ev: Evaluation, data: list[StateData] | None, n_params: int, *, 
                   reference=reference)
     if f.all():
         return me
-    shape = estimate(ev.r[~f], _shape_sigma(ev), ev.n_scales, reference=reference)
+    shape = estimate(ev.r[~f], _shape_sigma(ev), ev.n_scales, known_rel=_shape_known(ev), reference=reference)
     return replace(me, shape=shape)
 
 
@@ -106,7 +113,7 @@ def chi2_at(ev: Evaluation, data: list[StateData], me: ModelError) -> float:
     out = me.chi2_total(ev.r[f], row_sigma(ev, data), row_known(ev), row_known_corr(ev))
     if not f.all():
         rs = ev.r[~f]
-        out += float(rs @ rs) if me.shape is None else me.shape.chi2_total(rs, _shape_sigma(ev))
+        out += float(rs @ rs) if me.shape is None else me.shape.chi2_total(rs, _shape_sigma(ev), _shape_known(ev))
     return out
 
 
@@ -121,7 +128,7 @@ def whitener(ev: Evaluation, data: list[StateData] | None, me: ModelError) -> np
     A[np.ix_(idx, idx)] = me.whitener(row_sigma(ev, data), row_known(ev), row_known_corr(ev))
     if not f.all() and me.shape is not None:
         rest = np.flatnonzero(~f)
-        A[rest, rest] = np.sqrt(me.shape.row_weights(_shape_sigma(ev)))
+        A[rest, rest] = np.sqrt(me.shape.row_weights(_shape_sigma(ev), _shape_known(ev)))
     return A
 
 
@@ -237,7 +244,7 @@ class Fit:
         if f.all():
             return 1.0
         w = np.zeros(len(self.ev.r))
-        w[~f] = self.own_error().shape.row_weights(_shape_sigma(self.ev))
+        w[~f] = self.own_error().shape.row_weights(_shape_sigma(self.ev), _shape_known(self.ev))
         J = self.ev.J
         norms = np.linalg.norm(J[~f], axis=0)
         use = norms > 1e-6 * norms.max() if norms.max() > 0 else np.zeros(len(norms), bool)

@@ -22,8 +22,10 @@ Sensitivities are exact for the reduced model (:func:`jointid.fe.shape_derivativ
 Nelson's method on the subspace), less the rotation between modes closer than 0.5 % in frequency
 (:data:`jointid.fe.shape_derivative.CLOSE_MODE_GAP`).  A measured mode without a model partner keeps its rows with the
 model's part zero (``alpha = 0``: MAC 0), so the number of rows never depends on the pairing.
-The model error (:mod:`jointid.identification.model_error`) is a frequency error: it weights the
-frequency rows only (:func:`jointid.diagnosis.results.frequency_rows`).
+Where the mesh error is in the budget (:mod:`jointid.diagnosis.mesh_error`), the model shapes are
+corrected by the refined meshes' change of them, and each row carries the size of that change as a known
+error beside ``eps``.  The shape rows are judged as a block of their own, with their own model error
+(:func:`jointid.diagnosis.results.block_error`).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ import numpy as np
 
 from jointid.correlate.shape_rows import (MIN_SHAPE_UNCERTAINTY, normalised_shape, scaled_residual,
                                           shape_noise_estimate)
+from jointid.diagnosis.mesh_error import shape_known
 from jointid.fe.shape_derivative import probe_shape_derivatives
 
 __all__ = ["ShapeBlock", "ShapeTerms", "normalised_shape", "shape_block", "estimate_shape_uncertainty"]
@@ -45,12 +48,13 @@ class ShapeBlock:
     ``n_scales`` (one best scale per measured mode with a shape)."""
 
     def __init__(self, p: int):
-        self.r, self.J, self.rows, self.n_scales = [], [], [], 0
+        self.r, self.J, self.known, self.rows, self.n_scales = [], [], [], [], 0
         self.p = p
 
-    def add(self, si: int, mode: int, r: np.ndarray, J: np.ndarray) -> None:
+    def add(self, si: int, mode: int, r: np.ndarray, J: np.ndarray, known: np.ndarray | None = None) -> None:
         self.r.append(r)
         self.J.append(J)
+        self.known.append(np.zeros(len(r)) if known is None else np.asarray(known, float))
         self.rows += [(si, -(mode + 1))] * len(r)
         self.n_scales += 1
 
@@ -58,6 +62,10 @@ class ShapeBlock:
         if not self.r:
             return np.zeros(0), np.zeros((0, self.p))
         return np.concatenate(self.r), np.vstack(self.J)
+
+    def known_errors(self) -> np.ndarray:
+        """The known error of every row (the mesh's, relative to its mode's RMS; zeros where none)."""
+        return np.concatenate(self.known) if self.known else np.zeros(0)
 
 
 def shape_block(solver, data, sols, index, directions: list, eps: dict) -> ShapeBlock:
@@ -82,9 +90,10 @@ def shape_block(solver, data, sols, index, directions: list, eps: dict) -> Shape
                 k = paired.index(m)
                 dp = dphi[ok, k, :] if dphi is not None else np.zeros((int(ok.sum()), p))
                 r, J = scaled_residual(psi, sol.shapes[ok, idx[m]], dp, eps[si])
+                known = shape_known(d, sol.shapes, ok, int(idx[m]))
             else:
-                r, J = -psi / eps[si], np.zeros((len(psi), p))
-            block.add(si, m, r, J)
+                r, J, known = -psi / eps[si], np.zeros((len(psi), p)), None
+            block.add(si, m, r, J, known)
     return block
 
 
@@ -153,7 +162,11 @@ class ShapeTerms:
         rs, Js = blk.arrays()
         eps = np.array([self.eps[si] for si, _ in blk.rows], float)
         sigma = None if ev.sigma is None else np.concatenate([ev.sigma, eps])
-        known = None if ev.known is None else np.concatenate([ev.known, np.zeros(len(rs))])
+        ks = blk.known_errors()
+        if ev.known is None and not ks.any():
+            known = None
+        else:
+            known = np.concatenate([np.zeros(len(ev.r)) if ev.known is None else ev.known, ks])
         return replace(ev, r=np.concatenate([ev.r, rs]), J=np.vstack([ev.J, Js]), rows=list(ev.rows) + blk.rows,
                        n_scales=blk.n_scales, sigma=sigma, known=known)
 

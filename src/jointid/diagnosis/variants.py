@@ -38,9 +38,8 @@ class StateData:
     rule: object = None  # VisibilityRule of the test (None: unpaired model modes are skipped free)
     shape_sigma_rel: float | None = None  # stated shape uncertainty (shape_uncertainty_pct / 100); None: estimated
     known_rel: np.ndarray | None = None  # known model error per measured mode (the mesh's, relative); None: none
-    mesh_reference: tuple | None = None  # the mesh's correction: (model shapes at the probe (n_labels, n), their
-    # log frequency corrections (n,), their gradient in the coefficients or None) at the point it was computed
-    # (jointid.diagnosis.mesh_error.correct, .drift)
+    mesh_reference: object = None  # the mesh's correction at the point it was computed
+    # (jointid.diagnosis.mesh_error.MeshReference; None: none)
     computed_on_mesh: str | None = None  # a synthetic dataset's mesh digest (conditions.yaml computed_on_mesh)
 
     def mode_sigma(self) -> np.ndarray:

@@ -170,6 +170,7 @@ class ModelError:
         if self.shape is not None:
             out.update({"shape_sigma_model_pct": 100 * self.shape.sigma_model_rel,
                         "shape_sigma_noise_pct": 100 * self.shape.sigma_noise_rel,
+                        "shape_sigma_known_pct": 100 * self.shape.sigma_known_rel,
                         "shape_c_hat": self.shape.c_hat, "shape_reference_dof": int(self.shape.dof),
                         "shape_design_effect": self.shape.design_effect})
         return out
