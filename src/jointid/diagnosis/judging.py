@@ -111,6 +111,18 @@ def parsimonious_order(candidates, tie: float, no_gain=()) -> list[str]:
     return [lead] + [n for _, n in ranked if n != lead]
 
 
+def supported_order(ranking, combos) -> list[str]:
+    """The refitted candidates (``ranking``, column ``effect``) and pairs (``combos``, column ``effects``)
+    the data support against the current model, best first (a pair after its own single when they tie or
+    it does not predict better: :func:`parsimonious_order`)."""
+    out = []
+    for df, col in ((ranking, "effect"), (combos, "effects")):
+        if len(df) and "support" in df:
+            ok = df[df["support"].isin(SUPPORTED)]
+            out += list(zip(ok["delta_qaicc"], ok[col].astype(str)))
+    return parsimonious_order(out, float(ranking.attrs.get("tie_delta_aicc", 4.0)), unconfirmed_pairs(combos))
+
+
 def unconfirmed_pairs(combos) -> list[str]:
     """The pairs of a combinations table (``effects`` ``a+b``) that do not predict the left-out modes
     better than their singles (``predicts`` False; :func:`jointid.diagnosis.predictive.check_pairs`)."""

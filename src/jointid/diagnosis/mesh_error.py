@@ -52,11 +52,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["MeshErrors", "MeshReference", "correct", "drift", "estimate_mesh_errors", "mesh_budget", "shape_known",
-           "FOLLOW_MAC"]
+__all__ = ["MeshErrors", "MeshReference", "correct", "drift", "estimate_mesh_errors", "shape_known", "FOLLOW_MAC"]
 
 FOLLOW_MAC = 0.8
 """A refined-mesh mode follows a model mode when their MAC at the measuring points is at least this."""
+
+MESH_NOTE = "mesh error in the budget"
+"""How the diagnosis's note on the mesh error begins (:meth:`MeshErrors.note`)."""
 
 DEFAULT_HALVE = ("length", "thickness", "width")
 """The cell classes halved one at a time (``diagnosis.mesh_error_halve``): the three axes, whose summed
@@ -119,7 +121,7 @@ class MeshErrors:
     def note(self, data) -> str:
         """One sentence for the notes of the diagnosis."""
         worst = max((float(np.max(k)) for k in self.known if len(k)), default=0.0)
-        return (f"mesh error in the budget: each state solved again with the {', '.join(self.halved)} cells "
+        return (f"{MESH_NOTE}: each state solved again with the {', '.join(self.halved)} cells "
                 f"halved, one at a time, the shifts added ({self.n_dofs[0]} -> at most {self.n_dofs[1]} DOFs); "
                 f"every measured "
                 f"mode's model frequency is corrected by its change (at most {100 * worst:.2f} %) and the same "
@@ -377,39 +379,3 @@ def drift(d, sol) -> np.ndarray:
             if dc:
                 change = change + grad * dc
     return _blend(ref.shapes, sol, change)
-
-
-def mesh_budget(diag, base, x0, notes: list, log) -> None:
-    """Step 1b: each measured mode's mesh correction and known error at ``x0``
-    (:mod:`jointid.diagnosis.mesh_error`), set on the diagnoser's states; a note says what was done."""
-    from jointid.config.typed import ModelSpec
-
-    from jointid.config.hashing import mesh_digest
-
-    if all(d.computed_on_mesh == mesh_digest(diag.cfg) for d in diag.data):
-        notes.append("the mesh error is not in the budget: the data were computed on this very mesh "
-                     "(conditions.yaml computed_on_mesh), so the model has no discretisation error against them")
-        return
-    spec = ModelSpec.from_config(diag.cfg)
-    if spec.is_mesh_file:
-        notes.append("the mesh error is not in the budget: a mesh file cannot be refined here (the model error "
-                     "sigma_m holds it)")
-        return
-    halve = tuple((diag.cfg.get("diagnosis") or {}).get("mesh_error_halve") or DEFAULT_HALVE)
-    key = rec = None
-    if diag.memo is not None:  # asked before at the same point of the same model and data: recorded
-        key = diag.memo.value_key(diag.context_digest(), "mesh_errors", np.asarray(x0, float), list(halve))
-        rec = diag.memo.get_value(key)
-    if rec is not None:
-        errors = MeshErrors.from_json(rec)
-        log("diagnosis: the mesh error as recorded by an earlier run at the same point")
-    else:
-        sols = diag.solve_states(base, x0)
-        index = [p.model_index for p in diag.pair(sols)]
-        diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
-        errors = estimate_mesh_errors(spec, diag.cfg, diag.system, diag.data, sols, index, halve,
-                                      n_modes=diag.n_modes, lift=diag.lift, log=log)
-        if key is not None:
-            diag.memo.put_value(key, errors.to_json())
-    errors.apply(diag.data)
-    notes.append(errors.note(diag.data))

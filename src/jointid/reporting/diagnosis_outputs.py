@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.diagnosis.judging import SUPPORTED, parsimonious_order, unconfirmed_pairs
+from jointid.diagnosis.judging import supported_order
 from jointid.diagnosis.loop import Diagnosis
 from jointid.reporting.diagnosis_page import html_page
 
@@ -41,13 +41,7 @@ def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
 def supported_names(res: Diagnosis) -> list[str]:
     """The refitted candidates and pairs the data support against the current model, best first (a pair
     after its own single when they tie: :func:`jointid.diagnosis.judging.parsimonious_order`)."""
-    out = []
-    for df, col in ((res.ranking, "effect"), (res.combinations, "effects")):
-        if len(df) and "support" in df:
-            ok = df[df["support"].isin(SUPPORTED)]
-            out += list(zip(ok["delta_qaicc"], ok[col].astype(str)))
-    return parsimonious_order(out, float(res.ranking.attrs.get("tie_delta_aicc", 4.0)),
-                              unconfirmed_pairs(res.combinations))
+    return supported_order(res.ranking, res.combinations)
 
 
 def verdict_record(res: Diagnosis, dataset: str, run: dict) -> dict:
