@@ -137,15 +137,10 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     log("diagnosis: calibrating the baseline on all states")
     fit_base = diag.fit(base, x0, verify=not enabled)
     compare_tab, mac_mats, shape_res = tables or compare_tables(diag, base, fit_base.x)
-    fits, current, ladder_rows, rows, between_share = search(diag, fit_base, enabled, candidates, effects_cfg, opt, log)
-    better = None if enabled else better_basin(diag, current, fits, log)
-    if better is not None:  # step 4c: the baseline's calibration was in a worse basin; search again from the better
-        notes.append(better[1])
-        fits, current, ladder_rows, rows, between_share = search(diag, better[0], enabled, candidates, effects_cfg,
-                                                                 opt, log)
+    fits, current, ladder_rows, rows, between_share = search_best_basin(diag, fit_base, enabled, candidates,
+                                                                        effects_cfg, opt, notes, log)
     combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
-    lead = next(iter(supported_order(ranking, combos)), None)
-    again = repoint(diag, current, fits, lead, notes, log) if opt.get("mesh_error", True) and lead else None
+    again = repoint(diag, current, fits, next(iter(supported_order(ranking, combos)), ""), notes, log)
     if again is not None:  # step 5b: the mesh error again where the answer changed the structure
         fits, current, ladder_rows, rows, between_share = search(diag, again, enabled, candidates, effects_cfg, opt,
                                                                  log)
@@ -179,6 +174,19 @@ def search(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, e
     refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log, list(fits.values())[:-1])
     profile_candidate(diag, current, rows, fits, alpha, log)
     return fits, current, ladder_rows, rows, between_share
+
+
+def search_best_basin(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, effects_cfg, opt: dict,
+                      notes: list, log):
+    # many parameters: those of search, and the notes the better basin adds to
+    """Steps 2-4c: :func:`search`, and once more from the better basin when the baseline's calibration was in
+    a worse one (:func:`better_basin`; a note says so).  Returns what :func:`search` returns."""
+    out = search(diag, fit_base, enabled, candidates, effects_cfg, opt, log)
+    better = None if enabled else better_basin(diag, out[1], out[0], log)
+    if better is None:
+        return out
+    notes.append(better[1])
+    return search(diag, better[0], enabled, candidates, effects_cfg, opt, log)
 
 
 def better_basin(diag: Diagnoser, current: Fit, fits: dict, log) -> tuple[Fit, str] | None:
