@@ -83,11 +83,6 @@ class Diagnoser:
         as they are now."""
         return self.memo.context(self.cfg, self.data, self.n_modes, self._tol, self.mac_threshold)
 
-    def reset_context(self) -> None:
-        """Forget the context digest: the states changed (e.g. a new mesh correction), so fits recorded before
-        are no longer the same fits."""
-        self._context = None
-
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):
         """Set up the reduced solver at ``x`` of ``variant`` (first state's coefficients) unless there is one."""

@@ -30,8 +30,8 @@ from jointid.diagnosis.ambiguity import absorption_notes, explain_tie, tie_group
 from jointid.diagnosis.combine import combine_candidates, refit_at, refit_on_ladder
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, print_log, refit
-from jointid.diagnosis.judging import judge_fits, model_error_of, supported_order
-from jointid.diagnosis.mesh_budget import mesh_budget, repoint
+from jointid.diagnosis.judging import judge_fits, model_error_of
+from jointid.diagnosis.mesh_budget import mesh_budget
 from jointid.diagnosis.predictive import check_pairs
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
@@ -140,11 +140,6 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     fits, current, ladder_rows, rows, between_share = search_best_basin(diag, fit_base, enabled, candidates,
                                                                         effects_cfg, opt, notes, log)
     combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
-    again = repoint(diag, current, fits, next(iter(supported_order(ranking, combos)), ""), notes, log)
-    if again is not None:  # step 5b: the mesh error again where the answer changed the structure
-        fits, current, ladder_rows, rows, between_share = search(diag, again, enabled, candidates, effects_cfg, opt,
-                                                                 log)
-        combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
     current_table = compare_tables(diag, current.variant, current.x)[0]
     absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]), me)
     tie_detail, nxt = explain_tie(diag, ranking, fits, me)

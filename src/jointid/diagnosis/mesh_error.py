@@ -57,9 +57,6 @@ __all__ = ["MeshErrors", "MeshReference", "correct", "drift", "estimate_mesh_err
 FOLLOW_MAC = 0.8
 """A refined-mesh mode follows a model mode when their MAC at the measuring points is at least this."""
 
-MESH_NOTE = "mesh error in the budget"
-"""How the diagnosis's note on the mesh error begins (:meth:`MeshErrors.note`)."""
-
 DEFAULT_HALVE = ("length", "thickness", "width")
 """The cell classes halved one at a time (``diagnosis.mesh_error_halve``): the three axes, whose summed
 shifts are a uniform refinement's to first order."""
@@ -121,7 +118,7 @@ class MeshErrors:
     def note(self, data) -> str:
         """One sentence for the notes of the diagnosis."""
         worst = max((float(np.max(k)) for k in self.known if len(k)), default=0.0)
-        return (f"{MESH_NOTE}: each state solved again with the {', '.join(self.halved)} cells "
+        return (f"mesh error in the budget: each state solved again with the {', '.join(self.halved)} cells "
                 f"halved, one at a time, the shifts added ({self.n_dofs[0]} -> at most {self.n_dofs[1]} DOFs); "
                 f"every measured "
                 f"mode's model frequency is corrected by its change (at most {100 * worst:.2f} %) and the same "
