@@ -139,8 +139,8 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     compare_tab, mac_mats, shape_res = tables or compare_tables(diag, base, fit_base.x)
     fits, current, ladder_rows, rows, between_share = search_best_basin(diag, fit_base, enabled, candidates,
                                                                         effects_cfg, opt, notes, log)
-    combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
     current_table = compare_tables(diag, current.variant, current.x)[0]
+    combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
     absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]), me)
     tie_detail, nxt = explain_tie(diag, ranking, fits, me)
     ident, curve = identifiable_fits(diag, current, fits, ranking, combos, log)
