@@ -267,8 +267,7 @@ def _class_shift(fine, sol, n_modes: int, shares: bool = False):
     moved = np.zeros(np.shape(sol.shapes))
     a, b = sol.shapes[:, seen], refined[:, follow[seen]]
     moved[:, seen] = b * (np.sum(a * b, axis=0) / np.maximum(np.sum(b * b, axis=0), 1e-300)) - a
-    rel = np.linalg.norm(moved[:, seen], axis=0) / np.maximum(np.linalg.norm(a, axis=0), 1e-300)
-    lost = np.where(ok, 0.0, float(np.max(rel, initial=0.0)))
+    lost = np.where(ok, 0.0, float(np.max(_relative_change(moved[:, seen], a), initial=0.0)))
     found = ({}, {})
     if shares:
         lam = (2 * np.pi * modes.freqs_Hz[follow[seen]]) ** 2
