@@ -230,3 +230,21 @@ def test_a_known_part_of_each_rows_own_beside_the_shared_one():
     assert np.allclose(np.diag(R), 1.0) and np.all(np.linalg.eigvalsh(R) > -1e-12)
     k0, R0 = known_budget(np.zeros(3), np.eye(3), np.zeros(3))
     assert R0 is None and not k0.any()
+
+
+def test_sized_starts_are_the_effect_at_half_and_its_nominal_size_unless_tried():
+    """When every start of a refit ends at the null, the effect is started at typical sizes: t = 0.5 and
+    1 (t is in units of the nominal), a start within 5 % of one already tried left out."""
+    from jointid.diagnosis.effects import EFFECTS
+    from jointid.diagnosis.starts import at_its_null, refit_starts, sized_starts
+    from jointid.diagnosis.variants import EffectSpec
+
+    edge = EffectSpec.candidate(EFFECTS["added_mass_edge"])  # 0..15 kg, nominal 2 kg: t = mass / 2 kg
+    tried = refit_starts(edge, -0.3)  # a first-order estimate of the wrong sign: every start near the null
+    assert max(tried) < 0.1
+    assert sized_starts(edge, tried) == [0.5, 1.0]  # 1 kg and 2 kg
+    assert sized_starts(edge, [0.51]) == [1.0]
+    assert at_its_null(edge, 0.0) and at_its_null(edge, 0.0009) and not at_its_null(edge, 0.002)  # 4 g
+    base = EffectSpec.candidate(EFFECTS["base_support"])  # compliance: t = 1e10 / k_foundation, null at t = 0
+    assert at_its_null(base, 1e10 / 2e13) and not at_its_null(base, 1e10 / 2e11)
+    assert EFFECTS["base_support"].params[0].from_t(sized_starts(base, [])[0]) == 2e10

@@ -38,7 +38,7 @@ from jointid.diagnosis import mesh_error
 from jointid.diagnosis.results import Evaluation, Fit
 from jointid.diagnosis.shape_residuals import ShapeTerms
 from jointid.diagnosis.starts import (EIGEN_RTOL, START_DIGITS, TIE_RTOL, best_fit, chi2_resolution,  # noqa: F401
-                                      refit_starts, rounded_start)
+                                      at_its_null, refit_starts, rounded_start, sized_starts)
 from jointid.diagnosis.terms import System, is_solid_term, term_component
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
@@ -377,6 +377,9 @@ def refit(diag: Diagnoser, fit: Fit, spec: EffectSpec, t_hat: np.ndarray, *, ver
     q = var.n_params - fit.variant.n_params
     starts = refit_starts(spec, float(t_hat[0])) if q == 1 else [[rounded_start(t) for t in np.clip(t_hat, 0, None)]]
     best = best_fit([diag.fit(var, np.concatenate([fit.x, np.atleast_1d(s)]), index=fit.ev.index) for s in starts])
+    if q == 1 and at_its_null(spec, best.x[-1]):  # every start ended at the null: try the effect at typical sizes
+        more = sized_starts(spec, starts)
+        best = best_fit([best] + [diag.fit(var, np.concatenate([fit.x, [s]]), index=fit.ev.index) for s in more])
     if verify:
         best = diag.certify(best)
     return best
