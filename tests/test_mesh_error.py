@@ -127,6 +127,35 @@ def test_the_correction_follows_each_model_mode_and_blends_mixed_ones():
     assert correct(SimpleNamespace(mesh_reference=None), plain) is plain
 
 
+def test_a_mode_the_reference_does_not_have_takes_its_solids_share_of_the_correction():
+    """Analytic: two reference modes (-1 %, -3 %) and a correction per unit solids' energy share of -2 %.
+    A mode orthogonal to both at the probe (an elastic base's own mode on a clamped reference) takes
+    -2 % times its solids' share (0.1: -0.2 %); a mode the references hold (MAC 1) keeps its own
+    correction whatever its share; one in between (MAC² sum 0.32, half of the 0.64 that counts as held)
+    takes the mean of the two; without a share the old blend stands."""
+    from types import SimpleNamespace
+
+    from jointid.diagnosis.mesh_error import FOLLOW_MAC, MeshReference, correct
+    from jointid.fe.reduced import Solution
+
+    a, b, c = np.eye(3)
+    shift = np.log([0.99, 0.97])
+    d = SimpleNamespace(mesh_reference=MeshReference(np.column_stack([a, b]), shift, per_solid=-0.02))
+
+    def sol(shapes, f):
+        n = len(f)
+        return Solution(np.asarray(f, float), np.ones(n), np.zeros((1, n)), np.ones(n), np.zeros((1, n)), {}, {},
+                        np.column_stack(shapes))
+
+    out = correct(d, sol([c, a], [2700.0, 1000.0]), np.array([0.1, 0.3]))
+    np.testing.assert_allclose(out.freqs_Hz, [2700.0 * np.exp(-0.002), 990.0])
+    half = (0.5 * FOLLOW_MAC ** 2) ** 0.25  # MAC² with a: 0.32, held half
+    mode = half * a + np.sqrt(1 - half ** 2) * c
+    out = correct(d, sol([mode], [2000.0]), np.array([0.5]))
+    np.testing.assert_allclose(out.freqs_Hz, [2000.0 * np.exp(0.5 * np.log(0.99) + 0.5 * -0.02 * 0.5)])
+    assert correct(d, sol([a], [1000.0])).freqs_Hz[0] == 990.0
+
+
 def test_the_mesh_errors_change_with_the_joints_is_its_energy_share_change():
     """Known truth: the correction of one halving class (thickness) computed at two joint stiffnesses,
     1.35x apart (as em_preload makes between two states).  Its first-order change predicted at the

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointid.diagnosis.mesh_error import DEFAULT_HALVE, MeshErrors, estimate_mesh_errors
+from jointid.diagnosis.mesh_error import DEFAULT_HALVE, MeshErrors, estimate_mesh_errors, solid_share
 
 __all__ = ["mesh_budget"]
 
@@ -45,7 +45,7 @@ def _estimate_at(diag, variant, x, log) -> MeshErrors:
     key = rec = None
     if diag.memo is not None:  # asked before at the same point of the same model and data: recorded
         key = diag.memo.value_key(diag.context_digest(), "mesh_errors", variant.name, np.asarray(x, float),
-                                  list(halve))
+                                  list(halve) + ["per_solid"])  # "per_solid": recorded with it
         rec = diag.memo.get_value(key)
     if rec is not None:
         log("diagnosis: the mesh error as recorded by an earlier run at the same point")
@@ -54,7 +54,8 @@ def _estimate_at(diag, variant, x, log) -> MeshErrors:
     index = [p.model_index for p in diag.pair(sols)]
     diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
     errors = estimate_mesh_errors(ModelSpec.from_config(diag.cfg), diag.cfg, diag.system, diag.data, sols, index,
-                                  halve, n_modes=diag.n_modes, lift=diag.lift, log=log)
+                                  halve, n_modes=diag.n_modes, lift=diag.lift,
+                                  solid=[solid_share(diag.solver, s) for s in sols], log=log)
     if key is not None:
         diag.memo.put_value(key, errors.to_json())
     return errors

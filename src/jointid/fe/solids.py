@@ -18,6 +18,17 @@ from jointid.errors import ModelError
 from jointid.fe import fem
 from jointid.geometry.rig import PART_IDS
 
+SOLID_TERMS = ("K0", "K_solid_", "K_lambda_")
+"""Names (or their prefixes) of the stiffness terms of the solids; every other stiffness term is a spring
+layer (joints, rail fixing, foundation, mounts)."""
+
+
+def is_solid_term(name: str) -> bool:
+    """Whether the stiffness term ``name`` is the solids' elasticity (a discretised continuum, whose
+    stiffness the mesh's refinement changes) rather than a spring layer."""
+    return name == "K0" or name.startswith(SOLID_TERMS[1:])
+
+
 def element_constants(materials: Mapping[str, Material], rig, rmesh):
     """Lamé constants and density of every element (Pa, kg/m^3) from ``materials`` (by name), and
     the reference material of every part present: ``{part: {material, youngs_modulus_Pa,
