@@ -113,7 +113,7 @@ class Diagnoser:
             if self.solver.generation == gen:
                 break
         # the mesh's correction, where the budget has one (jointid.diagnosis.mesh_error), follows each model mode
-        return [mesh_error.correct(d, s, lambda s=s: mesh_error.solid_share(self.solver, s))
+        return [mesh_error.correct(d, s, lambda cols, s=s: mesh_error.solid_share(self.solver, s, cols))
                 for d, s in zip(self.data, sols)]
 
     def lift(self, Y: np.ndarray) -> np.ndarray:

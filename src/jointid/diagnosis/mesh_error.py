@@ -299,23 +299,20 @@ def _per_solid(model_shift: np.ndarray, share: np.ndarray) -> float | None:
     return float(np.median(model_shift[ok] / share[ok])) if ok.any() else None
 
 
-def solid_share(solver, sol) -> np.ndarray:
-    """Per mode of ``sol``, the share of its strain energy in the solids (:func:`jointid.fe.solids.is_solid_term`)
-    rather than the spring layers, from the reduced solver's projected terms."""
+def solid_share(solver, sol, cols=None) -> np.ndarray:
+    """For the modes ``cols`` of ``sol`` (default: all), the share of their strain energy in the solids
+    (:func:`jointid.fe.solids.is_solid_term`) rather than the spring layers, from the reduced solver's
+    projected terms.  The Ritz vectors are mass-normalised, so a mode's whole strain energy is its
+    eigenvalue and only the solids' few terms are evaluated."""
     from jointid.fe.reduced import pad_to_basis
     from jointid.fe.solids import is_solid_term
 
-    Y = pad_to_basis(sol.Y, solver.V.shape[1])
-    energy = lambda name: np.einsum("ij,ij->j", Y, solver.Kr[name] @ Y)  # noqa: E731
-    solid = (1.0 + float(sol.kc.get("K0", 0.0))) * energy("K0")
-    total = solid.copy()
-    for name, c in sol.kc.items():
-        if name != "K0" and c and name in solver.Kr:
-            e = float(c) * energy(name)
-            total = total + e
-            if is_solid_term(name):
-                solid = solid + e
-    return np.clip(solid / np.maximum(total, 1e-300), 0.0, 1.0)
+    cols = np.arange(sol.Y.shape[1]) if cols is None else np.asarray(cols, int)
+    Y = pad_to_basis(sol.Y[:, cols], solver.V.shape[1])
+    coef = {"K0": 1.0 + float(sol.kc.get("K0", 0.0))}
+    coef.update({t: float(c) for t, c in sol.kc.items() if t != "K0" and c and is_solid_term(t) and t in solver.Kr})
+    solid = sum(c * np.einsum("ij,ij->j", Y, solver.Kr[t] @ Y) for t, c in coef.items())
+    return np.clip(solid / np.maximum(np.asarray(sol.lam, float)[cols], 1e-300), 0.0, 1.0)
 
 
 def _aligned(values: np.ndarray, seen: np.ndarray, n: int) -> np.ndarray:
@@ -349,9 +346,9 @@ def correct(d, sol, share=None):
     when close modes change order or pairing during a fit.  A shape change is carried over in the scale
     and sign of the mode it is applied to (:func:`shape_change`).
 
-    ``share``: ``sol``'s solids' energy shares (:func:`solid_share`, or a callable giving them); where the
-    reference has a correction per unit share, a mode the reference modes hold little of takes that times
-    its share instead (module doc)."""
+    ``share``: ``sol``'s solids' energy shares (:func:`solid_share`), or a callable giving those of the
+    modes ``cols`` (``share(cols)``).  Where the reference has a correction per unit share, a mode the
+    reference modes hold little of takes that times its share instead (module doc)."""
     ref = d.mesh_reference
     if ref is None:
         return sol
@@ -362,9 +359,10 @@ def correct(d, sol, share=None):
         from jointid.correlate.pairing import mac
 
         held = np.clip(np.sum(mac(ref.shapes, sol.shapes) ** 2, axis=0) / FOLLOW_MAC ** 2, 0.0, 1.0)
-        if np.any(held < 1.0):
-            s = share() if callable(share) else share
-            c = held * c + (1.0 - held) * ref.per_solid * np.asarray(s, float)
+        cols = np.flatnonzero(held < 1.0)
+        if len(cols):
+            s = share(cols) if callable(share) else np.asarray(share, float)[cols]
+            c[cols] = held[cols] * c[cols] + (1.0 - held[cols]) * ref.per_solid * np.asarray(s, float)
     # a refinement only lowers a frequency, and the correction stays of its size where the first order
     # is stretched: at most twice the state's largest
     c = np.clip(c, 2.0 * min(float(np.min(ref.model_shift)), 0.0), 0.0)
