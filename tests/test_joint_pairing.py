@@ -242,3 +242,28 @@ def test_the_shared_pairing_follows_resolvability_in_every_state():
     for t in info["tie_rule"]["tied"]:
         assert {m["state"] for m in t["unpaired_visible"]} == set(f)  # the modes of every state are judged
         assert t["resolvable"] == all(abs(m["offset_pct"]) / 100 <= zeta for m in t["unpaired_visible"])
+
+
+def test_each_states_own_pairing_is_a_candidate_even_when_its_search_did_not_list_it(monkeypatch):
+    """A state's own best pairing need not be among the pairings its search lists (with a visibility
+    rule it was not, on the coarse test run): it is fitted in every state all the same, so the
+    independent rule's notes have its cost (they raised a KeyError before)."""
+    import jointid.identification.updating as upd
+    from jointid.stages.identify import pairing_notes
+
+    real = upd.identify_state
+
+    def unlisted(doc, f, lower, upper, *, candidates=None, **kw):
+        out = real(doc, f, lower, upper, candidates=candidates, **kw)
+        if candidates is not None:
+            candidates.clear()  # the search lists none of the pairings it met
+        return out
+
+    monkeypatch.setattr(upd, "identify_state", unlisted)
+    monkeypatch.setattr(upd, "misfit_swaps", lambda *a, **k: set())  # no swap brings it back either
+    doc = _doc()
+    f = {"a": np.array([390.0, 1330.0, 2050.0]), "b": np.array([430.0, 1420.0, 2150.0])}
+    pairing, info = upd.identify_states_jointly(doc, f, LOWER, UPPER, **KW)
+    assert {tuple(info[s]["own"]) for s in f} <= {tuple(c["pairing"]) for c in info["candidates"]}
+    for s in f:
+        pairing_notes(doc, s, list(f), pairing, info, "independent")

@@ -286,6 +286,9 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
         own[state] = tuple(int(c) for c in p)
         for pairing, _ in found:
             cands.setdefault(pairing, None)
+        # the state's own best pairing is a candidate too, whether or not its search listed it (with a
+        # visibility rule it may not be: identify.pairing: independent then had no cost for it)
+        cands.setdefault(own[state], None)
     tried, fits, queue = [], {}, sorted(cands)
     for _ in range(4):  # the pairings the starts found, then the swaps of the best, until none is new
         for pairing in queue:
