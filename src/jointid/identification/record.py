@@ -27,6 +27,7 @@ import numpy as np
 
 from jointid import io
 from jointid.correlate.pairing import PairedBy
+from jointid.identification import ties
 
 __all__ = ["FePolish", "IdentificationRecord", "Interval", "Observability", "PairedBy", "PolishedOn",
            "SurfaceStage", "TieChoice", "TieRule", "floats"]
@@ -53,11 +54,11 @@ class PolishedOn(str, Enum):
 class TieChoice(Enum):
     """The rule that chose among exactly tied pairings (the start of ``tie_rule.rule``)."""
 
-    NO_TIE = "least cost (no tie)"
+    NO_TIE = ties.NO_TIE
     """No tie: the least cost chose."""
-    RESOLVABILITY = "resolvability"
+    RESOLVABILITY = ties.RESOLVABILITY
     """The one pairing whose unpaired visible modes could all hide in a measured peak."""
-    NEAREST = "nearest partners"
+    NEAREST = ties.NEAREST
     """The nearest partners, a fallback (the text says why)."""
 
 
