@@ -283,7 +283,7 @@ def stated_shape_uncertainty(cfg: dict, state: str) -> float | None:
     return None if value is None else float(value)
 
 
-def paired_by(shapes, fixed):
+def _paired_by(shapes, fixed):
     """How the measured modes were paired (:class:`jointid.correlate.pairing.PairedBy`): by MAC with measured
     ``shapes``, else by frequency, shared by all states when the pairing is ``fixed``."""
     from jointid.correlate.pairing import PairedBy
@@ -406,7 +406,7 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     per_carriage = _per_carriage(ModelSpec.from_config(cfg), names, theta, ci_lo, ci_hi,
                                  io.read_json(summary)["contact_area_per_carriage_m2"])
     damping = joint_damping.params_entry(dataset_folder(cfg, state), state, names, polish, f_meas, weights, edge, log)
-    rec = replace(_identification(state, doc, res, pairing, paired_by(shapes, fixed), joint_info, f_meas, sigma_pct,
+    rec = replace(_identification(state, doc, res, pairing, _paired_by(shapes, fixed), joint_info, f_meas, sigma_pct,
                                   (theta, ci_lo, ci_hi, f_final), polish, edge, rom, per_carriage, msgs),
                   tie_rule=None if tie_rule is None else TieRule.from_json(tie_rule),  # None: no frequency-only choice
                   observability=None if vis_rule is None else Observability.of(vis_rule),
