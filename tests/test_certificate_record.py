@@ -14,6 +14,7 @@ from jointid.fe import certify
 from jointid.fe.certificate import Certificate, full_certificate, reduced_certificate
 from jointid.fe.modal import solve_model
 from jointid.fe.reduced import ReducedSolver
+from jointid.identification.record import FePolish, IdentificationRecord, Interval, PolishedOn
 from jointid.stages.verify import write_certificate
 
 from test_certify import FAR, N_MODES, NEAR, REF, _chain
@@ -130,7 +131,8 @@ def test_a_failed_sturm_count_falls_back_to_a_second_solve_and_says_so(tmp_path)
 def test_verify_writes_the_certificate_beside_the_identifications(model, tmp_path):
     modes = solve_model(model, *NEAR, N_MODES, backend="scipy", certify=True)
     polish = reduced_certificate(_solver_at_near(model), *NEAR, N_MODES).to_record()
-    par = {"parameters": {"k_normal_N_per_m3": {"value": 1e12}}, "fe_polish": {"certificate": polish}}
+    par = IdentificationRecord({"k_normal_N_per_m3": Interval(1e12)},
+                               fe_polish=FePolish(PolishedOn.FE, (), (), 0.0, 1, 1.0, 0, (), (), (), polish))
     paths = [tmp_path / "a.json", tmp_path / "b.json"]
     for p in paths:
         write_certificate("power_off", par, modes, str(p))

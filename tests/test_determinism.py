@@ -200,3 +200,17 @@ def test_a_second_whole_run_is_byte_identical(coarse_run, second_run):
     _assert_same_results(coarse_run, second_run, WHOLE)
     assert any(is_wall_clock(k) for k in file_hashes(second_run, BYTE_IDENTICAL)), "the diagnosis ran"
     assert set(file_hashes(second_run, BYTE_IDENTICAL)) == set(file_hashes(coarse_run, BYTE_IDENTICAL))
+
+
+def test_params_json_reads_back_as_the_same_bytes(coarse_run, tmp_path):
+    """The identify stage writes params.json through :class:`jointid.identification.record.IdentificationRecord`;
+    read back and written again, each state's file keeps every byte (the polish, its mesh extrapolation and
+    the shared frequency pairing included)."""
+    from jointid.identification.record import IdentificationRecord, PairedBy
+
+    for state in STATES:
+        path = coarse_run / "results" / "identify" / state / "params.json"
+        rec = IdentificationRecord.read(path)
+        assert rec.fe_polish is not None and rec.paired_by is PairedBy.FREQUENCY_SHARED
+        rec.write(tmp_path / f"{state}.json")
+        assert (tmp_path / f"{state}.json").read_bytes() == path.read_bytes()

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from jointid.identification.meshcheck import error_budget, first_order_shift
+from jointid.identification.record import IdentificationRecord
 from jointid.identification.polish import log_jacobian
 
 
@@ -41,13 +42,13 @@ def test_log_jacobian_of_a_spring_mass():
 
 def test_error_budget_holds_the_mesh_error_against_a_third_of_the_total_uncertainty():
     # noise 1 %, model error sqrt(15) %: total 4 %, a third of it 1.333 %
-    par = {"frequency_uncertainty_pct": 1.0, "model_error": {"sigma_model_pct": 15 ** 0.5}}
+    par = IdentificationRecord({}, frequency_uncertainty_pct=1.0, model_error={"sigma_model_pct": 15 ** 0.5})
     b = error_budget([0.5, -1.2, np.nan], par, 1 / 3)
     assert b["uncertainty_pct"] == pytest.approx(4.0)
     assert b["budget_pct"] == pytest.approx(4.0 / 3)
     assert b["max_error_pct"] == pytest.approx(1.2) and b["worst_mode"] == 2 and b["within"]
     # the same mesh against the noise alone (an exact model): 1.2 % > 0.333 %
-    b = error_budget([0.5, -1.2, np.nan], {"frequency_uncertainty_pct": 1.0}, 1 / 3)
+    b = error_budget([0.5, -1.2, np.nan], IdentificationRecord({}, frequency_uncertainty_pct=1.0), 1 / 3)
     assert not b["within"] and b["budget_pct"] == pytest.approx(1 / 3)
     assert "above it" in b["sentence"]
     # nothing followed: not within

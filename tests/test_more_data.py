@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import pandas as pd
 
+from jointid.identification.record import IdentificationRecord
 from jointid.reporting.more_data import more_data_html, more_data_lines
 
 
 def _data(paired_by="frequency, shared by all states", tied=True, damping=False, frf=None) -> dict:
-    params = {s: {"paired_by": paired_by, "tie_rule": {"tied": [{"pairing": [0, 1]}] if tied else []},
-                  **({"joint_damping": {"zeta_0": 0.01}} if damping else {})} for s in ("power_off", "power_on")}
+    params = {s: IdentificationRecord.from_json(
+        {"parameters": {}, "paired_by": paired_by,
+         "tie_rule": {"rule": "resolvability", "tied": [{"pairing": [0, 1]}] if tied else []},
+         **({"joint_damping": {"zeta_0": 0.01}} if damping else {})}) for s in ("power_off", "power_on")}
     table1 = pd.DataFrame({"state": ["power_off", "power_on"], "k_dyn_min_low_N_per_mm": [40918.2, 47386.0],
                            "k_dyn_min_high_N_per_mm": [97749.0, 112492.0], "damping_ratio_low": [0.02, 0.02],
                            "damping_ratio_high": [0.05, 0.05]})

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import pandas as pd
 
+from jointid.identification.record import IdentificationRecord
 from jointid.identification.ties import TIE, tied_alternatives
 from jointid.reporting.tables import table1_frame, table1_markdown
 from jointid.stages.harmonic import tie_note
@@ -25,14 +26,15 @@ def test_tied_pairings_map_tracked_modes_to_fe_modes_by_shape():
     rng = np.random.default_rng(3)
     ref = np.linalg.qr(rng.standard_normal((12, 5)))[0]  # orthogonal shapes: MAC 1 with itself, ~0 else
     fe = ref[:, [1, 0, 2, 4, 3]]
-    par = {"paired_by": "frequency, shared by all states", "pairing_columns": [0, 2, 4],
+    par = {"parameters": {}, "paired_by": "frequency, shared by all states", "pairing_columns": [0, 2, 4],
            "joint_pairing": {"candidates": CANDIDATES}}
-    tied = tied_pairings(par, {"ref_shapes": ref.tolist()}, fe)
+    tied = tied_pairings(IdentificationRecord.from_json(par), {"ref_shapes": ref.tolist()}, fe)
     assert list(tied.columns) == ["alternative", "order", "fe_mode"]
     assert tied[tied.alternative == 1].fe_mode.tolist() == [2, 5, 4]  # columns [0, 3, 4] -> FE 2, 5, 4 (1-based)
     assert tied[tied.alternative == 2].fe_mode.tolist() == [2, 1, 4]  # columns [0, 1, 4]
     # a one-state frequency pairing (re-paired at the FE optimum) has no tie record to read
-    assert tied_pairings({**par, "paired_by": "frequency"}, {"ref_shapes": ref.tolist()}, fe).empty
+    assert tied_pairings(IdentificationRecord.from_json({**par, "paired_by": "frequency"}), {"ref_shapes": ref.tolist()},
+                         fe).empty
 
 
 def write_tied(tmp_path, rows):
@@ -94,7 +96,7 @@ def _par_resolvability():
     seen = lambda f, off, hides: {"state": "power_off", "tracked_mode": 2 if hides is False else 3, "freq_Hz": f,  # noqa: E731
                                   "measured_order": 2, "measured_Hz": 1416.0, "offset_pct": off,
                                   "damping_ratio": 0.03, "hides": hides, "offset_nearest_pct": abs(off)}
-    return {"paired_by": "frequency, shared by all states", "pairing_columns": [0, 1, 4],
+    return {"parameters": {}, "paired_by": "frequency, shared by all states", "pairing_columns": [0, 1, 4],
             "joint_pairing": {"candidates": [{"pairing": [0, 1, 4], "cost": 0.5}, {"pairing": [0, 2, 4], "cost": 0.5}]},
             "tie_rule": {"rule": "resolvability", "tied": [
                 {"pairing": [0, 1, 4], "resolvable": True, "unpaired_visible": [seen(1414.6, -0.10, True)],
@@ -105,7 +107,7 @@ def _par_resolvability():
 
 def test_tie_note_says_the_resolvability_rule_chose_and_why(tmp_path):
     tied = write_tied(tmp_path, [(1, 1, 1), (1, 2, 4), (1, 3, 5)])  # tied 1 pairs FE mode 4 (not 3) with mode 2
-    note = tie_note(tied, g=2, order=2, freq_Hz=1314.0, par=_par_resolvability())
+    note = tie_note(tied, g=2, order=2, freq_Hz=1314.0, par=IdentificationRecord.from_json(_par_resolvability()))
     assert note["rests_on_tie"] and note["rule"] == "resolvability"
     assert note["note"] == ("an exactly tied pairing leaves the governing mode (FE mode 3, 1314.0 Hz) without the "
                             "measured partner 2 it has here: the fit cannot choose between them; the resolvability "
@@ -115,7 +117,7 @@ def test_tie_note_says_the_resolvability_rule_chose_and_why(tmp_path):
     fallback = {**_par_resolvability(), "tie_rule": {"rule": "nearest partners (fallback: none of the 2 tied "
                                                              "pairings lets every unpaired visible mode hide in a "
                                                              "measured peak)", "tied": []}}
-    note = tie_note(tied, g=2, order=2, freq_Hz=1314.0, par=fallback)
+    note = tie_note(tied, g=2, order=2, freq_Hz=1314.0, par=IdentificationRecord.from_json(fallback))
     assert note["rule"].startswith("nearest partners (fallback: none")
     assert note["note"].endswith("frequencies alone cannot choose between them (chosen by nearest partners "
                                  "(fallback: none of the 2 tied pairings lets every unpaired visible mode hide in a "

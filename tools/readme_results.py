@@ -11,11 +11,12 @@ read from ``results/tables``, ``results/identify/<state>/params.json``, ``result
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import pandas as pd
+
+from jointid.identification.record import IdentificationRecord
 
 START, END = "<!-- numbers: regenerate -->", "<!-- /numbers -->"
 STATES = ("power_off", "power_on")
@@ -29,13 +30,13 @@ def table(results: Path) -> list[str]:
     """The README's results table (Markdown lines) from ``results``."""
     t = {s: pd.read_csv(results / "tables" / f"table{n}_{s}.csv") for n, s in ((2, "power_off"), (3, "power_on"))}
     t1 = pd.read_csv(results / "tables" / "table1_dynamic_stiffness.csv").set_index("state")
-    par = {s: json.loads((results / "identify" / s / "params.json").read_text()) for s in STATES}
+    par = {s: IdentificationRecord.read(results / "identify" / s / "params.json") for s in STATES}
     rows = [("max \\|relative error\\|, the six paired modes",
              [_pct(t[s]["relative_error_pct"].abs().max()) for s in STATES]),
             ("same, the paper's model (from its tabled frequencies)", [_pct(t[s]["paper_relative_error_pct"].abs().max(), ".1f") for s in STATES]),
             ("model error σ_m per mode (χ²/dof at the stated 1 %)",
-             [f"{p['model_error']['sigma_model_pct']:.1f} % ({p['model_error']['c_hat']:.0f})"
-              if p.get("model_error") else "–" for p in par.values()])]
+             [f"{p.model_error['sigma_model_pct']:.1f} % ({p.model_error['c_hat']:.0f})"
+              if p.model_error else "–" for p in par.values()])]
     cells = []
     for s in STATES:
         r = t1.loc[s]

@@ -8,7 +8,6 @@ roving 3-axis sensor at every measuring point, the visibility of every mode in `
 relative to the most visible one (:mod:`jointid.correlate.observability`).
 """
 import argparse
-import json
 
 import pandas as pd
 
@@ -18,6 +17,7 @@ from jointid.correlate.observability import MeasurementSetup, visibility
 from jointid.fe.model import load_model
 from jointid.geometry.points import dof_labels
 from jointid.identification.polish import solve_point
+from jointid.identification.record import IdentificationRecord
 
 
 def main():
@@ -29,7 +29,7 @@ def main():
     args = ap.parse_args()
     cfg = load_config(args.config)
     model = load_model(args.matrices)
-    theta = {k: v["value"] for k, v in json.load(open(args.params))["parameters"].items()}
+    theta = IdentificationRecord.read(args.params).theta
     freqs, shapes, desc, _ = solve_point(ModelSpec.from_config(cfg), model, theta)
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
     lo, hi = cfg["harmonic"]["band_Hz"]

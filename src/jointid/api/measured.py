@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from jointid.api.results import Identification
+from jointid.correlate.pairing import PairedBy
 
 __all__ = ["UFF_SUFFIXES", "identification", "load", "pairing", "write_diagnosis"]
 
@@ -73,7 +74,7 @@ def pairing(d, modes, min_freq_Hz: float):
     return replace(plain, model_index=index, unpaired_model=sorted(in_band - set(index.tolist())))
 
 
-def identification(state: str, names: list[str], theta0: dict, f_meas, polish: dict, paired_by: str,
+def identification(state: str, names: list[str], theta0: dict, f_meas, polish: dict, paired_by: PairedBy,
                    cfg: dict) -> Identification:
     """The :class:`Identification` of a polish record (:func:`jointid.identification.polish.fe_polish`).
 

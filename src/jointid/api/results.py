@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from jointid.correlate.pairing import PairedBy
+
 __all__ = ["DiagnosisResult", "Identification", "ModalResult"]
 
 
@@ -104,9 +106,9 @@ class Identification:
     tracking_mac : ndarray, shape (n_measured,)
         MAC of each paired model mode with its shape at the previous iterate (how well the fit
         followed the modes; not a test-analysis MAC, for which see :meth:`Study.compare`).
-    paired_by : str
-        ``mac`` (measured shapes) or ``frequency`` (order-preserving frequency pairing re-done at
-        every iterate).
+    paired_by : jointid.correlate.pairing.PairedBy
+        ``PairedBy.MAC`` (measured shapes) or ``PairedBy.FREQUENCY`` (order-preserving frequency pairing
+        re-done at every iterate); a ``str`` enum, so it equals ``"mac"`` or ``"frequency"``.
     chi2 : float
         Frequency chi-square at ``theta`` with the stated uncertainty (dimensionless), the misfits
         of ``unpaired_visible`` included.
@@ -134,7 +136,7 @@ class Identification:
     f_meas_Hz: np.ndarray
     f_model_Hz: np.ndarray
     tracking_mac: np.ndarray
-    paired_by: str
+    paired_by: PairedBy
     chi2: float
     dof: int
     iterations: int

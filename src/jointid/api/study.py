@@ -287,6 +287,7 @@ class Study:
         states are fitted one by one (no pairing shared by the states, ``identify.pairing``) and
         without mesh extrapolation (``mesh.extrapolate_edges``).
         """
+        from jointid.correlate.pairing import PairedBy
         from jointid.identification.polish import PolishFit, polish_on_model
 
         cfg, names = self._cfg, list(self._cfg["joints"]["parameters"])
@@ -308,7 +309,7 @@ class Study:
         polish = polish_on_model(self._settings.model, self.model(), names, np.array([start.theta[k] for k in names]),
                                  fit, max_iter=max_iter, log=log or _quiet)
         result = measured.identification(state, names, start.theta, d.f_meas, polish,
-                                         "frequency" if meas_shapes is None else "mac", cfg)
+                                         PairedBy.FREQUENCY if meas_shapes is None else PairedBy.MAC, cfg)
         self._identified[state] = result
         return result
 

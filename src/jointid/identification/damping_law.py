@@ -28,10 +28,9 @@ LOW_CUT = 0.1
 _FORMULA = {"hysteretic": "ζ0 + Σ_j η_j e_rj/2", "viscous": "ζ0 + Σ_j c_j ω_r e_rj/2"}
 
 
-def usable_record(par: dict) -> tuple[dict | None, str]:
-    """``(record, note)``: the identified ``joint_damping`` record of ``params.json`` content ``par`` when it can
-    set the model's damping, else ``(None, why not)``."""
-    rec = par.get("joint_damping")
+def usable_record(rec: dict | None) -> tuple[dict | None, str]:
+    """``(record, note)``: the identified ``joint_damping`` record of ``params.json`` (``rec``; None: the data
+    carry no damping ratios) when it can set the model's damping, else ``(None, why not)``."""
     if rec is None:
         return None, "the data carry no damping ratios: damping assumed"
     if not rec.get("identified"):

@@ -32,8 +32,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from jointid.identification.record import IdentificationRecord
 
-def error_budget(change_pct, par: dict, fraction: float) -> dict:
+
+def error_budget(change_pct, par: IdentificationRecord, fraction: float) -> dict:
     """Each paired mode's discretisation error against ``fraction`` of its frequency uncertainty.
 
     Parameters
@@ -41,9 +43,9 @@ def error_budget(change_pct, par: dict, fraction: float) -> dict:
     change_pct : array_like, shape (n_measured,)
         Change of each measured mode's paired frequency on the refined mesh, in % (NaN: not paired
         or not followed).
-    par : dict
-        The identification's ``params.json``: ``frequency_uncertainty_pct`` (the stated noise ``s``)
-        and ``model_error.sigma_model_pct`` (``sigma_m``, 0 when absent).
+    par : IdentificationRecord
+        The identification: ``frequency_uncertainty_pct`` (the stated noise ``s``) and
+        ``model_error.sigma_model_pct`` (``sigma_m``, 0 when absent).
     fraction : float
         ``mesh_check.budget_fraction``.
 
@@ -55,8 +57,8 @@ def error_budget(change_pct, par: dict, fraction: float) -> dict:
         ``within`` (every followed mode within the budget) and ``sentence``.
     """
     err = np.abs(np.asarray(change_pct, float))
-    s = float(par.get("frequency_uncertainty_pct") or 0.0)
-    sm = float((par.get("model_error") or {}).get("sigma_model_pct") or 0.0)
+    s = float(par.frequency_uncertainty_pct or 0.0)
+    sm = float((par.model_error or {}).get("sigma_model_pct") or 0.0)
     unc = float(np.hypot(s, sm))
     budget = fraction * unc
     ok = np.isfinite(err)
@@ -85,17 +87,16 @@ def first_order_shift(J: np.ndarray, dlnf: np.ndarray, weights: np.ndarray | Non
     return -np.linalg.pinv(A) @ (J.T @ (w * np.asarray(dlnf, float)))
 
 
-def parameter_changes(par: dict, delta: np.ndarray, limit_pct: float) -> tuple[dict, list[str]]:
+def parameter_changes(par: IdentificationRecord, delta: np.ndarray, limit_pct: float) -> tuple[dict, list[str]]:
     """Each identified parameter's first-order change on the refined mesh, and the warnings on them.
 
     Parameters
     ----------
-    par : dict
-        The identification's ``params.json`` (``parameters``: value and 95 % interval, N/m^3;
-        ``on_bound``).
+    par : IdentificationRecord
+        The identification (``parameters``: value and 95 % interval, N/m^3; ``on_bound``).
     delta : ndarray
         Change of each parameter in log10 units (:func:`first_order_shift`), in the order of
-        ``par["parameters"]``.
+        ``par.names``.
     limit_pct : float
         ``mesh_check.max_parameter_change_pct``: a larger change (%) is warned about.
 
@@ -106,12 +107,13 @@ def parameter_changes(par: dict, delta: np.ndarray, limit_pct: float) -> tuple[d
         ``ci95_half_width_pct`` (of its interval from the measurement uncertainty) and ``on_bound``.
     """
     params, warnings = {}, []
-    for n, d in zip(par["parameters"], delta):
-        th = par["parameters"][n]["value"]
-        sigma_log10 = (np.log10(par["parameters"][n]["ci95_high"]) - np.log10(par["parameters"][n]["ci95_low"])) / 2
+    for n, d in zip(par.names, delta):
+        iv = par.interval(n)
+        th = iv.value
+        sigma_log10 = (np.log10(iv.ci95_high) - np.log10(iv.ci95_low)) / 2
         change = 100 * (10 ** d - 1)
         ci_half = 100 * (10 ** sigma_log10 - 1)
-        on_bound = n in par.get("on_bound", [])
+        on_bound = n in par.on_bound
         params[n] = {"value": float(th), "value_refined_first_order": float(th * 10 ** d),
                      "change_pct": float(change), "ci95_half_width_pct": float(ci_half), "on_bound": on_bound}
         if on_bound:

@@ -123,25 +123,25 @@ def frequency_errors(tables: dict[str, pd.DataFrame], sigma_pct: dict[str, float
     return fig
 
 
-def parameter_intervals(params: dict[str, dict], bounds: dict[str, tuple[float, float]] | None = None):
+def parameter_intervals(params: dict, bounds: dict[str, tuple[float, float]] | None = None):
     """Identified joint parameters with their 95 % intervals, per state (log scale).
 
     Parameters
     ----------
-    params : {state: params.json document}
+    params : {state: jointid.identification.record.IdentificationRecord}
     bounds : {name: (lower, upper)}, optional
         DOE / optimisation bounds (N/m^3), drawn as dotted lines.
     """
     plt = _plt()
-    names = list(next(iter(params.values()))["parameters"])
+    names = next(iter(params.values())).names
     fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.6), squeeze=False)
     for ax, name in zip(axes[0], names):
         for i, (state, doc) in enumerate(params.items()):
-            p = doc["parameters"][name]
-            v, lo, hi = p["value"], p["ci95_low"], p["ci95_high"]
+            p = doc.interval(name)
+            v, lo, hi = p.value, p.ci95_low, p.ci95_high
             ax.errorbar([i], [v], yerr=[[max(v - lo, 0)], [max(hi - v, 0)]], fmt="o", capsize=5, ms=7,
                         color=STATE_COLOURS[i % len(STATE_COLOURS)])
-            if name in doc.get("on_bound", []):
+            if name in doc.on_bound:
                 ax.annotate("on bound", (i, v), textcoords="offset points", xytext=(6, 4), fontsize=8)
         if bounds and name in bounds:
             for b in bounds[name]:

@@ -14,11 +14,11 @@ from html import escape
 def _by_frequency(data: dict) -> bool:
     from jointid.correlate.pairing import PairedBy
 
-    return any((PairedBy.of(p) or PairedBy.MAC).by_frequency for p in data["params"].values())
+    return any((p.paired_by or PairedBy.MAC).by_frequency for p in data["params"].values())
 
 
 def _tied(data: dict) -> list[str]:
-    return [s for s, p in data["params"].items() if ((p.get("tie_rule") or {}).get("tied"))]
+    return [s for s, p in data["params"].items() if p.tie_rule is not None and p.tie_rule.tied]
 
 
 def _shapes_line(data: dict) -> str | None:
@@ -33,7 +33,7 @@ def _shapes_line(data: dict) -> str | None:
 
 
 def _damping_line(data: dict) -> str | None:
-    if any("joint_damping" in p for p in data["params"].values()):
+    if any(p.joint_damping is not None for p in data["params"].values()):
         return None
     t1 = data["table1"]
     spans = []

@@ -17,6 +17,7 @@ from functools import lru_cache
 import pandas as pd
 from markupsafe import Markup
 
+from jointid.identification.record import SurfaceStage
 from jointid.reporting.htmltable import esc as _esc
 from jointid.reporting.htmltable import html_table, notes, reset_ids
 from jointid.reporting.more_data import more_data_html
@@ -66,39 +67,44 @@ def report_figures(cfg: dict, data: dict) -> dict[str, bytes]:
     from jointid.reporting import figures as fg
 
     paper1 = data["paper_table1"].set_index("state")["paper_dynamic_stiffness_N_per_mm"].to_dict()
-    sigma = {s: float(p.get("frequency_uncertainty_pct", 1.0)) for s, p in data["params"].items()}
+    sigma = {s: float(_or(p.frequency_uncertainty_pct, 1.0)) for s, p in data["params"].items()}
     bounds = {n: (s["lower"], s["upper"]) for n, s in cfg.get("joints", {}).get("parameters", {}).items()}
     limit = cfg.get("surface", {}).get("max_verification_error_pct")
     return {
         "frf": fg.png_bytes(fg.frf_overlay(data["frf"], data["stiffness"], paper1,
-                                           {s: p.get("f_meas_Hz", []) for s, p in data["params"].items()})),
+                                           {s: list(p.f_meas_Hz) for s, p in data["params"].items()})),
         "errors": fg.png_bytes(fg.frequency_errors(data["tables"], sigma)),
         "parameters": fg.png_bytes(fg.parameter_intervals(data["params"], bounds)),
         "surface": fg.png_bytes(fg.surface_diagnostics(data["diagnostics"], limit)),
-        "doe": fg.png_bytes(fg.doe_points(data["sheet"], {s: p["x_coded"] for s, p in data["params"].items()})),
+        "doe": fg.png_bytes(fg.doe_points(data["sheet"], {s: list(p.x_coded) for s, p in data["params"].items()})),
         "mode_shapes": fg.png_bytes(fg.mode_shapes(data["points"], _mode_pictures(data)), dpi=90),
         **({"catalogue": fg.png_bytes(fg.catalogue_rigidity(comps))} if (comps := _catalogue_comparisons(data)) else {}),
     }
 
 
+def _or(value, default):
+    """``value``, or ``default`` where the record has none (None)."""
+    return default if value is None else value
+
+
 def _params_html(data: dict) -> str:
     rows = []
     for state, p in data["params"].items():
-        for name, v in p["parameters"].items():
-            rows.append({"state": state, "parameter": name, "value": v["value"], "ci95_low": v["ci95_low"],
-                         "ci95_high": v["ci95_high"], "on bound": "yes" if name in p.get("on_bound", []) else ""})
-        for name, v in p.get("per_carriage", {}).items():
-            rows.append({"state": state, "parameter": name, "value": v["value"], "ci95_low": v["ci95_low"],
-                         "ci95_high": v["ci95_high"], "on bound": ""})
+        for name, v in p.parameters.items():
+            rows.append({"state": state, "parameter": name, "value": v.value, "ci95_low": v.ci95_low,
+                         "ci95_high": v.ci95_high, "on bound": "yes" if name in p.on_bound else ""})
+        for name, v in (p.per_carriage or {}).items():
+            rows.append({"state": state, "parameter": name, "value": v.value, "ci95_low": v.ci95_low,
+                         "ci95_high": v.ci95_high, "on bound": ""})
     df = pd.DataFrame(rows)
     fm = {"value": ".4g", "ci95_low": ".4g", "ci95_high": ".4g"}
     extra = []
     for state, p in data["params"].items():
-        w = p.get("warnings") or []
-        info = (f"{state}: paired by {p.get('paired_by', '?')}, cost {p.get('cost', float('nan')):.3g}, "
-                f"condition number {p.get('condition_number', float('nan')):.3g}, "
-                f"{p.get('n_starts_agreeing', '?')} starts agree"
-                + (f", weak combination: {p['weak_combination']}" if p.get("weak_combination") else ""))
+        w = p.warnings
+        info = (f"{state}: paired by {'?' if p.paired_by is None else p.paired_by.value}, "
+                f"cost {_or(p.cost, float('nan')):.3g}, condition number {_or(p.condition_number, float('nan')):.3g}, "
+                f"{_or(p.n_starts_agreeing, '?')} starts agree"
+                + (f", weak combination: {p.weak_combination}" if p.weak_combination else ""))
         extra.append(f"<li>{_esc(info)}" + "".join(f"<br><span class='warn'>warning: {_esc(x)}</span>" for x in w)
                      + "</li>")
     return (html_table(df, fm, {"ci95_low": "95 % low", "ci95_high": "95 % high"}, text_cols=("state", "parameter",
@@ -228,9 +234,9 @@ def _diag_html(data: dict) -> str:
     d = data["diagnostics"]
     fm = {"ref_freq_Hz": ".1f", "min_mac_in_doe": ".3f", "r2": ".5f", "r2_adj": ".5f", "r2_pred": ".5f",
           "rmse": ".3g", "verify_max_error_pct": ".2f"}
-    par = next(iter(data["params"].values()), {})
-    box = par.get("surface_box") or {}
-    if par.get("surface_stage") == "zoom" and box:
+    par = next(iter(data["params"].values()), None)
+    box = (par and par.surface_box) or {}
+    if par is not None and par.surface_stage is SurfaceStage.ZOOM and box:
         head = ("<p class='note'>Surfaces of the zoomed second DOE, in the box around the first-stage optima of "
                 "all states: " + "; ".join(f"{_esc(n)} {a:.3g} .. {b:.3g} N/m³" for n, (a, b) in box.items())
                 + " (the first DOE's surfaces over the whole bounds: results/surface/diagnostics.csv).</p>")

@@ -62,7 +62,7 @@ def model_error_text(data: dict) -> str:
     one: the fit's remaining error per mode beside the stated noise (docs/effects.md, "Statistics")."""
     parts = []
     for state, p in data["params"].items():
-        me = p.get("model_error")
+        me = p.model_error
         if me:
             parts.append(f"{state.replace('_', '-')}: about {me['sigma_model_pct']:.1f} % per mode "
                          f"(χ²/dof = {me['c_hat']:.0f} at the stated {me['sigma_noise_pct']:.2g} %)")
@@ -91,9 +91,9 @@ def sci(v: float) -> str:
 def _stiffness_sentences(data: dict) -> list[str]:
     out = []
     for state, p in data["params"].items():
-        parts = [f"{name.replace('_N_per_m3', '')} {sci(v['value'])} ({sci(v['ci95_low'])} … {sci(v['ci95_high'])})"
-                 for name, v in p["parameters"].items()]
-        unit = " N/m³" if all(n.endswith("_N_per_m3") for n in p["parameters"]) else ""
+        parts = [f"{name.replace('_N_per_m3', '')} {sci(v.value)} ({sci(v.ci95_low)} … {sci(v.ci95_high)})"
+                 for name, v in p.parameters.items()]
+        unit = " N/m³" if all(n.endswith("_N_per_m3") for n in p.parameters) else ""
         out.append(f"{state.replace('_', '-')}: " + ", ".join(parts) + unit + ".")
     return out
 

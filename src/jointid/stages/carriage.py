@@ -22,20 +22,20 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     each of them (:func:`jointid.response.carriage.catalogue_comparison`); else it is null.
     """
     # the FE of the test (scikit-fem) is imported here, not with the rule's config keys (every Snakemake start)
+    from jointid.identification.record import IdentificationRecord
     from jointid.response.carriage import DIRECTIONS, BlockTest, catalogue_comparison, catalogue_verdict
 
-    par = io.read_json(params_json)
+    par = IdentificationRecord.read(params_json)
     cell = cfg["carriage_rigidity"]["cell_size_m"]
     test = BlockTest(ModelSpec.from_config(cfg), cell)
-    at = lambda key: {n: v[key] for n, v in par["parameters"].items()}  # noqa: E731
-    res = test.rigidity(at("value"))
-    low, high = test.rigidity(at("ci95_low"), False), test.rigidity(at("ci95_high"), False)
+    res = test.rigidity(par.theta)
+    low, high = test.rigidity(par.theta_low, False), test.rigidity(par.theta_high, False)
     springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction
     along = {"x": "lateral", "y": "normal", "z": "feed"}
     for name, spec in cfg["joints"]["parameters"].items():
-        per = par.get("per_carriage", {}).get(name.replace("_N_per_m3", "_per_carriage_N_per_um"))
+        per = (par.per_carriage or {}).get(name.replace("_N_per_m3", "_per_carriage_N_per_um"))
         if per is not None:
-            springs[along[spec["direction"]]] += per["value"]
+            springs[along[spec["direction"]]] += per.value
     rows = {}
     for d in DIRECTIONS:
         a = res.assembly_N_per_m[d] * 1e-6

@@ -9,10 +9,9 @@ difference, its combined 95 % interval and whether it excludes 0.  Frequency-onl
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from jointid import io
 from jointid.identification.damping_law import states_comparison
+from jointid.identification.record import by_state
 from jointid.reporting.tables import reference_state
 from jointid.stages.runner import log
 
@@ -22,7 +21,7 @@ __all__ = ["run_damping_states"]
 def run_damping_states(params_jsons, out_json: str) -> dict:
     """Compare the states' identified joint damping (``params_jsons``: one ``params.json`` per state, the
     state being its folder's name) and write ``out_json``; returns its content."""
-    records = {Path(p).parent.name: io.read_json(p).get("joint_damping") for p in params_jsons}
+    records = {s: rec.joint_damping for s, rec in by_state(params_jsons).items()}
     doc = states_comparison(records, reference_state(list(records)))
     io.write_json(out_json, doc)
     log(f"joint damping states: {doc['note']}")

@@ -8,6 +8,7 @@ dynamic stiffness summary and the modes.
 from __future__ import annotations
 
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -21,6 +22,10 @@ from jointid.fe.vtk import write_mesh_vtu
 from jointid.response.drive_point import MODE_FACTOR, drive_vector, harmonic_response, solve_band_modes
 from jointid.response.harmonic import RIGID_HZ, static_residual
 from jointid.response.ranges import band_minimum
+
+if TYPE_CHECKING:
+    from jointid.identification.record import IdentificationRecord
+
 
 def config_keys(state: str) -> tuple[str, ...]:
     """Config keys of rule ``harmonic``: the shared sections and this state's settings only."""
@@ -77,8 +82,10 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     from jointid.fe.model import base_coefficients, load_model
 
     h = cfg["harmonic"]
-    par = io.read_json(params_json)
-    theta = {n: float(v["value"]) for n, v in par["parameters"].items()}
+    from jointid.identification.record import IdentificationRecord
+
+    par = IdentificationRecord.read(params_json)
+    theta = {n: float(v) for n, v in par.theta.items()}
     model = load_model(matrices)
     kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
     band = [float(b) for b in h["band_Hz"]]
@@ -140,13 +147,14 @@ def status_text(fe_mode: int, freq_Hz: float, description: str, measured_order) 
             "measured partner")
 
 
-def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float, par: dict | None = None) -> dict:
+def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float,
+             par: "IdentificationRecord | None" = None) -> dict:
     """Whether Table 1's status rests on the choice among exactly tied pairings: ``rests_on_tie`` is
     true when a pairing fitting exactly as well as the chosen one pairs the governing FE mode ``g``
     (0-based) where the chosen one does not, or the reverse; ``note`` says which, in words, and which
     rule chose (``rule``: ``params.json``'s ``tie_rule``, given ``par``; "" without one)."""
-    rec = (par or {}).get("tie_rule") or {}
-    rule = str(rec.get("rule", ""))
+    tie = None if par is None else par.tie_rule
+    rule = "" if tie is None else tie.rule
     out = {"rests_on_tie": False, "note": "", "tied_pairings": 0, "rule": rule}
     if not tied_csv:
         return out
@@ -165,19 +173,20 @@ def tie_note(tied_csv: str | None, g: int, order: int | None, freq_Hz: float, pa
     return out
 
 
-def _chosen_by(rule: str, par: dict | None, alternative: int) -> str:
+def _chosen_by(rule: str, par: "IdentificationRecord | None", alternative: int) -> str:
     """The end of a tie note: which rule chose between the tied pairings, and for resolvability why
     the tied ``alternative`` (1-based, in the order of ``tied_pairings.csv``) lost."""
-    from jointid.identification.ties import RESOLVABILITY, tied_alternatives
+    from jointid.identification.record import TieChoice
+    from jointid.identification.ties import tied_alternatives
 
-    if rule != RESOLVABILITY:
+    if par is None or par.tie_rule is None or par.tie_rule.choice is not TieChoice.RESOLVABILITY:
         return (f": frequencies alone cannot choose between them (chosen by {rule or 'the first found'}), "
                 "measured mode shapes would")
-    rec, cols = (par or {}).get("joint_pairing") or {}, None
-    alts = tied_alternatives(rec.get("candidates") or [], (par or {}).get("pairing_columns") or [])
+    cols = None
+    alts = tied_alternatives(par.pairing_candidates, list(par.pairing_columns))
     if 1 <= alternative <= len(alts):
         cols = alts[alternative - 1]
-    lost = next((t for t in par["tie_rule"]["tied"] if t["pairing"] == cols), None)
+    lost = par.tie_rule.tied_pairing(cols)
     out = ": the fit cannot choose between them; the resolvability rule did"
     if lost:
         far = [m for m in lost["unpaired_visible"] if m["hides"] is False]
@@ -299,7 +308,7 @@ def _response(cfg, state, par, model, kc, mc, band, verify_csv, progress):
     desc = describe_modes(model, modes.phi, kc, mc)
     progress(f"harmonic[{state}]: {note}")
     share = np.where(modes.freqs_Hz >= RIGID_HZ, desc["strain_joints"].to_numpy(float), 0.0)
-    damping = state_damping(cfg, state, par, model, modes, kc, share, verify_csv)
+    damping = state_damping(cfg, state, par.joint_damping, model, modes, kc, share, verify_csv)
     zeta = damping["zeta"]
     progress(f"harmonic[{state}]: damping {damping['text']}")
     res = harmonic_response(modes, p, zeta, band, n_freq=int(h["n_freq"]), residual=R, static_receptance=H0)

@@ -74,7 +74,7 @@ def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
     return out, f"measured damping ratios of {len(out)} paired modes from {folder}"
 
 
-def state_damping(cfg: dict, state: str, par: dict, model, modes, kc: dict, share, verify_csv) -> dict:
+def state_damping(cfg: dict, state: str, joint_damping: dict | None, model, modes, kc: dict, share, verify_csv) -> dict:
     """The damping ratio of every band mode of one state, and its source (module docstring).
 
     Parameters
@@ -82,8 +82,9 @@ def state_damping(cfg: dict, state: str, par: dict, model, modes, kc: dict, shar
     cfg : dict
         The harmonic stage's config (``harmonic.damping``, ``joints``, ``model``; the dataset's keys).
     state : str
-    par : dict
-        ``params.json`` content (its ``joint_damping`` record, when the data carry damping ratios).
+    joint_damping : dict or None
+        The identification's ``joint_damping`` record (:attr:`jointid.identification.record.IdentificationRecord.joint_damping`;
+        None when the data carry no damping ratios).
     model, modes, kc
         The model, the band modes (``freqs_Hz``, ``phi``) and the state's stiffness coefficients.
     share : ndarray, shape (n_modes,)
@@ -102,7 +103,7 @@ def state_damping(cfg: dict, state: str, par: dict, model, modes, kc: dict, shar
     dcfg = dict(cfg["harmonic"].get("damping") or {"model": "modal", "damping_ratio": 0.03})
     dcfg.pop("damping_ratio_range", None)  # the model's own fields; the range is Table 1's (damping_range)
     measured, mnote = measured_damping(cfg, state, verify_csv)
-    rec, note = usable_record(par)
+    rec, note = usable_record(joint_damping)
     if rec is None:
         zeta, source = modal_damping_ratios(Damping.from_section(dcfg), modes.freqs_Hz, joint_share=share,
                                             measured=measured)
@@ -110,7 +111,7 @@ def state_damping(cfg: dict, state: str, par: dict, model, modes, kc: dict, shar
         return {"zeta": zeta, "source": source, "config": dcfg, "measured": mnote, "kind": kind,
                 "text": (f"{kind}: harmonic.damping model {dcfg.get('model', 'modal')}"
                          + (", the measured ratios of the paired modes over it" if kind == MEASURED else "")
-                         + ("" if "joint_damping" not in par else f" ({note})"))}
+                         + ("" if joint_damping is None else f" ({note})"))}
     from jointid.config.typed import ModelSpec
     from jointid.synthetic.generate import joint_shares
     from jointid.fe.model import joint_terms

@@ -224,11 +224,13 @@ def _face_of(spec: ModelSpec, name: str) -> str:
 
 def _per_carriage(spec: ModelSpec, names, theta, ci_lo, ci_hi, areas: dict) -> dict:
     """The parameters as springs of one carriage (N/um): value x its faces' contact area per carriage."""
+    from jointid.identification.record import Interval
+
     per_carriage = {}
     for n, th, lo, hi in zip(names, theta, ci_lo, ci_hi):
         a = areas.get(_face_of(spec, n), 0.0)
-        per_carriage[n.replace("_N_per_m3", "_per_carriage_N_per_um")] = {
-            "value": th * a * 1e-6, "ci95_low": lo * a * 1e-6, "ci95_high": hi * a * 1e-6}
+        per_carriage[n.replace("_N_per_m3", "_per_carriage_N_per_um")] = Interval(th * a * 1e-6, lo * a * 1e-6,
+                                                                                  hi * a * 1e-6)
     return per_carriage
 
 
@@ -281,42 +283,48 @@ def stated_shape_uncertainty(cfg: dict, state: str) -> float | None:
     return None if value is None else float(value)
 
 
-def _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
-            f_final, polish, edge, rom, per_carriage, msgs) -> dict:
-    # many parameters: one parameter per part of params.json that run_identify computed; a result dataclass is issue 38's next step
-    """The content of ``params.json``."""
+def _paired_by(shapes, fixed):
+    """How the measured modes were paired (:class:`jointid.correlate.pairing.PairedBy`): by MAC with measured
+    ``shapes``, else by frequency, shared by all states when the pairing is ``fixed``."""
     from jointid.correlate.pairing import PairedBy
 
+    if shapes is not None:
+        return PairedBy.MAC
+    return PairedBy.FREQUENCY_SHARED if fixed is not None else PairedBy.FREQUENCY
+
+
+def intervals(names, theta, ci_lo, ci_hi) -> dict:
+    """``{name: Interval}`` of values and their 95 % intervals."""
+    from jointid.identification.record import Interval
+
+    return {n: Interval(th, lo, hi) for n, th, lo, hi in zip(names, theta, ci_lo, ci_hi)}
+
+
+def _identification(state, doc, res, pairing, paired_by, joint_info, f_meas, sigma_pct, solution, polish, edge, rom,
+                    per_carriage, msgs):
+    # many parameters: one per part of the record that run_identify computed (the surface fit, the pairing, the polish)
+    """The :class:`jointid.identification.record.IdentificationRecord` of the fit, without the parts that
+    :func:`run_identify` adds (tie rule, observability, joint damping).  ``solution``: ``(theta, ci95_low,
+    ci95_high, frequencies fitted)``."""
+    from jointid.identification.record import FePolish, IdentificationRecord, PolishedOn, SurfaceStage, floats
+
     names, lower, upper = doc["names"], doc["lower"], doc["upper"]
-    return {"state": state, "parameters": {n: {"value": th, "ci95_low": lo, "ci95_high": hi}
-                                           for n, th, lo, hi in zip(names, theta, ci_lo, ci_hi)},
-            "surface_optimum": {n: float(t) for n, t in zip(names, np.asarray(res.theta, float))},
-            "surface_stage": doc.get("stage", "global"),
-            "surface_box": {n: [float(a), float(b)] for n, a, b in zip(names, lower, upper)},
-            "fe_polish": None if polish is None else {
-                "on": "rom" if rom else "fe",
-                "unpaired_in_band_Hz": polish["unpaired_in_band_Hz"],
-                "unpaired_visible": polish["unpaired_visible"],
-                "chi2": polish["chi2"], "dof": polish["dof"], "interval_scale": polish["interval_scale"],
-                "iterations": polish["iterations"], "cost_history": polish["cost_history"],
-                "f_fe_Hz": polish["f_fe"], "mac": polish["mac"],
-                "certificate": polish["certificate"].to_record() if polish.get("certificate") else None,
-                **{k: polish[k] for k in ("shape_chi2", "shape_dof", "shape_c_hat", "shape_uncertainty",
-                                          "cluster_factor") if k in polish}},
-            "edge_extrapolation": edge,
-            "per_carriage": per_carriage, "x_coded": res.x_coded, "pairing_tracked_mode": [
-                doc["tracked_modes"][j] for j in pairing], "pairing_columns": pairing,
-            "paired_by": (PairedBy.MAC if shapes is not None else PairedBy.FREQUENCY_SHARED if fixed is not None
-                          else PairedBy.FREQUENCY).value,
-            "joint_pairing": joint_info,
-            "f_meas_Hz": f_meas, "f_surface_Hz": res.f_model,
-            "residual_pct": 100 * (np.asarray(f_final) - f_meas) / f_meas,
-            "cost": res.cost, "condition_number": res.condition_number,
-            "weak_combination": res.weak_combination,
-            "on_bound": res.on_bound if polish is None else polish["on_bound"],
-            "n_starts_agreeing": res.n_starts_agreeing, "warnings": msgs,
-            "frequency_uncertainty_pct": sigma_pct,
-            "model_error": None if polish is None else _model_error(polish, sigma_pct, state)}
+    theta, ci_lo, ci_hi, f_final = solution
+    return IdentificationRecord(
+        parameters=intervals(names, theta, ci_lo, ci_hi), state=state,
+        surface_optimum={n: float(t) for n, t in zip(names, np.asarray(res.theta, float))},
+        surface_stage=SurfaceStage(doc.get("stage", "global")),
+        surface_box={n: (float(a), float(b)) for n, a, b in zip(names, lower, upper)},
+        fe_polish=None if polish is None else FePolish.of(polish, PolishedOn.ROM if rom else PolishedOn.FE),
+        edge_extrapolation=edge, per_carriage=per_carriage, x_coded=floats(res.x_coded),
+        pairing_tracked_mode=tuple(doc["tracked_modes"][j] for j in pairing),
+        pairing_columns=tuple(np.asarray(pairing).tolist()), paired_by=paired_by, joint_pairing=joint_info,
+        f_meas_Hz=floats(f_meas), f_surface_Hz=floats(res.f_model),
+        residual_pct=floats(100 * (np.asarray(f_final) - f_meas) / f_meas),
+        cost=res.cost, condition_number=res.condition_number, weak_combination=res.weak_combination,
+        on_bound=tuple(res.on_bound if polish is None else polish["on_bound"]),
+        n_starts_agreeing=res.n_starts_agreeing, warnings=tuple(msgs), frequency_uncertainty_pct=sigma_pct,
+        model_error=None if polish is None else _model_error(polish, sigma_pct, state))
 
 
 def _model_error(polish: dict, sigma_pct: float, state: str) -> dict:
@@ -351,9 +359,10 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     until their factors settle (:func:`jointid.identification.polish.extrapolated_polish`).  ``summary_json``:
     the model summary of rule ``mesh`` (default: ``summary.json`` beside ``points_csv``), for the per-carriage values.
     """
-    import pandas as pd
+    from dataclasses import replace
 
     from jointid.identification import joint_damping, updating  # scipy.optimize: not when the Snakefile imports us
+    from jointid.identification.record import Observability, TieRule
 
     doc, pts = io.read_json(surface_json), io.read_csv(points_csv)
     f_meas, shapes, sigma_pct = measured_modes(cfg, state, pts)
@@ -396,16 +405,15 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     summary = summary_json or points_csv.replace("measuring_points.csv", "summary.json")
     per_carriage = _per_carriage(ModelSpec.from_config(cfg), names, theta, ci_lo, ci_hi,
                                  io.read_json(summary)["contact_area_per_carriage_m2"])
-    out = _record(state, doc, res, pairing, shapes, fixed, joint_info, f_meas, sigma_pct, theta, ci_lo, ci_hi,
-                  f_final, polish, edge, rom, per_carriage, msgs)
-    out["tie_rule"] = tie_rule  # which rule chose among exactly tied pairings (None: no frequency-only choice)
-    out["observability"] = None if vis_rule is None else {
-        "excitation": list(vis_rule.setup.excitation), "response": list(vis_rule.setup.response),
-        "note": vis_rule.setup.note, "band_Hz": list(vis_rule.band_Hz), "threshold": vis_rule.threshold}
     damping = joint_damping.params_entry(dataset_folder(cfg, state), state, names, polish, f_meas, weights, edge, log)
-    io.write_json(out_json, out | damping)
+    rec = replace(_identification(state, doc, res, pairing, _paired_by(shapes, fixed), joint_info, f_meas, sigma_pct,
+                                  (theta, ci_lo, ci_hi, f_final), polish, edge, rom, per_carriage, msgs),
+                  tie_rule=None if tie_rule is None else TieRule.from_json(tie_rule),  # None: no frequency-only choice
+                  observability=None if vis_rule is None else Observability.of(vis_rule),
+                  joint_damping=damping.get("joint_damping"))
+    rec.write(out_json)
     log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))
-        + f"; max |error| {np.abs(out['residual_pct']).max():.2f} %")
+        + f"; max |error| {np.abs(rec.residual_pct).max():.2f} %")
     if tie_rule and len(tie_rule["tied"]) > 1:
         log(f"identify[{state}]: {len(tie_rule['tied'])} exactly tied pairings, chosen by {tie_rule['rule']}: "
             + "; ".join(f"tracked modes {[doc['tracked_modes'][j] for j in t['pairing']]} "

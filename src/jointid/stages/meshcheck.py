@@ -76,13 +76,14 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     from jointid.correlate.pairing import pair_by_shapes
     from jointid.fe.model import edge_level_builders
     from jointid.identification.meshcheck import error_budget, first_order_shift, mode_table, parameter_changes
+    from jointid.identification.record import IdentificationRecord
 
     mc_cfg = cfg["mesh_check"]
     halve = tuple(mc_cfg["halve"])
-    par = io.read_json(params_json)
+    par = IdentificationRecord.read(params_json)
     ver = io.read_csv(verify_csv)
-    names = list(par["parameters"])
-    theta = np.array([par["parameters"][n]["value"] for n in names])
+    names = par.names
+    theta = np.array(list(par.theta.values()))
     theta_d = dict(zip(names, theta))
     say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
     # mesh_check.edge_levels: both meshes extrapolated over their edge levels; else both at their base level

@@ -20,6 +20,7 @@ def load_inputs(inputs: dict) -> dict:
     import numpy as np
     import pandas as pd
 
+    from jointid.identification.record import IdentificationRecord
     from jointid.reporting.checks import check_table1
     from jointid.stages.tables import PAPER_TABLE1_COLUMNS, read_paper
 
@@ -29,7 +30,7 @@ def load_inputs(inputs: dict) -> dict:
         "table1_ranges": io.read_csv(inputs["table1_ranges"]) if inputs.get("table1_ranges") else None,
         "tables": {"power_off": io.read_csv(inputs["table2"]), "power_on": io.read_csv(inputs["table3"])},
         "verify": by_state("verify", io.read_csv),
-        "params": by_state("params", io.read_json),
+        "params": by_state("params", IdentificationRecord.read),
         "frf": by_state("frf", io.read_csv),
         "stiffness": by_state("stiffness", io.read_json),
         "modes": by_state("modes", lambda p: dict(io.load_npz(p))),

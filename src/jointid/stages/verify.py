@@ -6,6 +6,7 @@ Imports of the numerical modules are inside the functions (see :mod:`jointid.sta
 from __future__ import annotations
 
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,31 +15,26 @@ from jointid.config.typed import ModelSpec
 from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
 
+if TYPE_CHECKING:
+    from jointid.identification.record import IdentificationRecord
+
 CONFIG = ("materials", "rig", "model", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
 """Config keys of rule ``verify`` (``mesh.extrapolate_edges``: its frequencies are scaled by the
 identification's mesh-extrapolation factors)."""
 
 
-def visibility_rule(par: dict, labels: list[str]):
+def visibility_rule(par: "IdentificationRecord", labels: list[str]):
     """The identification's observability rule (its ``params.json`` record), or None without one."""
-    from jointid.correlate.observability import MeasurementSetup
-    from jointid.identification.visibility import VisibilityRule
-
-    rec = par.get("observability")
-    if not rec:
-        return None
-    setup = MeasurementSetup(tuple(rec["excitation"]), tuple(rec["response"]), rec.get("note", ""))
-    return VisibilityRule(setup, tuple(labels), tuple(rec["band_Hz"]), float(rec["threshold"]))
+    return None if par.observability is None else par.observability.rule(labels)
 
 
-def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes, rule=None):
+def _pairing(cfg: dict, par: "IdentificationRecord", doc: dict, f_all, shapes, rule=None):
     """``(FE mode index, MAC to the tracked mode)`` of each measured mode at the identified parameters."""
+    from jointid.correlate.pairing import PairedBy
     from jointid.identification.updating import verify_pairing
 
-    f_meas = np.asarray(par["f_meas_Hz"])
-    from jointid.correlate.pairing import PairedBy
-
-    if PairedBy.of(par) is PairedBy.FREQUENCY:  # the polish's rule: re-paired by frequency at its optimum
+    f_meas = np.asarray(par.f_meas_Hz)
+    if par.paired_by is PairedBy.FREQUENCY:  # the polish's rule: re-paired by frequency at its optimum
         from jointid.correlate.mac import mac
         from jointid.correlate.pairing import pair_by_frequency
 
@@ -47,14 +43,14 @@ def _pairing(cfg: dict, par: dict, doc: dict, f_all, shapes, rule=None):
             index = cand[pair_by_frequency(f_meas, f_all[cand])]
         else:
             index = rule.pair_by_frequency(f_meas, f_all, rule.visibility(shapes, f_all), cand)
-        ref = np.asarray(doc["ref_shapes"])[:, np.asarray(par["pairing_columns"])]
+        ref = np.asarray(doc["ref_shapes"])[:, np.asarray(par.pairing_columns)]
         macs = np.array([float(mac(ref[:, i], shapes[:, j])[0, 0]) for i, j in enumerate(index)])
     else:
-        index, macs = verify_pairing(doc, np.asarray(par["pairing_columns"]), shapes)
+        index, macs = verify_pairing(doc, np.asarray(par.pairing_columns), shapes)
     return index, macs
 
 
-def tied_pairings(par: dict, doc: dict, shapes) -> "pd.DataFrame":
+def tied_pairings(par: "IdentificationRecord", doc: dict, shapes) -> "pd.DataFrame":
     """The FE modes that the pairings fitting exactly as well as the chosen one pair with each measured
     mode (columns ``alternative, order, fe_mode``; ``fe_mode`` 0 where none): the tracked modes of each
     such pairing (``params.json``'s ``joint_pairing``, frequency-only states paired alike) found among
@@ -67,9 +63,8 @@ def tied_pairings(par: dict, doc: dict, shapes) -> "pd.DataFrame":
     from jointid.identification.updating import verify_pairing
 
     rows = []
-    rec = par.get("joint_pairing") or {}
-    if PairedBy.of(par) is PairedBy.FREQUENCY_SHARED and rec.get("candidates"):
-        for a, cols in enumerate(tied_alternatives(rec["candidates"], par["pairing_columns"]), start=1):
+    if par.paired_by is PairedBy.FREQUENCY_SHARED and par.pairing_candidates:
+        for a, cols in enumerate(tied_alternatives(par.pairing_candidates, list(par.pairing_columns)), start=1):
             index, _ = verify_pairing(doc, np.asarray(cols), shapes)
             rows += [{"alternative": a, "order": i + 1, "fe_mode": int(j) + 1} for i, j in enumerate(index)]
     return pd.DataFrame(rows, columns=["alternative", "order", "fe_mode"])
@@ -89,25 +84,25 @@ def _recorded_limit(rec: dict, theta: dict, names: list[str], freqs, shapes):
                            status=["recorded" if abs(x - 1) > 0 else "no partner" for x in c])
 
 
-def _extrapolated(spec, state, par, model, theta, freqs, shapes, edge_matrices):
-    """The mesh-extrapolated modes at ``theta`` (see :func:`run_verify`; ``spec``: the model's
+def _extrapolated(spec, state, par, model, freqs, shapes, edge_matrices):
+    """The mesh-extrapolated modes at the identified parameters (see :func:`run_verify`; ``spec``: the model's
     :class:`~jointid.config.typed.ModelSpec`), or None without extrapolation."""
     from jointid.fe.model import load_model
     from jointid.identification.polish import edge_limit_at, model_sizes
 
-    correction = (par.get("edge_extrapolation") or {}).get("correction")
+    correction = par.correction_record
     if correction:  # the identification's last factors, carried to these parameters to first order
         log(f"verify[{state}]: mesh extrapolation: the identification's factors (taken at its previous "
             "optimum, to first order), not re-solved on the edge levels")
-        return _recorded_limit(correction, theta, correction["names"], freqs, shapes)
+        return _recorded_limit(correction, par.theta, correction["names"], freqs, shapes)
     if edge_matrices:
-        return edge_limit_at(spec, [model, *(partial(load_model, p) for p in edge_matrices)], theta,
+        return edge_limit_at(spec, [model, *(partial(load_model, p) for p in edge_matrices)], par.theta,
                              log=lambda m: log(f"verify[{state}]: {m}"), base=(freqs, shapes),
                              sizes=[model.n_dofs, *model_sizes(edge_matrices)])
     return None
 
 
-def write_certificate(state: str, par: dict, modes, out_json: str | None) -> dict:
+def write_certificate(state: str, par: "IdentificationRecord", modes, out_json: str | None) -> dict:
     """Log the certificate of the full solve at the identified parameters (its residual and Sturm
     count, :func:`jointid.fe.certificate.full_certificate`) and write it to ``out_json`` beside the
     identification's (``params.json``: ``fe_polish.certificate``, the reduced solver's)."""
@@ -115,8 +110,8 @@ def write_certificate(state: str, par: dict, modes, out_json: str | None) -> dic
 
     cert = full_certificate(modes)
     log(f"verify[{state}]: {cert.describe()}")
-    rec = {"state": state, "parameters": {n: v["value"] for n, v in par["parameters"].items()},
-           "verify": cert.to_record(), "identify": (par.get("fe_polish") or {}).get("certificate")}
+    rec = {"state": state, "parameters": par.theta, "verify": cert.to_record(),
+           "identify": None if par.fe_polish is None else par.fe_polish.certificate}
     if out_json:
         io.write_json(out_json, rec)
     return rec
@@ -145,16 +140,16 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
 
     from jointid.fe.model import load_model
     from jointid.identification.polish import solve_point
+    from jointid.identification.record import IdentificationRecord
 
     spec = ModelSpec.from_config(cfg)
-    par, doc = io.read_json(params_json), io.read_json(surface_json)
-    theta = {n: v["value"] for n, v in par["parameters"].items()}
+    par, doc = IdentificationRecord.read(params_json), io.read_json(surface_json)
     model = load_model(matrices)
-    freqs, shapes, desc, modes = solve_point(spec, model, theta, certify=True)
+    freqs, shapes, desc, modes = solve_point(spec, model, par.theta, certify=True)
     write_certificate(state, par, modes, certificate_json)
-    f_meas = np.asarray(par["f_meas_Hz"])
-    correction = (par.get("edge_extrapolation") or {}).get("correction")
-    lim = _extrapolated(spec, state, par, model, theta, freqs, shapes, edge_matrices)
+    f_meas = np.asarray(par.f_meas_Hz)
+    correction = par.correction_record
+    lim = _extrapolated(spec, state, par, model, freqs, shapes, edge_matrices)
     f_all = freqs if lim is None else lim.limit_Hz
     from jointid.geometry.points import dof_labels
     from jointid.identification.visibility import misfit_table
@@ -172,7 +167,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     rows = pd.DataFrame({
         "order": np.arange(1, len(f_meas) + 1), "experimental_Hz": f_meas, "simulation_Hz": sim,
         "relative_error_pct": 100 * (sim - f_meas) / f_meas, **extra,
-        "surface_Hz": par["f_surface_Hz"], "surface_vs_fe_pct": 100 * (np.asarray(par["f_surface_Hz"]) - fe) / fe,
+        "surface_Hz": list(par.f_surface_Hz), "surface_vs_fe_pct": 100 * (np.asarray(par.f_surface_Hz) - fe) / fe,
         "fe_mode": index + 1, "mac_to_tracked": macs,
         "description": [desc["description"][i] if i >= 0 else "unpaired" for i in index],
         "strain_joints": [float(desc["strain_joints"][i]) if i >= 0 else np.nan for i in index]})
@@ -192,12 +187,12 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
             moved = [f"measured mode {o} with FE mode {m if m > 0 else 'none'}" for o, m, c in
                      zip(grp["order"], grp["fe_mode"], index + 1) if m != c]
             log(f"verify[{state}]: an exactly tied pairing pairs " + ", ".join(moved)
-                + f" (the choice between them: {(par.get('tie_rule') or {}).get('rule', 'not recorded')})")
+                + f" (the choice between them: {par.tie_rule.rule if par.tie_rule else 'not recorded'})")
     log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
-    if lim is not None and par.get("fe_polish"):
+    if lim is not None and par.fe_polish is not None:
         # with the recorded factors: the full solve against the polish's reduced solver; re-solved: fresh factors
-        drift = 100 * (sim / np.asarray(par["fe_polish"]["f_fe_Hz"]) - 1)
+        drift = 100 * (sim / np.asarray(par.fe_polish.f_fe_Hz) - 1)
         why = ("the same factors: full solve vs the polish's reduced basis" if correction else
                "its factors come from its previous optimum, to first order")
         log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
