@@ -39,7 +39,8 @@ from jointid.diagnosis.results import Evaluation, Fit
 from jointid.diagnosis.shape_residuals import ShapeTerms
 from jointid.diagnosis.starts import (EIGEN_RTOL, START_DIGITS, TIE_RTOL, best_fit, chi2_resolution,  # noqa: F401
                                       at_its_null, refit_starts, rounded_start, sized_starts)
-from jointid.diagnosis.terms import System, is_solid_term, term_component
+from jointid.diagnosis.terms import System, term_component
+from jointid.fe.solids import is_solid_term
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.fe.reduced import ReducedSolver, Solution, pad_to_basis
 from jointid.identification.model_error import known_budget, mode_correlation
@@ -367,7 +368,7 @@ def term_directions(system: System) -> list[tuple[dict, dict]]:
         if name in system.stiffness:
             out.append(({name: 1.0}, {}))
     for name in system.mass:
-        if name != "M0" and not is_solid_term(name):
+        if not is_solid_term(name):
             out.append(({}, {name: 1.0}))
     return out
 

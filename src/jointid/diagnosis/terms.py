@@ -163,12 +163,6 @@ def term_component(name: str) -> str:
     return name.split("@")[0].rsplit("_", 1)[1]
 
 
-def is_solid_term(name: str) -> bool:
-    """Whether ``name`` is a part's solid term (``K_solid_<part>``, ``M_solid_<part>``, ``K_lambda_<part>``):
-    a constant coefficient of a configuration's materials, not a direction the fits move in."""
-    return "_solid_" in name or name.startswith("K_lambda_")
-
-
 def build_system(model: Model, cfg: dict) -> System:
     """Diagnosis system of ``model``: joint terms per carriage and the clamped support as springs.
 

@@ -18,15 +18,11 @@ from jointid.errors import ModelError
 from jointid.fe import fem
 from jointid.geometry.rig import PART_IDS
 
-SOLID_TERMS = ("K0", "K_solid_", "K_lambda_")
-"""Names (or their prefixes) of the stiffness terms of the solids; every other stiffness term is a spring
-layer (joints, rail fixing, foundation, mounts)."""
-
-
 def is_solid_term(name: str) -> bool:
-    """Whether the stiffness term ``name`` is the solids' elasticity (a discretised continuum, whose
-    stiffness the mesh's refinement changes) rather than a spring layer."""
-    return name == "K0" or name.startswith(SOLID_TERMS[1:])
+    """Whether the term ``name`` belongs to the solids: ``K0``, ``M0`` and each part's ``K_solid_<part>``,
+    ``M_solid_<part>``, ``K_lambda_<part>`` (a discretised continuum, whose stiffness the mesh's refinement
+    changes); every other term is a spring layer or an added mass."""
+    return name in ("K0", "M0") or "_solid_" in name or name.startswith("K_lambda_")
 
 
 def element_constants(materials: Mapping[str, Material], rig, rmesh):
