@@ -114,7 +114,8 @@ class Diagnoser:
             if self.solver.generation == gen:
                 break
         # the mesh's correction, where the budget has one (jointid.diagnosis.mesh_error), follows each model mode
-        return [mesh_error.correct(d, s) for d, s in zip(self.data, sols)]
+        return [mesh_error.correct(d, s, lambda cols, s=s: mesh_error.solid_share(self.solver, s, cols))
+                for d, s in zip(self.data, sols)]
 
     def lift(self, Y: np.ndarray) -> np.ndarray:
         """Full-space vectors of reduced vectors ``Y`` (of this or an earlier, smaller basis)."""

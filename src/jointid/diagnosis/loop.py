@@ -31,7 +31,7 @@ from jointid.diagnosis.combine import combine_candidates, refit_at, refit_on_lad
 from jointid.diagnosis.effects import EFFECTS, Enabled, enabled_effects
 from jointid.diagnosis.fitting import Diagnoser, Fit, best_fit, print_log, refit
 from jointid.diagnosis.judging import judge_fits, model_error_of
-from jointid.diagnosis.mesh_budget import mesh_budget
+from jointid.diagnosis.mesh_budget import mesh_budget, refit_answer
 from jointid.diagnosis.predictive import check_pairs
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
 from jointid.diagnosis.results import refit_row
@@ -144,6 +144,8 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]), me)
     tie_detail, nxt = explain_tie(diag, ranking, fits, me)
     ident, curve = identifiable_fits(diag, current, fits, ranking, combos, log)
+    if opt.get("mesh_error", True):  # step 8b: the answer's value at its own mesh error, where it changed the structure
+        refit_answer(diag, current, fits, ranking, combos, notes, log)
     findings = Findings(current, ranking, alpha, between_share, combos, absorbed, tie_detail, nxt, ident,
                         int(opt["max_effects"]), me, current_weight)
     verdict, explained_by = verdict_text(findings, diag.data)

@@ -44,9 +44,6 @@ as the mesh check does, finds less than half of it).
   ``c_r / s_r`` over the reference modes): measured on S18, -0.30 % against -0.22 % on the refined meshes,
   where the MAC-weighted correction gave -1 to -3 %.  The two are blended by how much of the mode the
   reference modes hold (the sum of its MAC² with them, full at 0.64 and above, :func:`correct`).
-  **Not wired into the fits** (:meth:`jointid.diagnosis.fitting.Diagnoser.solve_states` passes no share):
-  with it, the loop of benchmark h (enable em_preload, rerun the paper's diagnosis) took 74 s instead
-  of 16 s.  It stays here, tested, for the next step.
 
 A mode the refined mesh cannot follow (MAC < 0.8) takes the largest shift of its state, and an
 unpaired measured mode the largest known error of the paired ones: the mesh error of a mode the check
