@@ -66,21 +66,24 @@ def test_noise_draws_average_the_survivors_of_a_borderline_measurement():
     q = np.zeros(2)
     g = expected_gain(cand, ["A", "B"], q, akaike_weights(q), {"k": np.array([1.0, 3.0])}, n_draws=40000,
                       rng=np.random.default_rng(3))
-    # truth A (sigma 0.1, e the noise): chi2_A = e^2, chi2_B = (e - 2)^2; B kept when 4 - 4e < 4 (e > 0),
-    # A kept when 4e - 4 < 4 (e < 2)
-    kept_a = (norm.cdf(2.0), norm.sf(0.0))
-    both_a = norm.cdf(2.0) - norm.cdf(0.0)
-    # truth B (sigma 0.12): chi2_B = e^2, chi2_A = (e + a)^2, a = 0.2 / 0.12; A kept when 2ae + a^2 < 4,
-    # B kept when -2ae - a^2 < 4
+    # of two hypotheses the second is kept while the first holds less than 95 % of the weight,
+    # 1 / (1 + exp(-d / 2)) < 0.95, that is d < 2 ln 19 = 5.89 (past the delta of 4)
+    t = 2 * np.log(19.0)
+    # truth A (sigma 0.1, e the noise): chi2_A = e^2, chi2_B = (e - 2)^2; B kept when 4 - 4e < t,
+    # A kept when 4e - 4 < t
+    kept_a = (norm.cdf((4 + t) / 4), norm.sf((4 - t) / 4))
+    both_a = kept_a[0] + kept_a[1] - 1
+    # truth B (sigma 0.12): chi2_B = e^2, chi2_A = (e + a)^2, a = 0.2 / 0.12; A kept when 2ae + a^2 < t,
+    # B kept when -2ae - a^2 < t
     a = 0.2 / 0.12
-    hi, lo = (4 - a * a) / (2 * a), -(4 + a * a) / (2 * a)
+    hi, lo = (t - a * a) / (2 * a), -(t + a * a) / (2 * a)
     kept_b = (norm.cdf(hi), norm.sf(lo))
     both_b = norm.cdf(hi) - norm.cdf(lo)
     assert g["n_left"] == pytest.approx(0.5 * (sum(kept_a) + sum(kept_b)), abs=0.02)
     assert g["truth_kept"] == pytest.approx(0.5 * (kept_a[0] + kept_b[1]), abs=0.01)
     assert g["ratio_after"]["k"] == pytest.approx(0.5 * (1 + 2 * both_a) + 0.5 * (1 + 2 * both_b), abs=0.03)
-    # noise-free, B at 1.21: from truth A B's chi2 is 4.41 (out), from truth B A's is (0.21 / 0.121)^2 = 3.0 (kept)
-    cand0 = ScalarCandidate("x", "weight", "", "kg", 0.1, {"A": 1.0, "B": 1.21})
+    # noise-free, B at 1.25: from truth A B's chi2 is 6.25 (out), from truth B A's is (0.25 / 0.125)^2 = 4 (kept)
+    cand0 = ScalarCandidate("x", "weight", "", "kg", 0.1, {"A": 1.0, "B": 1.25})
     g0 = expected_gain(cand0, ["A", "B"], q, akaike_weights(q), {"k": np.array([1.0, 3.0])}, n_draws=0)
     assert g0["n_left"] == pytest.approx(1.5) and g0["ratio_after"]["k"] == pytest.approx(2.0)
 

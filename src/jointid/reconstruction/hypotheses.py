@@ -36,7 +36,7 @@ import numpy as np
 from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
 from jointid.reconstruction.predictions import measurement_predictions
-from jointid.diagnosis.results import frequency_rows, log_interval
+from jointid.diagnosis.results import block_error, frequency_rows, log_interval
 from jointid.diagnosis.criteria import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.errors import ConfigError
@@ -176,11 +176,8 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None
     law = LinkedLaw.from_config(cfg)
     linked = _forces_differ(data)
     classes = law.preload_classes_N if linked else (law.preload_classes_N[0],)
+    # measured shapes are fitted as in the diagnosis: a block of their own, with its own model error in the ranking
     diag = Diagnoser(system, cfg, data, start_basis=start_basis, log=log)
-    # frequencies only (docs/reconstruction.md): with the shape rows in the fit at their stated noise, a
-    # hypothesis of a wrong mass distribution is pulled by its systematic shape misfit, and the lighter-mass
-    # case of tests/test_model_error_cases.py (c) lost the truth from its reconstruction range
-    diag.shapes.disable()
     profile, best = [], None
     x_prev = None
     index = None
@@ -263,9 +260,16 @@ def fit_record(fit: Fit, data: list[StateData], preload_N: float | None, profile
             "shape_chi2": blocks[1][1] if len(blocks) > 1 else 0.0,
             "shape_dof": blocks[1][2] if len(blocks) > 1 else 0,
             "shape_design_effect": fit.shape_design_effect(),  # rows that move together count less (ranking)
+            "shape_sigma_rel": _shape_noise(fit, data),  # the stated shape noise (per mode's RMS), for the sentence
             "lowest_freq_Hz": lowest,
             "parameters": params, "states": states, "unpaired_visible": fit.unpaired_visible(data),
             "variant": fit.variant.name}
+
+
+def _shape_noise(fit: Fit, data: list[StateData]) -> float | None:
+    """The shape rows' stated noise (relative to each mode's RMS; :func:`block_error`), or None without them."""
+    shape = block_error(fit.ev, data, fit.k).shape
+    return None if shape is None else float(shape.sigma_noise_rel)
 
 
 def dynamic_stiffness(fit: Fit, si: int) -> dict:

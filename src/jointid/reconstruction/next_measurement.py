@@ -1,7 +1,7 @@
 """The measurement that would narrow the reconstruction (docs/reconstruction.md, same title).
 
-Several hypotheses lie within ΔQAICc 4 of the best (the admissible ones,
-:func:`jointid.reconstruction.ranking.rank_hypotheses`), and their joint parameters differ.  For
+Several hypotheses are admissible (within ΔQAICc 4 of the best, or in the 95 % confidence set of models:
+:func:`jointid.reconstruction.ranking.admissible`), and their joint parameters differ.  For
 each candidate measurement this module asks: if one admissible hypothesis were the truth and the
 measurement were made, which hypotheses would stay admissible, and how wide would the range of the
 joint parameters over them be?
@@ -19,8 +19,9 @@ Each hypothesis's record predicts the candidates (:mod:`jointid.reconstruction.p
 With hypothesis ``g`` as the truth, a scalar measurement ``y = y_g (1 + s e)``, ``e ~ N(0, 1)``, adds to
 every hypothesis ``h`` the chi-square ``(y - y_h)^2 / (s y_g)^2``; a DOF pair adds, per mode, the squared
 component of the measured pair ``u_g + eps e`` (``u_g`` at unit RMS over the pair) across ``h``'s direction,
-over ``eps^2``.  Each hypothesis's QAICc grows by its chi-square; the hypotheses within ``delta`` of the new
-best stay admissible, and a joint parameter's range over them is ``max / min`` (1 for one survivor).
+over ``eps^2``.  Each hypothesis's QAICc grows by its chi-square; the hypotheses admissible after it (within
+``delta`` of the new best, or in the 95 % confidence set of models: :func:`jointid.reconstruction.ranking.admissible`)
+stay, and a joint parameter's range over them is ``max / min`` (1 for one survivor).
 The expected gain averages over :attr:`ProposalOptions.n_draws` noise draws (seeded; 0: the noise-free
 measurement, ``e = 0``, whose chi-square is ``(y_g - y_h)^2 / sigma^2``) and over the truths weighted
 by their Akaike weights renormalised over the admissible set.  The joint parameters are those of
@@ -39,6 +40,7 @@ import numpy as np
 import pandas as pd
 
 from jointid.diagnosis.shape_proposal import VISIBLE_RMS, pair_chi2
+from jointid.reconstruction.ranking import admissible, admissible_rows
 
 __all__ = ["ProposalOptions", "ScalarCandidate", "ShapePairCandidate", "expected_gain", "propose",
            "next_measurement_markdown", "COLUMNS"]
@@ -182,7 +184,7 @@ def expected_gain(cand, names: list[str], qaicc, weights, values: dict, *, delta
         e = rng.standard_normal(cand.noise_shape(n_draws)) if n_draws else e0
         c = cand.chi2(name, names, e)
         qq = q[None, :] + c
-        keep = qq - qq.min(axis=1, keepdims=True) < delta
+        keep = admissible(qq, delta)
         n_left += w[g] * keep.sum(axis=1).mean()
         kept += w[g] * keep[:, g].mean()
         for p, r in _ranges(keep, values).items():
@@ -194,11 +196,6 @@ def expected_gain(cand, names: list[str], qaicc, weights, values: dict, *, delta
 
 COLUMNS = ["rank", "measurement", "kind", "state", "sigma_pct", "min_delta_chi2", "expected_hypotheses_left",
            "truth_kept_fraction", "predictions", "target", "admissible_hypotheses"]
-
-
-def _admissible(rows: list[dict], delta: float) -> list[dict]:
-    return [r for r in rows if r.get("rank") is not None and not pd.isna(r.get("rank"))
-            and np.isfinite(r["delta_qaicc"]) and r["delta_qaicc"] < delta]
 
 
 def _joint_values(records: dict, names: list[str]) -> dict:
@@ -251,7 +248,7 @@ def _shape_candidates(records: dict, names: list[str], q, w, values: dict, targe
             if g != h:
                 chi[g, h] = pair_chi2(S[g], S[h], eps)
         qq = np.asarray(q, float)[None, :, None, None] + chi
-        keep = qq - qq.min(axis=1, keepdims=True) < opts.delta  # (G, H, L, L)
+        keep = admissible(qq, opts.delta, axis=1)  # (G, H, L, L)
         v = values[target][None, :, None, None]
         ratio = np.where(keep, v, -np.inf).max(axis=1) / np.where(keep, v, np.inf).min(axis=1)  # (G, L, L)
         exp_ratio = np.tensordot(w, ratio, axes=1)
@@ -299,7 +296,7 @@ def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None
     (sentences on how far to trust a candidate).
     """
     opts = opts or ProposalOptions()
-    adm = _admissible(rows, opts.delta)
+    adm = admissible_rows(rows, opts.delta)
     names = [r["hypothesis"] for r in adm]
     notes = ["a damping ratio — the hypotheses share one nominal modal damping ratio, so none predicts a damping "
              "of its own"]
@@ -367,7 +364,7 @@ def next_measurement_markdown(df: pd.DataFrame, summary: dict, opts: ProposalOpt
               f"admissible (the truth kept in {100 * best['truth_kept_fraction']:.0f} % of draws).", "",
               f"Each admissible hypothesis taken as the truth ({opts.n_draws} seeded noise draws each, truths "
               "weighted by their Akaike weights): the measurement's chi-square added to every hypothesis's QAICc, "
-              f"the hypotheses within ΔQAICc < {opts.delta:g} of the new best kept (next_measurements.csv; "
+              f"the admissible ones kept (within ΔQAICc < {opts.delta:g} of the new best, or in the 95 % confidence set) (next_measurements.csv; "
               f"docs/reconstruction.md). Smallest Δχ²: the noise-free chi-square between the closest two hypotheses "
               f"whose {target} differs by more than {100 * SAME_REL:g} %.", "",
               f"| rank | measurement | 1σ (%) | smallest Δχ² | hypotheses left | {target} range after |",

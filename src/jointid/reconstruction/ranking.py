@@ -15,14 +15,33 @@ import numpy as np
 
 from jointid.identification.model_error import ModelError, akaike_weights, estimate, from_chi2, qaicc
 
-__all__ = ["REJECT_ERROR_PCT", "RIGID_HZ", "hypotheses_model_error", "rank_hypotheses", "reconstruction_ranges",
-           "rejection"]
+__all__ = ["CONFIDENCE_SET", "REJECT_ERROR_PCT", "RIGID_HZ", "admissible", "hypotheses_model_error", "rank_hypotheses",
+           "reconstruction_ranges", "rejection"]
 
 REJECT_ERROR_PCT = 50.0
 """A hypothesis whose fit leaves a measured mode (or a clearly visible model mode) more than this far
 from its partner is a broken reading, not a competitor: it is listed apart, with the reason."""
 RIGID_HZ = 1.0
 """A model mode below this frequency is a rigid-body mode: the hypothesis's fit is ill-posed."""
+CONFIDENCE_SET = 0.95
+"""The admissible hypotheses hold at least this much of the Akaike weight (:func:`admissible`)."""
+
+
+def admissible(qaicc, delta: float = 4.0, *, level: float = CONFIDENCE_SET, axis: int = -1) -> np.ndarray:
+    """Which hypotheses are admissible, given their QAICc along ``axis``: those within ``delta`` of the best,
+    and the smallest set, best first, whose Akaike weights sum to at least ``level`` (a 95 % confidence set
+    of models, Burnham & Anderson 2002, sec. 4.2).  The second part matters where two hypotheses are close
+    and far from the rest: at delta 4.5 the second holds 10 % of the weight, and a range over the first
+    alone would claim more certainty than the weights allow."""
+    q = np.moveaxis(np.asarray(qaicc, float), axis, -1)
+    d = q - q.min(axis=-1, keepdims=True)
+    w = np.exp(-0.5 * d)
+    w = w / w.sum(axis=-1, keepdims=True)
+    order = np.argsort(d, axis=-1, kind="stable")
+    ws = np.take_along_axis(w, order, axis=-1)
+    inside = np.zeros(d.shape, bool)
+    np.put_along_axis(inside, order, np.cumsum(ws, axis=-1) - ws < level, axis=-1)
+    return np.moveaxis((d < delta) | inside, -1, axis)
 
 
 def rejection(rec: dict) -> str:
@@ -63,7 +82,8 @@ def hypotheses_model_error(records: dict) -> ModelError:
     me = estimate(r, sig, rec["n_params"], reference=f"hypothesis {name}")
     if rec.get("shape_dof"):  # the shape rows: a block with its own model error (in units of their noise);
         # their rows move together within a mode and count as fewer (the diagnosis's design effect)
-        shape = from_chi2(rec["shape_chi2"], rec["shape_dof"], 1.0, reference=f"hypothesis {name}")
+        shape = from_chi2(rec["shape_chi2"], rec["shape_dof"], float(rec.get("shape_sigma_rel") or 1.0),
+                          reference=f"hypothesis {name}")
         me = replace(me, shape=replace(shape, design_effect=float(rec.get("shape_design_effect") or 1.0)))
     return me
 
@@ -85,8 +105,9 @@ def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], l
 
     Returns ``(ranking rows, spread rows, model error)``: per hypothesis rank, AICc at the stated noise,
     QAICc, delta QAICc, Akaike weight, chi-square, per-state max error and misfit count, joint
-    parameters, beta and preload; and per parameter the range of values and of 95 % intervals over the
-    hypotheses within ``delta`` QAICc of the best (the reconstruction range).
+    parameters, beta and preload, and whether it is ``admissible`` (:func:`admissible`: within ``delta`` QAICc
+    of the best, or in the 95 % confidence set of models); and per parameter the range of values and of 95 %
+    intervals over the admissible hypotheses (the reconstruction range).
     """
     me = hypotheses_model_error(records)
     reasons = {n: rejection(records[n]) for n in records}
@@ -117,9 +138,12 @@ def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], l
             row[p["parameter"]] = p["value"]
         row["preload_N"] = rec.get("preload_N")
         rows.append(row)
-    admissible = [n for n in names if q[n] - best < delta]
+    keep = dict(zip(names, admissible([q[n] for n in names], delta))) if names else {}
+    for row in rows:
+        row["admissible"] = bool(keep.get(row["hypothesis"], False))
+    admissible_names = [n for n in names if keep[n]]
     spread = {}
-    for n in admissible:
+    for n in admissible_names:
         for p in records[n]["parameters"]:
             s = spread.setdefault(p["parameter"], {"parameter": p["parameter"], "values": [], "lo": [], "hi": [],
                                                    "hypotheses": [], "weights": []})
@@ -139,9 +163,23 @@ def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], l
     return rows, out, me
 
 
+def admissible_rows(rows: list[dict], delta: float = 4.0) -> list[dict]:
+    """The ranked rows of :func:`rank_hypotheses` that are admissible (its ``admissible`` column; rows written
+    before it: within ``delta`` of the best)."""
+    ranked = [r for r in rows if r.get("rank") is not None and not _nan(r.get("rank"))
+              and np.isfinite(r["delta_qaicc"])]
+    if all("admissible" in r for r in ranked):
+        return [r for r in ranked if r["admissible"]]
+    return [r for r in ranked if r["delta_qaicc"] < delta]
+
+
+def _nan(v) -> bool:
+    return isinstance(v, float) and math.isnan(v)
+
+
 def reconstruction_ranges(records: dict, rows: list[dict], *, delta: float = 4.0) -> list[dict]:
-    """The answers over the admissible reconstructions: every hypothesis ranked within ``delta`` QAICc
-    of the best (``rows`` from :func:`rank_hypotheses`).
+    """The answers over the admissible reconstructions (``rows`` from :func:`rank_hypotheses`, its
+    ``admissible`` column).
 
     One row per quantity and state (and mode): ``quantity``, ``state``, ``mode`` (0: none), ``unit``,
     ``value_min``, ``value_max``, ``value_weighted`` (Akaike weights of QAICc, renormalised over the
@@ -150,7 +188,7 @@ def reconstruction_ranges(records: dict, rows: list[dict], *, delta: float = 4.0
     dynamic-stiffness minimum per state (``N_per_m``) and its change, and per measured mode the
     model frequency (``Hz``) and its error (``pct``) of Tables 2-3.
     """
-    adm = [r for r in rows if r.get("rank") is not None and np.isfinite(r["delta_qaicc"]) and r["delta_qaicc"] < delta]
+    adm = admissible_rows(rows, delta)
     if not adm:
         return []
     names = [r["hypothesis"] for r in adm]

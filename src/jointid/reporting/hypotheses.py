@@ -113,8 +113,8 @@ def hypotheses_html(ranking: pd.DataFrame, records: dict, spread: pd.DataFrame |
                               {"freq_Hz": ".1f", "target_Hz": ".1f", "misfit_pct": ".2f"},
                               text_cols=("state",)))
     if spread is not None and len(spread):
-        out.append("<p class='note'>Joint parameters over the hypotheses within ΔQAICc &lt; 4 (the reconstruction "
-                   "range), their weighted value and the union of their 95 % intervals.</p>")
+        out.append("<p class='note'>Joint parameters over the admissible hypotheses (within ΔQAICc &lt; 4, or in the 95 % "
+                   "confidence set of models: the reconstruction range), their weighted value and the union of their 95 % intervals.</p>")
         names = ("; ".join(f"{r.parameter}: {r.hypotheses}" for r in spread.itertuples())
                  if spread["hypotheses"].nunique() > 1 else str(spread["hypotheses"].iloc[0])) \
             if "hypotheses" in spread else ""

@@ -190,8 +190,8 @@ def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict,
     if apart:
         lines += ["", "Listed apart (a broken reading, not a competitor; no QAICc is given):", "",
                   "| hypothesis | max error per state (%) | reason |", "|---|---|---|"] + apart
-    lines += ["", f"Joint parameters over the hypotheses within ΔQAICc < {ADMISSIBLE_DELTA_AICC:g} (the "
-              "reconstruction range; intervals scaled by max(1, √(χ²/dof))):", "",
+    lines += ["", f"Joint parameters over the admissible hypotheses (within ΔQAICc < {ADMISSIBLE_DELTA_AICC:g}, or in the "
+              "95 % confidence set of models: the reconstruction range; intervals scaled by max(1, √(χ²/dof))):", "",
               "| parameter | hypotheses | value range | weighted value | combined 95 % interval |",
               "|---|---:|---|---:|---|"]
     for _, s in spread.iterrows():
