@@ -364,7 +364,7 @@ def next_measurement_markdown(df: pd.DataFrame, summary: dict, opts: ProposalOpt
               f"admissible (the truth kept in {100 * best['truth_kept_fraction']:.0f} % of draws).", "",
               f"Each admissible hypothesis taken as the truth ({opts.n_draws} seeded noise draws each, truths "
               "weighted by their Akaike weights): the measurement's chi-square added to every hypothesis's QAICc, "
-              f"the admissible ones kept (within ΔQAICc < {opts.delta:g} of the new best, or in the 95 % confidence set) (next_measurements.csv; "
+              f"the admissible ones kept (within ΔQAICc < {opts.delta:g} of the new best, or in the 95 % confidence set; next_measurements.csv; "
               f"docs/reconstruction.md). Smallest Δχ²: the noise-free chi-square between the closest two hypotheses "
               f"whose {target} differs by more than {100 * SAME_REL:g} %.", "",
               f"| rank | measurement | 1σ (%) | smallest Δχ² | hypotheses left | {target} range after |",
