@@ -51,18 +51,19 @@ def _write_state(folder, cfg, polish, state, ds, with_damping: bool) -> dict:
 def _run(tmp, cfg, model_file, polish, ds, name: str, with_damping: bool):
     """The harmonic stage of both states and rule table1 on one dataset; returns (Table 1, docs, paths)."""
     from jointid.stages import harmonic as harmonic_stage
+    from jointid.config.options import HarmonicOptions, Table1Options
     from jointid.stages.tables import run_table1
 
     paths = {}
     for s in STATES:
         p = _write_state(tmp / name / s, cfg, polish[s], s, ds, with_damping)
-        harmonic_stage.run_harmonic(cfg, s, p["params"], model_file, str(tmp / name / s / "frf.csv"), p["json"],
+        harmonic_stage.run_harmonic(HarmonicOptions.from_config(cfg, s), s, p["params"], model_file, str(tmp / name / s / "frf.csv"), p["json"],
                                     verify_csv=p["verify"], out_points=p["points"], progress=lambda m: None)
         paths[s] = p
     out = tmp / name / "tables"
     out.mkdir()
     df = run_table1([paths[s]["json"] for s in STATES], None, str(out / "table1.csv"), str(out / "table1.md"),
-                    points_npz=[paths[s]["points"] for s in STATES], cfg=cfg, out_ranges=str(out / "ranges.csv"),
+                    points_npz=[paths[s]["points"] for s in STATES], opts=Table1Options.from_config(cfg), out_ranges=str(out / "ranges.csv"),
                     out_cases=str(out / "cases.csv"))
     docs = {s: json.loads(Path(paths[s]["json"]).read_text()) for s in STATES}
     return df, docs, paths
