@@ -26,6 +26,7 @@ import pytest
 
 from conftest import diagnosis_rig
 from test_joint_damping import ETA, NAMES, THETA, ZETA0, truth_file
+from conftest import truth_settings
 
 STATES = ("power_off", "power_on")
 
@@ -87,7 +88,7 @@ def runs(tmp_path_factory):
     plain["noise"] = {k: v for k, v in damped["noise"].items() if "damping" not in k}
     sets = {}
     for name, truth in (("damped", damped), ("frequency_only", plain)):
-        syn = synthesise(truth, cfg, model=model)
+        syn = synthesise(truth, truth_settings(truth, cfg), model=model)
         if name == "frequency_only":  # synth writes a constant ratio for undamped truths: a test without zeta
             syn["modes"] = syn["modes"].drop(columns="damping_ratio")
         write_dataset(tmp / name / "data", syn["modes"], syn["shapes"], syn["frf"], conditions=syn["conditions"],

@@ -20,6 +20,7 @@ from jointid.config.options import HarmonicOptions
 from jointid.errors import DataError
 from jointid.response.harmonic import dynamic_stiffness
 from jointid.response.measured import measured_dynamic_stiffness, stiffness_frame
+from conftest import truth_settings
 
 F = np.linspace(100.0, 1500.0, 701)
 
@@ -141,7 +142,7 @@ def synthetic(tmp_path_factory):
     rig = diagnosis_rig()
     truth = {"joints": TRUTH, "states": {"power_off": {"em_force_N": 0.0}},
              "measurement": {"frf": True, "drive_point": "T05", "drive_direction": "y"}, "noise": {"seed": 1}}
-    ds = write_synthetic(truth, rig["cfg"], tmp / "ds", model=rig["model"])
+    ds = write_synthetic(truth, truth_settings(truth, rig["cfg"]), tmp / "ds", model=rig["model"])
     cfg = copy.deepcopy(rig["cfg"])
     cfg["states"]["power_off"]["dataset"] = str(tmp / "ds")
     cfg["harmonic"]["damping"] = {"model": "modal", "damping_ratio": 0.02}

@@ -16,7 +16,7 @@ from typing import Any
 from jointid.config.load import section
 from jointid.errors import ConfigError
 
-__all__ = ["ConfigStamp", "config_hash"]
+__all__ = ["ConfigStamp", "config_digest", "config_hash"]
 
 
 def _canonical(value: Any) -> Any:
@@ -69,12 +69,15 @@ def config_hash(cfg: Mapping, keys: str | Iterable[str] | None = None) -> str:
         12 lower-case hex digits.
     """
     if keys is None:
-        payload = _canonical(cfg)
-    else:
-        keys = [keys] if isinstance(keys, str) else list(keys)
-        payload = {k: _canonical(section(cfg, k)) for k in keys}
-    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:12]
+        return config_digest(cfg)[:12]
+    keys = [keys] if isinstance(keys, str) else list(keys)
+    return config_digest({k: section(cfg, k) for k in keys})[:12]
+
+
+def config_digest(cfg: Mapping) -> str:
+    """The whole SHA-256 (64 hex digits) of the canonical JSON of ``cfg`` that :func:`config_hash` cuts to 12."""
+    text = json.dumps(_canonical(cfg), sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 @dataclass(frozen=True)

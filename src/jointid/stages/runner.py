@@ -105,7 +105,8 @@ def run_script(smk, fn, provenance: bool | Iterable[str] = True) -> None:
     """Run ``fn(cfg, input, output)`` with stdout/stderr sent to the rule's log.
 
     ``cfg`` is ``smk.params.cfg`` (the config sections the rule depends on, passed through ``params:``
-    so that a change reruns exactly the affected rules).  The inputs are checked against their
+    so that a change reruns exactly the affected rules); ``fn``, the rule script's adapter, turns it into its
+    stage's typed options once (:mod:`jointid.config.options`): the stages never see the dict.  The inputs are checked against their
     provenance sidecars first (:func:`check_inputs`).  A :class:`JointidError` is printed as its
     problem lines (no traceback) and the script exits 1; Snakemake then removes the rule's outputs.
     Any other exception prints one line (what failed, in which rule, where the traceback is) and
