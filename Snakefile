@@ -22,22 +22,25 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("PYTHONHASHSEED", "0")
 
 from jointid.config.datasets import dataset_folder
-from jointid.config.snakefile import merged, paper_input, run_folders, sections, validated
+from jointid.config.options import DoeOptions
+from jointid.config.snakefile import mesh_inputs, mesh_keys, merged, modal_keys, paper_input, run_folders, sections, validated
 from jointid.reporting.provenance import pin_config_state
-from jointid.stages import doe, identify, modal, model, surface, verify
+from jointid.stages import doe, identify, modal, surface, verify
 
 configfile: "config.yaml"
 config = validated(config, ["config.yaml", *workflow.overwrite_configfiles])
 # provenance: the config files count as loaded now (an edit during the run changes none of its values)
 pin_config_state(["config.yaml", *workflow.overwrite_configfiles])
-SHEET = doe.doe_sheet(config)
+DOE = DoeOptions.from_config(config)  # the config as typed options at the edge (jointid.config.options)
+SHEET = doe.doe_sheet(DOE)
 POINTS = list(SHEET["point"])
 STATES = list(config["states"])
 R, LOGS, BENCH = run_folders(config)  # results/, logs/, benchmarks/out/ (+ /<run.name> for a named study)
 
 # the config parts each rule uses: the CONFIG keys (or config_keys()) of its stage module in
-# src/jointid/stages/ (the mesh without mesh.extrapolate_edges; the first DOE without doe.zoom; ...)
-CFG_MESH = sections(config, *model.config_keys(config))
+# src/jointid/stages/, or of jointid.config.snakefile (mesh_keys, modal_keys: the mesh without
+# mesh.extrapolate_edges; the DOE points solved without the ROM keys); the first DOE without doe.zoom; ...
+CFG_MESH = sections(config, *mesh_keys(config))
 CFG_DOE = sections(config, *doe.CONFIG)
 CFG_FIT_SURFACE = sections(config, *surface.CONFIG)
 CFG_VERIFY = sections(config, *verify.CONFIG)
@@ -60,7 +63,7 @@ def state_datasets(wc):
 USE_ROM = config["solver"]["method"] == "rom"
 USE_REDUCED = config["solver"]["method"] == "reduced"  # the default: every DOE point in one job (rule modal)
 # with method full the modal rule's params leave out the ROM keys (see rule rom below)
-CFG_MODAL_RULE = sections(config, *modal.config_keys(config))
+CFG_MODAL_RULE = sections(config, *modal_keys(config))
 CFG_MODAL_CHAIN = merged(CFG_MESH, CFG_DOE, CFG_MODAL_RULE)
 CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT_SURFACE, CFG_VERIFY,
                           *map(cfg_identify, STATES))
@@ -98,7 +101,7 @@ rule all:
 
 rule mesh:
     input:
-        model.input_files(config),  # model.kind mesh: the mesh file and the measuring points
+        mesh_inputs(config),  # model.kind mesh: the mesh file and the measuring points
     output:
         matrices=f"{R}/model/matrices.npz",
         points=f"{R}/model/measuring_points.csv",
@@ -257,7 +260,7 @@ rule fit_surface:
 # state a first optimum ("scout", surfaces only); a second DOE of the same design is solved in a box
 # around those optima (shared by the states: one fan-out), and the surfaces fitted there carry the
 # identification.  A quadratic in log-parameters is accurate over a factor ~2, not over decades.
-ZOOM = doe.zoom_enabled(config)
+ZOOM = DOE.zoom_enabled
 SURFACE = f"{R}/surface/zoom/model.json" if ZOOM else f"{R}/surface/model.json"
 SURFACE_DIAGNOSTICS = SURFACE.replace("model.json", "diagnostics.csv")
 SURFACE_SHEET = f"{R}/doe/zoom/points.csv" if ZOOM else f"{R}/doe/points.csv"  # the DOE behind SURFACE

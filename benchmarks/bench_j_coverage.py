@@ -225,6 +225,8 @@ class Runner:
         from jointid.synthetic import generate as synth
         from jointid.fe.model import build_model
 
+        from .common import truth_settings
+
         truth = truth_of(c, self.rig_name)
         key = hashlib.sha256(json.dumps(truth, sort_keys=True).encode()).hexdigest()[:12]
         folder = DATA / self.rig_name / f"{c['case']}-{key}"
@@ -244,7 +246,7 @@ class Runner:
                      f"built in {time.perf_counter() - t0:.1f} s")
         tmp = folder.with_name(folder.name + ".tmp")
         shutil.rmtree(tmp, ignore_errors=True)  # left by an interrupted run
-        synth.write_synthetic(truth, self.rig["cfg"], tmp, model=self.truth_model)
+        synth.write_synthetic(truth, truth_settings(truth, self.rig["cfg"]), tmp, model=self.truth_model)
         (tmp / stamp.name).write_text(code + "\n")
         tmp.rename(folder)
         return folder, time.perf_counter() - t0
@@ -253,12 +255,13 @@ class Runner:
         from jointid.data.dataset import read_dataset
         from jointid.diagnosis.loop import diagnose
         from jointid.diagnosis.variants import dataset_states
+        from jointid.config.typed_diagnosis import DiagnosisSettings
 
         rig = self.rig
         ds = read_dataset(folder, measuring_points=rig["system"].meta["points"])
-        data = dataset_states(ds, rig["system"], rig["cfg"])
+        data = dataset_states(ds, rig["system"], DiagnosisSettings.from_config(rig["cfg"]))
         cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), **options}}
-        return diagnose(rig["system"], cfg, data, log=lambda m: None)
+        return diagnose(rig["system"], DiagnosisSettings.from_config(cfg), data, log=lambda m: None)
 
 
 # ------------------------------------------------------------------ scoring
@@ -539,7 +542,7 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
         folder, synth_s = runner.dataset(c)
         td = time.perf_counter()
         try:
-            out = runner.diagnose(folder, options)
+            out = runner.diagnose(folder, DiagnosisSettings.from_config(options))
             row = score(c, out)
             keep = OUT / "coverage_runs" / _slug(label) / c["case"]  # the tables, for a later reading
             keep.mkdir(parents=True, exist_ok=True)

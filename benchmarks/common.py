@@ -25,9 +25,11 @@ def diagnosis_rig(rig: str = "coarse") -> dict:
     lateral joint stiffness identified (2e11..4e12 N/m^3), feed stiffness fixed at 1e10 N/m^3 (so the
     feed effect is not absorbed by an identified parameter).  ``rig``: ``coarse`` (config.yaml with
     tests/coarse_config.yaml merged over it, one level deep, as Snakemake merges config files) or
-    ``default`` (the shipped config.yaml's mesh).  Returns ``{"cfg", "model", "system", "solver"}``."""
+    ``default`` (the shipped config.yaml's mesh).  Returns ``{"cfg", "settings", "model", "system", "solver"}``."""
     import yaml
 
+    from jointid.config.synthetic import identification_config
+    from jointid.config.typed_diagnosis import DiagnosisSettings
     from jointid.synthetic.generate import identification_rig
 
     with open(ROOT / "config.yaml") as fh:
@@ -38,7 +40,16 @@ def diagnosis_rig(rig: str = "coarse") -> dict:
                 cfg[k] = {**cfg.get(k, {}), **v}
     elif rig != "default":
         raise ValueError(f"rig {rig!r}: use coarse or default")
-    return identification_rig(cfg)
+    cfg = identification_config(cfg)
+    return {"cfg": cfg, **identification_rig(DiagnosisSettings.from_config(cfg))}
+
+
+def truth_settings(truth: dict, cfg: dict):
+    """The diagnosis settings of a truth model (``cfg`` with the truth's overrides), as the generator takes them."""
+    from jointid.config.synthetic import truth_config
+    from jointid.config.typed_diagnosis import DiagnosisSettings
+
+    return DiagnosisSettings.from_config(truth_config(truth, cfg))
 
 
 def worker_env(blas_threads: int | None) -> dict:

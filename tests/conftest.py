@@ -106,10 +106,24 @@ def pytest_xdist_make_scheduler(config, log):
 def diagnosis_rig() -> dict:
     """The rig of the synthetic diagnosis tests: coarse mesh, normal and lateral joint stiffness
     identified, feed stiffness fixed (so the feed effect is not absorbed by an identified parameter).
-    Returns ``{"cfg", "model", "system", "solver"}`` (solver None: the first diagnosis makes it)."""
+    Returns ``{"cfg", "settings", "model", "system", "solver"}`` (solver None: the first diagnosis makes it;
+    ``cfg``: the validated configuration, ``settings`` its
+    :class:`~jointid.config.typed_diagnosis.DiagnosisSettings`)."""
+    from jointid.config.synthetic import identification_config
+    from jointid.config.typed_diagnosis import DiagnosisSettings
     from jointid.synthetic.generate import identification_rig
 
-    return identification_rig(coarse_config_dict())
+    cfg = identification_config(coarse_config_dict())
+    return {"cfg": cfg, **identification_rig(DiagnosisSettings.from_config(cfg))}
+
+
+def truth_settings(truth: dict, cfg: dict):
+    """The :class:`~jointid.config.typed_diagnosis.DiagnosisSettings` of a truth model: ``cfg`` with the
+    truth's overrides (:func:`jointid.config.synthetic.truth_config`), as the synthetic generator takes them."""
+    from jointid.config.synthetic import truth_config
+    from jointid.config.typed_diagnosis import DiagnosisSettings
+
+    return DiagnosisSettings.from_config(truth_config(truth, cfg))
 
 
 def ladder_text(ladder) -> str:

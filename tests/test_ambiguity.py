@@ -29,6 +29,8 @@ from jointid.reporting.diagnosis_outputs import write_outputs
 from jointid.diagnosis.terms import StateInfo
 from jointid.diagnosis.variants import dataset_states
 from conftest import diagnosis_rig, ladder_text, print_summary
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from conftest import truth_settings
 
 JOINTS = {"k_normal_N_per_m3": 8.0e11, "k_lateral_N_per_m3": 6.0e11}
 TWO_STATES = {"power_off": {"em_force_N": 0.0}, "power_on": {"em_force_N": 1000.0}}
@@ -50,17 +52,17 @@ def truth(effects: dict, *, seed: int, max_modes: int = 10, states=None, band=(1
 def run_case(rig, t: dict, folder, *, drop=None, shape_residuals=True, **kw):
     """Synthesise ``t`` into ``folder`` (shape rows where ``drop(shapes)`` is true removed), diagnose it
     (``shape_residuals`` False: the shapes pair the modes only, ``diagnosis.shape_residuals``)."""
-    out = synth.synthesise(t, rig["cfg"], model=rig["model"])
+    out = synth.synthesise(t, truth_settings(t, rig["cfg"]), model=rig["model"])
     shapes = out["shapes"]
     if drop is not None:
         shapes = shapes[~drop(shapes)]
     write_dataset(folder, out["modes"], shapes, out["frf"], conditions=out["conditions"],
                   measuring_points=out["points"])
     ds = read_dataset(folder, measuring_points=rig["system"].meta["points"])
-    data = dataset_states(ds, rig["system"], rig["cfg"])
+    data = dataset_states(ds, rig["system"], DiagnosisSettings.from_config(rig["cfg"]))
     # a fresh reduced solver per case: a subspace grown over unrelated cases only slows the solves
     cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), "shape_residuals": shape_residuals}}
-    res = diagnose(rig["system"], cfg, data, log=lambda m: None, **kw)
+    res = diagnose(rig["system"], DiagnosisSettings.from_config(cfg), data, log=lambda m: None, **kw)
     return res, data
 
 
@@ -153,7 +155,7 @@ def test_two_effects_at_once_are_named_as_a_pair_and_enabling_one_leaves_the_oth
     pair = res.combinations.set_index("effects").loc[f"{a}+{b}"]
     again = FitMemo(memo.records)
     cfg = {**rig["cfg"], "effects": {a: {}}, "diagnosis": {**rig["cfg"]["diagnosis"], "shape_residuals": False}}
-    second = diagnose(rig["system"], cfg, data, memo=again, solver=res.solver, drift=False, log=lambda m: None)
+    second = diagnose(rig["system"], DiagnosisSettings.from_config(cfg), data, memo=again, solver=res.solver, drift=False, log=lambda m: None)
     top = second.ranking.iloc[0]
     assert top.effect == b and bool(top.explains) and second.explained_by == b, second.verdict
     # the pair's optimum, to the solver tolerance (1e-6 in each eigenvalue: 5e-7 / sigma in each residual)
@@ -178,12 +180,12 @@ def test_candidates_on_top_of_two_enabled_effects_never_end_worse_than_the_model
     t = truth({"em_preload": {"beta": 0.2}, "added_mass_edge": {"mass_kg": 1.0}}, seed=33)
     cfg = {**rig["cfg"], "effects": {"em_preload": {}, "added_mass_edge": {}},
            "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), "shape_residuals": False}}
-    out = synth.synthesise(t, rig["cfg"], model=rig["model"])
+    out = synth.synthesise(t, truth_settings(t, rig["cfg"]), model=rig["model"])
     write_dataset(tmp_path / "ds", out["modes"], out["shapes"], out["frf"], conditions=out["conditions"],
                   measuring_points=out["points"])
     data = dataset_states(read_dataset(tmp_path / "ds", measuring_points=rig["system"].meta["points"]),
-                          rig["system"], cfg)
-    res = diagnose(rig["system"], cfg, data, candidates=["added_mass_table", "base_support"], drift=False,
+                          rig["system"], DiagnosisSettings.from_config(cfg))
+    res = diagnose(rig["system"], DiagnosisSettings.from_config(cfg), data, candidates=["added_mass_table", "base_support"], drift=False,
                    compare=False, log=lambda m: None)
     assert list(dict.fromkeys(res.ladder.variant))[:3] == ["baseline", "+em_preload", "+added_mass_edge"]
     current = res.ladder[res.ladder.variant == "+added_mass_edge"]

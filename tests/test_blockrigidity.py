@@ -9,6 +9,7 @@ import pytest
 
 from conftest import REPO
 from jointid.response.carriage import block_rig, block_rigidity
+from jointid.config.options import CarriageOptions
 from jointid.stages.carriage import run_carriage_rigidity
 from jointid.config import load_config
 from jointid.errors import ModelError
@@ -84,7 +85,7 @@ def test_stage_writes_every_direction_with_an_interval(cfg, tmp_path):
     (tmp_path / "params.json").write_text(json.dumps(params))
     run_cfg = copy.deepcopy(cfg)
     run_cfg["carriage_rigidity"]["cell_size_m"] = CELL_M
-    doc = run_carriage_rigidity(run_cfg, "power_off", str(tmp_path / "params.json"), str(tmp_path / "out.json"),
+    doc = run_carriage_rigidity(CarriageOptions.from_config(run_cfg), "power_off", str(tmp_path / "params.json"), str(tmp_path / "out.json"),
                                 log=lambda msg: None)
     written = json.loads((tmp_path / "out.json").read_text())
     assert written["state"] == "power_off" and set(written["directions"]) == {"lateral", "normal", "feed"}

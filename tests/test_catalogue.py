@@ -15,6 +15,7 @@ import pytest
 from conftest import REPO
 from jointid.config import load_config
 from jointid.config.load import check_config
+from jointid.config.options import CarriageOptions
 from jointid.response.carriage import BlockRigidity, catalogue_comparison, catalogue_verdict
 
 HIWIN = {"block": "HIWIN HGH25CA", "source": "HIWIN Compact, Table 1.13",
@@ -122,7 +123,7 @@ def test_stage_writes_the_comparison_of_its_assembly(cfg, tmp_path, monkeypatch)
     (tmp_path / "params.json").write_text(json.dumps(
         {"parameters": {n: {"value": v, "ci95_low": 0.8 * v, "ci95_high": 1.25 * v} for n, v in theta.items()}}))
     lines = []
-    doc = stage.run_carriage_rigidity(cfg, "power_on", str(tmp_path / "params.json"), str(tmp_path / "o.json"),
+    doc = stage.run_carriage_rigidity(CarriageOptions.from_config(cfg), "power_on", str(tmp_path / "params.json"), str(tmp_path / "o.json"),
                                       log=lines.append)
     written = json.loads((tmp_path / "o.json").read_text())
     n = written["catalogue"]["directions"]["normal"]
@@ -140,7 +141,7 @@ def test_stage_writes_the_comparison_of_its_assembly(cfg, tmp_path, monkeypatch)
 
     plain = copy.deepcopy(cfg)
     plain["catalogue"] = {}
-    assert stage.run_carriage_rigidity(plain, "power_on", str(tmp_path / "params.json"), str(tmp_path / "p.json"),
+    assert stage.run_carriage_rigidity(CarriageOptions.from_config(plain), "power_on", str(tmp_path / "params.json"), str(tmp_path / "p.json"),
                                        log=lambda m: None)["catalogue"] is None
 
 

@@ -26,6 +26,7 @@ import pytest
 
 from conftest import diagnosis_rig
 from test_joint_damping import ETA, NAMES, THETA, ZETA0, truth_file
+from conftest import truth_settings
 
 STATES = ("power_off", "power_on")
 
@@ -51,18 +52,19 @@ def _write_state(folder, cfg, polish, state, ds, with_damping: bool) -> dict:
 def _run(tmp, cfg, model_file, polish, ds, name: str, with_damping: bool):
     """The harmonic stage of both states and rule table1 on one dataset; returns (Table 1, docs, paths)."""
     from jointid.stages import harmonic as harmonic_stage
+    from jointid.config.options import HarmonicOptions, Table1Options
     from jointid.stages.tables import run_table1
 
     paths = {}
     for s in STATES:
         p = _write_state(tmp / name / s, cfg, polish[s], s, ds, with_damping)
-        harmonic_stage.run_harmonic(cfg, s, p["params"], model_file, str(tmp / name / s / "frf.csv"), p["json"],
+        harmonic_stage.run_harmonic(HarmonicOptions.from_config(cfg, s), s, p["params"], model_file, str(tmp / name / s / "frf.csv"), p["json"],
                                     verify_csv=p["verify"], out_points=p["points"], progress=lambda m: None)
         paths[s] = p
     out = tmp / name / "tables"
     out.mkdir()
     df = run_table1([paths[s]["json"] for s in STATES], None, str(out / "table1.csv"), str(out / "table1.md"),
-                    points_npz=[paths[s]["points"] for s in STATES], cfg=cfg, out_ranges=str(out / "ranges.csv"),
+                    points_npz=[paths[s]["points"] for s in STATES], opts=Table1Options.from_config(cfg), out_ranges=str(out / "ranges.csv"),
                     out_cases=str(out / "cases.csv"))
     docs = {s: json.loads(Path(paths[s]["json"]).read_text()) for s in STATES}
     return df, docs, paths
@@ -86,7 +88,7 @@ def runs(tmp_path_factory):
     plain["noise"] = {k: v for k, v in damped["noise"].items() if "damping" not in k}
     sets = {}
     for name, truth in (("damped", damped), ("frequency_only", plain)):
-        syn = synthesise(truth, cfg, model=model)
+        syn = synthesise(truth, truth_settings(truth, cfg), model=model)
         if name == "frequency_only":  # synth writes a constant ratio for undamped truths: a test without zeta
             syn["modes"] = syn["modes"].drop(columns="damping_ratio")
         write_dataset(tmp / name / "data", syn["modes"], syn["shapes"], syn["frf"], conditions=syn["conditions"],

@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from conftest import REPO, STATES, file_hashes, is_wall_clock, normalised
-from jointid.config import config_hash, load_config
+from jointid.config import ConfigStamp, config_hash, load_config
 from jointid.reporting.provenance import PACKAGES, provenance, provenance_path, write_provenance
 
 BYTE_IDENTICAL = ("results/**/*",)  # every result file, arrays (npz), mesh (vtu), figures included
@@ -30,7 +30,7 @@ def cfg():
 
 # ------------------------------------------------------------------ provenance
 def test_provenance_record_fields(cfg, tmp_path):
-    rec = provenance(cfg, repo=tmp_path)  # tmp_path is no git checkout
+    rec = provenance(ConfigStamp.of(cfg), repo=tmp_path)  # tmp_path is no git checkout
     assert rec["git_commit"] == "unknown" and rec["git_dirty"] is None
     assert rec["config_hash"] == config_hash(cfg) and re.fullmatch(r"[0-9a-f]{12}", rec["config_hash"])
     assert rec["config_sections"] == sorted(cfg)
@@ -47,7 +47,7 @@ def test_provenance_git_commit_of_a_checkout(cfg):
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True)
     if head.returncode != 0:
         pytest.skip("the repository is not a git checkout here")
-    rec = provenance(cfg, repo=REPO)
+    rec = provenance(ConfigStamp.of(cfg), repo=REPO)
     assert rec["git_commit"] == head.stdout.strip() and rec["git_where"] == "given"
     assert isinstance(rec["git_dirty"], bool)
 
@@ -55,9 +55,9 @@ def test_provenance_git_commit_of_a_checkout(cfg):
 def test_provenance_config_hash_follows_the_config(cfg):
     changed = json.loads(json.dumps(cfg))
     changed["identify"]["frequency_uncertainty_pct"] = 2.0
-    assert provenance(changed)["config_hash"] != provenance(cfg)["config_hash"]
+    assert provenance(ConfigStamp.of(changed))["config_hash"] != provenance(ConfigStamp.of(cfg))["config_hash"]
     sub = {k: cfg[k] for k in ("rig", "joints")}
-    assert provenance(sub)["config_hash"] == config_hash(sub)
+    assert provenance(ConfigStamp.of(sub))["config_hash"] == config_hash(sub)
 
 
 def test_write_provenance_beside_the_table(cfg, tmp_path):
@@ -66,7 +66,7 @@ def test_write_provenance_beside_the_table(cfg, tmp_path):
     table.write_text("order,freq_Hz\n1,344.3\n")
     inp = tmp_path / "verify.csv"
     inp.write_text("x\n1\n")
-    out = write_provenance(table, cfg, inputs=[inp, tmp_path / "absent.csv"], repo=tmp_path)
+    out = write_provenance(table, ConfigStamp.of(cfg), inputs=[inp, tmp_path / "absent.csv"], repo=tmp_path)
     assert out == provenance_path(table) == table.with_name("table2_power_off.csv.provenance.json")
     rec = json.loads(out.read_text())
     assert rec["table"] == "table2_power_off.csv"
@@ -77,7 +77,7 @@ def test_write_provenance_beside_the_table(cfg, tmp_path):
     assert sorted(p.name for p in table.parent.iterdir()) == ["table2_power_off.csv",
                                                                "table2_power_off.csv.provenance.json"]
     # rewriting replaces the record; apart from the time stamp it is reproducible
-    again = json.loads(write_provenance(table, cfg, inputs=[inp, tmp_path / "absent.csv"],
+    again = json.loads(write_provenance(table, ConfigStamp.of(cfg), inputs=[inp, tmp_path / "absent.csv"],
                                         repo=tmp_path).read_text())
     rec.pop("timestamp_utc"), again.pop("timestamp_utc")
     assert again == rec

@@ -22,6 +22,9 @@ from jointid.fe.reduced import ReducedSolver
 from jointid.threads import limit_threads
 from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from jointid.config.typed_diagnosis import DiagnoseJob
+from conftest import truth_settings
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -155,7 +158,7 @@ def coarse():
     cfg = coarse_config_dict()
     cfg = load_config(cfg)
     model = build_model(ModelSpec.from_config(cfg))
-    return cfg, T.build_system(model, cfg)
+    return cfg, T.build_system(model, ModelSpec.from_config(cfg))
 
 
 def _solver_at_reference(cfg, system) -> ReducedSolver:
@@ -212,7 +215,7 @@ def test_reduced_solver_verify_confirms_by_sturm_count_and_falls_back_to_lanczos
     assert "certificate failed (Sturm count 11 for 10 Ritz values): full Lanczos solve" in lines[-1]
 def test_variant_coefficient_derivatives(coarse):
     cfg, system = coarse
-    var = Variant(system, cfg, [EffectSpec.candidate(E.EFFECTS["em_preload"])])
+    var = Variant(system, DiagnosisSettings.from_config(cfg), [EffectSpec.candidate(E.EFFECTS["em_preload"])])
     x = var.x_start({"k_normal_N_per_m3": 8e11, "k_lateral_N_per_m3": 6e11, "k_feed_N_per_m3": 1e10})
     assert var.labels[-1] == "em_preload.beta" and x[-1] == 0.0
     on = E.StateInfo("on", 1000.0)
@@ -225,7 +228,7 @@ def test_variant_coefficient_derivatives(coarse):
     assert "K_flank_x@1" not in d[0][0]
     off = var.dcoefficients(x, E.StateInfo("off", 0.0))
     assert not off[-1][0]  # no motor force, no sensitivity to beta
-    rail = Variant(system, cfg, [EffectSpec.candidate(E.EFFECTS["rail_fixing"])])
+    rail = Variant(system, DiagnosisSettings.from_config(cfg), [EffectSpec.candidate(E.EFFECTS["rail_fixing"])])
     xr = rail.x_start()
     dr = rail.dcoefficients(xr, on)[-1][0]["K_railfix"]
     p = E.EFFECTS["rail_fixing"].params[0]
@@ -316,8 +319,8 @@ def test_measured_modes_below_the_tracked_band_are_refused(coarse):
     ds = read_dataset(ROOT / "data" / "paper")
     cfg_low = {**cfg, "solver": {**cfg["solver"], "min_freq_Hz": 400.0}}
     with pytest.raises(DataError, match=r"power_off mode 1 at 344.3 Hz lies below solver.min_freq_Hz = 400"):
-        dataset_states(ds, system, cfg_low)
-    assert len(dataset_states(ds, system, cfg)) == 2
+        dataset_states(ds, system, DiagnosisSettings.from_config(cfg_low))
+    assert len(dataset_states(ds, system, DiagnosisSettings.from_config(cfg))) == 2
 
 
 def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
@@ -329,7 +332,7 @@ def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
     data = [StateData(s, E.StateInfo(s, f), np.array([344.3]), None, 0.01)
             for s, f in (("power_off", 0.0), ("power_on", 1000.0))]
     with pytest.raises(DataError, match="2 measured frequencies for 3 fitted parameters"):
-        diagnose(system, cfg, data)
+        diagnose(system, DiagnosisSettings.from_config(cfg), data)
 
 
 def test_current_stage_gives_the_diagnosis_ladder_without_the_candidate_search(tmp_path):
@@ -344,14 +347,14 @@ def test_current_stage_gives_the_diagnosis_ladder_without_the_candidate_search(t
     rig = diagnosis_rig()
     cfg = {**rig["cfg"], "effects": {"em_preload": {"beta": 0.1}}}
     truth = synth.load_truth(Path(__file__).parent / "hidden" / "em_preload.yaml")
-    synth.write_synthetic(truth, rig["cfg"], tmp_path / "ds", model=rig["model"])
+    synth.write_synthetic(truth, truth_settings(truth, rig["cfg"]), tmp_path / "ds", model=rig["model"])
     lines = []
-    quick = run_current(cfg, tmp_path / "ds", None, tmp_path / "out", model=rig["model"], log=lines.append)
+    quick = run_current(DiagnoseJob.from_config(cfg), tmp_path / "ds", None, tmp_path / "out", model=rig["model"], log=lines.append)
     ladder = pd.read_csv(tmp_path / "out" / "ladder.csv")
     assert list(ladder.variant.unique()) == ["baseline", "+em_preload"]
     assert (tmp_path / "out" / "current.csv").exists() and (tmp_path / "out" / "compare.csv").exists()
     assert quick.ranking.empty and lines[-1].startswith("current model: baseline max ")
-    full = diagnose(rig["system"], cfg, _data(rig, cfg, tmp_path), candidates=["added_mass_edge"], log=lambda m: None)
+    full = diagnose(rig["system"], DiagnosisSettings.from_config(cfg), _data(rig, cfg, tmp_path), candidates=["added_mass_edge"], log=lambda m: None)
     cols = ["variant", "state", "max_abs_error_pct", "rms_error_pct", "chi2"]
     head = full.ladder[full.ladder.variant.isin(["baseline", "+em_preload"])][cols].reset_index(drop=True)
     pd.testing.assert_frame_equal(ladder[cols], head, rtol=1e-9)
@@ -365,7 +368,7 @@ def _data(rig, cfg, tmp_path):
     from jointid.diagnosis.variants import dataset_states
 
     ds = read_dataset(tmp_path / "ds", measuring_points=rig["system"].meta["points"])
-    return dataset_states(ds, rig["system"], cfg)
+    return dataset_states(ds, rig["system"], DiagnosisSettings.from_config(cfg))
 
 
 def test_unexplained_verdict_says_what_was_tried_on_top_of_the_enabled_effects():

@@ -19,6 +19,9 @@ from jointid.config.typed import ModelSpec
 from jointid.fe.model import build_model, save_model
 from jointid.stages.basis import run_basis
 from jointid.stages.hypotheses import run_hypothesis
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from jointid.config.hypotheses import HypothesisJob
+from jointid.reconstruction.hypotheses import check_hypothesis_effects
 
 HYPOTHESIS = {"description": "a steel table and 3 kg more on each motor (coefficients of the run's model)",
               "overrides": {"rig": {"table": {"material": "steel"}, "motors": {"mass_each_kg": 6.0}}}}
@@ -34,14 +37,14 @@ def case(tmp_path_factory):
     save_model(build_model(ModelSpec.from_config(cfg)), matrices)
     basis = tmp / "diagnosis_basis.npz"
     lines = []
-    run_basis(cfg, str(matrices), str(basis), log=lines.append)
+    run_basis(DiagnosisSettings.from_config(cfg), str(matrices), str(basis), log=lines.append)
     return cfg, tmp, matrices, basis, lines
 
 
 def _fit(case, basis, name):
     cfg, tmp, matrices, _, _ = case
     lines = []
-    rec = run_hypothesis(cfg, "heavy", str(matrices), str(tmp / f"{name}.json"), basis=basis, log=lines.append)
+    rec = run_hypothesis(HypothesisJob.from_config(cfg, "heavy", check_hypothesis_effects), str(matrices), str(tmp / f"{name}.json"), basis=basis, log=lines.append)
     return rec, lines
 
 
@@ -74,6 +77,6 @@ def test_a_basis_of_another_model_is_not_taken(case, tmp_path):
     matrices = tmp_path / "other.npz"
     save_model(build_model(ModelSpec.from_config(other)), matrices)
     lines = []
-    rec = run_hypothesis(other, "heavy", str(matrices), str(tmp_path / "h.json"), basis=str(basis), log=lines.append)
+    rec = run_hypothesis(HypothesisJob.from_config(other, "heavy", check_hypothesis_effects), str(matrices), str(tmp_path / "h.json"), basis=str(basis), log=lines.append)
     assert any("kept for another model: starting afresh" in m for m in lines), lines
     assert np.isfinite(rec["chi2"])

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from jointid.config.options import DoeOptions
 from jointid.identification import doe
 from jointid.errors import ConfigError
 from jointid.identification.surface import quadratic_basis
@@ -144,7 +145,7 @@ def _zoom_cfg(w=0.15):
 
     cfg = coarse_config_dict()
     cfg["doe"]["zoom"] = {"enabled": True, "half_width_decades": w}
-    return cfg
+    return DoeOptions.from_config(cfg)
 
 
 def test_zoom_box_spans_all_state_optima_with_the_margin():
@@ -160,10 +161,10 @@ def test_zoom_box_spans_all_state_optima_with_the_margin():
 
 
 def test_zoom_box_at_a_bound_keeps_its_width_inside_the_bounds():
-    from jointid.stages.doe import parameter_bounds, zoom_box
+    from jointid.stages.doe import zoom_box
 
     cfg = _zoom_cfg(0.2)
-    b_lo, b_hi = parameter_bounds(cfg)
+    b_lo, b_hi = cfg.joints.lower_N_per_m3, cfg.joints.upper_N_per_m3
     optima = {"a": {"k_normal_N_per_m3": b_lo[0], "k_lateral_N_per_m3": b_hi[1], "k_feed_N_per_m3": 1e10}}
     lo, hi = zoom_box(cfg, optima)
     assert np.all(lo >= b_lo * (1 - 1e-12)) and np.all(hi <= b_hi * (1 + 1e-12))
@@ -172,19 +173,19 @@ def test_zoom_box_at_a_bound_keeps_its_width_inside_the_bounds():
 
 
 def test_zoom_box_wider_than_the_bounds_is_the_bounds():
-    from jointid.stages.doe import parameter_bounds, zoom_box
+    from jointid.stages.doe import zoom_box
 
     cfg = _zoom_cfg(1.0)
     lo, hi = zoom_box(cfg, {"a": {"k_normal_N_per_m3": 1e12, "k_lateral_N_per_m3": 1e12, "k_feed_N_per_m3": 1e10}})
-    np.testing.assert_allclose(lo, parameter_bounds(cfg)[0], rtol=1e-12)
-    np.testing.assert_allclose(hi, parameter_bounds(cfg)[1], rtol=1e-12)
+    np.testing.assert_allclose(lo, cfg.joints.lower_N_per_m3, rtol=1e-12)
+    np.testing.assert_allclose(hi, cfg.joints.upper_N_per_m3, rtol=1e-12)
 
 
 def test_zoomed_sheet_codes_its_own_box():
-    from jointid.stages.doe import doe_sheet, parameter_names
+    from jointid.stages.doe import doe_sheet
 
     cfg = _zoom_cfg()
-    names = parameter_names(cfg)
+    names = cfg.joints.names
     lo, hi = np.array([2e11, 8e11, 6e9]), np.array([7e11, 2e12, 1.2e10])
     zoom, full = doe_sheet(cfg, lo, hi), doe_sheet(cfg)
     assert list(zoom.point) == list(full.point) and list(zoom.role) == list(full.role)

@@ -18,6 +18,7 @@ from jointid.fe import certify
 from jointid.fe.model import build_model
 from jointid.identification.doe_modes import centre, solve_points
 from jointid.identification.polish import solve_point
+from jointid.config.options import DoeOptions
 from jointid.stages.doe import doe_sheet
 
 
@@ -26,7 +27,7 @@ def case():
     cfg = load_config(coarse_config_dict())
     spec = ModelSpec.from_config(cfg)
     model = build_model(spec)
-    sheet = doe_sheet(cfg)
+    sheet = doe_sheet(DoeOptions.from_config(cfg))
     names = spec.joints.names
     thetas = [{n: float(v) for n, v in zip(names, row)} for row in sheet[names].to_numpy(float)]
     full = [solve_point(spec, model, th) for th in thetas]

@@ -24,7 +24,7 @@ def setup():
     cfg = coarse_config_dict()
     cfg = load_config(cfg)
     model = build_model(ModelSpec.from_config(cfg))
-    return cfg, model, T.build_system(model, cfg)
+    return cfg, model, T.build_system(model, ModelSpec.from_config(cfg))
 
 
 THETA = {"k_normal_N_per_m3": 8e11, "k_lateral_N_per_m3": 6e11, "k_feed_N_per_m3": 1e10}

@@ -37,6 +37,7 @@ from conftest import (RUN_TIMEOUT_S, SNAKEMAKE, clone_run, comparable_hashes, co
                       incomplete_markers, run_snakemake, scheduled_jobs, snakemake_cmd, tail, temporary_files,
                       workflow_env)
 from jointid import io
+from jointid.config import ConfigStamp
 from jointid.io_errors import FAULT_ENV, ResultReadError, ResultWriteError
 from jointid.reporting.provenance import check_sidecar, provenance_path, write_provenance
 from jointid.stages import jobs, recovery
@@ -200,7 +201,7 @@ def test_the_temporary_file_of_a_killed_writer_not_yet_reaped_is_stale(tmp_path)
 def _result_with_sidecar(folder: Path) -> Path:
     out = folder / "results" / "surface" / "model.json"
     io.write_json(out, {"coefficients": [1.0, 2.0]})
-    write_provenance(out, {"surface": {}}, inputs=[])
+    write_provenance(out, ConfigStamp.of({"surface": {}}), inputs=[])
     return out
 
 
@@ -208,7 +209,7 @@ def test_heal_removes_a_result_that_differs_from_its_sidecar(tmp_path):
     out = _result_with_sidecar(tmp_path)
     good = tmp_path / "results" / "tables" / "table2_power_off.csv"
     io.write_text(good, "order\n1\n")
-    write_provenance(good, {}, inputs=[])
+    write_provenance(good, ConfigStamp.of({}), inputs=[])
     assert check_sidecar(out) is None
     cut_to_half(out)
     assert "differs from the one model.json.provenance.json recorded" in check_sidecar(out)

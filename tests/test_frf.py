@@ -18,6 +18,7 @@ from jointid.errors import ConfigError, DataError, NumericalWarning
 from jointid.fe.modal import Modes
 from jointid.fe.model import base_coefficients, build_model, save_model
 from jointid.stages import harmonic as harmonic_stage
+from jointid.config.options import HarmonicOptions
 from jointid.config.typed import ModelSpec
 
 CONFIG = Path(__file__).resolve().parents[1] / "config.yaml"
@@ -182,7 +183,7 @@ def test_run_harmonic_stage(tmp_path, rig):
     (tmp_path / "params.json").write_text(json.dumps(params))
     pd.DataFrame({"order": [1, 2], "fe_mode": [1, 0]}).to_csv(tmp_path / "verify.csv", index=False)
     out = harmonic_stage.run_harmonic(
-        cfg, "power_off", str(tmp_path / "params.json"), str(tmp_path / "matrices.npz"),
+        HarmonicOptions.from_config(cfg, "power_off"), "power_off", str(tmp_path / "params.json"), str(tmp_path / "matrices.npz"),
         str(tmp_path / "frf.csv"), str(tmp_path / "ds.json"), out_modes=str(tmp_path / "m.npz"),
         verify_csv=str(tmp_path / "verify.csv"), out_points=str(tmp_path / "pts.npz"), progress=lambda m: None)
     tab = pd.read_csv(tmp_path / "frf.csv")

@@ -6,6 +6,7 @@ round trip."""
 import copy
 import json
 import warnings
+from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
@@ -15,9 +16,11 @@ import pytest
 from conftest import REPO, diagnosis_rig
 from jointid.correlate.frf import (COMPARE_COLUMNS, compare_frf, compare_table, csac, csf, frac, frf_on_grid,
                                    frf_scale_factor, log_magnitude_residual)
+from jointid.config.options import HarmonicOptions
 from jointid.errors import DataError
 from jointid.response.harmonic import dynamic_stiffness
 from jointid.response.measured import measured_dynamic_stiffness, stiffness_frame
+from conftest import truth_settings
 
 F = np.linspace(100.0, 1500.0, 701)
 
@@ -139,7 +142,7 @@ def synthetic(tmp_path_factory):
     rig = diagnosis_rig()
     truth = {"joints": TRUTH, "states": {"power_off": {"em_force_N": 0.0}},
              "measurement": {"frf": True, "drive_point": "T05", "drive_direction": "y"}, "noise": {"seed": 1}}
-    ds = write_synthetic(truth, rig["cfg"], tmp / "ds", model=rig["model"])
+    ds = write_synthetic(truth, truth_settings(truth, rig["cfg"]), tmp / "ds", model=rig["model"])
     cfg = copy.deepcopy(rig["cfg"])
     cfg["states"]["power_off"]["dataset"] = str(tmp / "ds")
     cfg["harmonic"]["damping"] = {"model": "modal", "damping_ratio": 0.02}
@@ -153,7 +156,7 @@ def run_stage(synthetic, theta: dict, name: str) -> Path:
     out = synthetic["tmp"] / name
     out.mkdir()
     (out / "params.json").write_text(json.dumps({"parameters": {n: {"value": v} for n, v in theta.items()}}))
-    harmonic_stage.run_harmonic(synthetic["cfg"], "power_off", str(out / "params.json"),
+    harmonic_stage.run_harmonic(HarmonicOptions.from_config(synthetic["cfg"], "power_off"), "power_off", str(out / "params.json"),
                                 str(synthetic["tmp"] / "matrices.npz"), str(out / "frf.csv"),
                                 str(out / "dynamic_stiffness.json"), progress=print)
     return out
@@ -210,8 +213,8 @@ def test_without_frf_csv_the_declared_outputs_say_so(tmp_path):
     for name in OUTPUTS:
         (d / name).write_text("stale")
     (d / "dynamic_stiffness.json").write_text("{}")
-    cfg = {"measurements": {"dataset": str(REPO / "data" / "paper")}, "states": {"power_off": {}}}
-    assert write_frf_comparison(cfg, "power_off", None, None, None, {}, {}, d / "dynamic_stiffness.json",
+    opts = SimpleNamespace(dataset=str(REPO / "data" / "paper"))  # the dataset alone: it has no FRF
+    assert write_frf_comparison(opts, "power_off", None, None, None, {}, {}, d / "dynamic_stiffness.json",
                                 progress=lambda m: None) is None
     assert sorted(p.name for p in d.iterdir()) == sorted(["dynamic_stiffness.json", *OUTPUTS])
     tab = pd.read_csv(d / OUTPUTS[0])

@@ -20,6 +20,8 @@ from jointid.reporting.diagnosis_outputs import write_outputs
 from jointid.diagnosis.variants import dataset_states
 from jointid.data.dataset import read_dataset
 from conftest import diagnosis_rig, ladder_text, print_summary
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from conftest import truth_settings
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = sorted((ROOT / "tests" / "hidden").glob("*.yaml"))
@@ -48,13 +50,13 @@ def test_hidden_effect_is_found(case, rig, tmp_path):
     cfg, system = rig["cfg"], rig["system"]
     truth = synth.load_truth(case)
     true = _true_effect(truth)
-    synth.write_synthetic(truth, cfg, tmp_path / "ds", model=rig["model"])
+    synth.write_synthetic(truth, truth_settings(truth, cfg), tmp_path / "ds", model=rig["model"])
     ds = read_dataset(tmp_path / "ds", measuring_points=system.meta["points"])
-    data = dataset_states(ds, system, cfg)
+    data = dataset_states(ds, system, DiagnosisSettings.from_config(cfg))
     sigma_pct = 100 * data[0].sigma_rel
     assert sigma_pct == pytest.approx(truth["noise"]["frequency_pct"])
 
-    res = diagnose(system, cfg, data, solver=rig["solver"], log=lambda m: None)
+    res = diagnose(system, DiagnosisSettings.from_config(cfg), data, solver=rig["solver"], log=lambda m: None)
     rig["solver"] = res.solver
     base = res.ladder[res.ladder.variant == "baseline"]
     base_max = float(base.max_abs_error_pct.max())
@@ -80,7 +82,7 @@ def test_hidden_effect_is_found(case, rig, tmp_path):
     assert top.estimate == pytest.approx(truth["effects"][true][pname], rel=0.25)
 
     # enabling it (one config change) brings the error down to the noise level
-    on = diagnose(system, cfg, data, effects_cfg={true: {}}, candidates=[], solver=rig["solver"],
+    on = diagnose(system, DiagnosisSettings.from_config(cfg), data, effects={true: {}}, candidates=[], solver=rig["solver"],
                   compare=False, drift=False, log=lambda m: None)
     cur = on.ladder[on.ladder.variant == f"+{true}"]
     assert cur.p_value.iloc[0] >= 0.01

@@ -16,7 +16,8 @@ from jointid.config import load_config
 from jointid.data.dataset import read_dataset
 from jointid.synthetic import generate as synth
 from jointid.diagnosis import terms as T
-from jointid.reconstruction.hypotheses import LinkedLaw, fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.config.hypotheses import LinkedLaw, hypothesis_config, needs_own_model
+from jointid.reconstruction.hypotheses import fit_hypothesis
 from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
 from jointid.diagnosis.variants import dataset_states
 from jointid.errors import ConfigError
@@ -24,6 +25,9 @@ from jointid.fe.model import build_model
 from jointid.threads import limit_threads
 from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from jointid.reconstruction.hypotheses import check_hypothesis_effects
+from conftest import truth_settings
 
 HYPOTHESES = {
     "paper_rig": {"description": "default"},
@@ -65,21 +69,21 @@ def test_a_bad_override_is_reported_with_its_hypothesis_when_the_config_is_loade
 
 
 def test_an_unknown_effect_of_a_hypothesis_is_named_before_any_job():
-    from jointid.stages.hypotheses import check_hypotheses
+    from jointid.config.hypotheses import check_hypotheses
 
     cfg = load_config(coarse_config_dict())
     cfg["hypotheses"] = {"ok": {}, "soft": {"effects": {"base_suport": {}}}}
     with pytest.raises(ConfigError) as err:
-        check_hypotheses(cfg)
+        check_hypotheses(cfg, check_hypothesis_effects)
     assert "config.yaml: hypotheses.soft.effects.base_suport: unknown effect — did you mean 'base_support'?" in str(err.value)
     cfg["hypotheses"]["soft"] = {"effects": {"base_support": {}}}
-    assert check_hypotheses(cfg) == ["ok", "soft"]
+    assert check_hypotheses(cfg, check_hypothesis_effects) == ["ok", "soft"]
 
 
 def test_cost_rank_puts_own_models_and_fitted_effects_first():
     """The scheduling rank of rule ``hypothesis``: a coefficient change 0, a fitted effect or an own
     model (another geometry) 1, both 2."""
-    from jointid.stages.hypotheses import cost_rank
+    from jointid.config.hypotheses import cost_rank
 
     cfg = load_config(coarse_config_dict())
     thick = cfg["rig"]["table"]["thickness_m"] * 0.75
@@ -180,7 +184,7 @@ def _synthesise(setup, name, folder, *, drop=None):
     if "base_support" in (hyp.get("effects") or {}):
         truth["effects"]["base_support"] = {"k_foundation_N_per_m3": 5.0e11}
     cfg = setup["cfg"]
-    ds = synth.write_synthetic(truth, cfg, folder, model=_model(setup, name))
+    ds = synth.write_synthetic(truth, truth_settings(truth, cfg), folder, model=_model(setup, name))
     if drop is not None:
         modes = pd.read_csv(folder / "modes.csv")
         ds = modes[modes["mode"] == drop].set_index("state")["freq_Hz"].to_dict()  # what was left out
@@ -194,9 +198,9 @@ def _fit_all(setup, folder, names):
     recs = {}
     for name in names:
         cfg_h = load_config(hypothesis_config(setup["cfg"], name, HYPOTHESES[name]))
-        system = T.build_system(_model(setup, name), cfg_h)
+        system = T.build_system(_model(setup, name), ModelSpec.from_config(cfg_h))
         ds = read_dataset(folder, measuring_points=system.meta["points"])
-        recs[name] = fit_hypothesis(system, cfg_h, dataset_states(ds, system, cfg_h), log=lambda m: None)
+        recs[name] = fit_hypothesis(system, DiagnosisSettings.from_config(cfg_h), LinkedLaw.from_config(cfg_h), dataset_states(ds, system, DiagnosisSettings.from_config(cfg_h)), log=lambda m: None)
     return recs
 
 

@@ -13,13 +13,18 @@ import pytest
 
 from jointid import io
 from jointid.config import load_config
-from jointid.reconstruction.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.config.hypotheses import hypothesis_config, needs_own_model
+from jointid.reconstruction.hypotheses import fit_hypothesis
 from jointid.diagnosis.terms import build_system
 from jointid.fe.model import build_model, save_model
 from jointid.stages.hypotheses import measured_states, run_hypothesis
 from jointid.threads import limit_threads
 from jointid.config.typed import ModelSpec
 from conftest import coarse_config_dict
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from jointid.config.hypotheses import HypothesisJob
+from jointid.config.hypotheses import LinkedLaw
+from jointid.reconstruction.hypotheses import check_hypothesis_effects
 
 # a lighter table (another aluminium: E and density changed, Poisson's ratio kept) and 1 kg motors
 LIGHT = {"overrides": {"materials": {"aluminium_light": {"youngs_modulus_Pa": 6.0e10, "poisson_ratio": 0.33,
@@ -66,9 +71,9 @@ def test_a_coefficient_hypothesis_fits_as_on_its_own_model(run_model):
     cfg_h = load_config(hypothesis_config(cfg, "steel", STEEL))
     fits = {}
     for key, m in (("run", model), ("own", build_model(ModelSpec.from_config(cfg_h)))):
-        system = build_system(m, cfg_h)
-        data = measured_states(cfg_h, system)
-        fits[key] = (fit_hypothesis(system, cfg_h, data, log=lambda msg: None), system)
+        system = build_system(m, ModelSpec.from_config(cfg_h))
+        data = measured_states(DiagnosisSettings.from_config(cfg_h), system)
+        fits[key] = (fit_hypothesis(system, DiagnosisSettings.from_config(cfg_h), LinkedLaw.from_config(cfg_h), data, log=lambda msg: None), system)
     (run, s_run), (own, s_own) = fits["run"], fits["own"]
     # the run's model with the table's solid terms as terms of their own; the own model has none
     solid = {"K_solid_table", "K_lambda_table", "M_solid_table"}
@@ -77,7 +82,7 @@ def test_a_coefficient_hypothesis_fits_as_on_its_own_model(run_model):
     assert s_run.stiffness["K0"] is model.stiffness["K0"]  # the run's K0 as it is: its shared basis serves
     # carried mass: the table at 7850 instead of 2700 kg/m^3 x 0.32 x 0.32 x 0.04 m and 3 x 1 kg of motors
     # instead of 3 x 3 kg
-    default = build_system(model, cfg).carried_mass_kg
+    default = build_system(model, ModelSpec.from_config(cfg)).carried_mass_kg
     volume = 0.32 * 0.32 * 0.04
     assert s_run.carried_mass_kg == pytest.approx(s_own.carried_mass_kg, rel=1e-9)
     assert s_run.carried_mass_kg == pytest.approx(default + (7850.0 - 2700.0) * volume - 6.0, rel=1e-9)
@@ -93,7 +98,7 @@ def test_a_hypothesis_attraction_replaces_the_datasets(run_model, tmp_path):
     save_model(model, path)
     cfg = dict(cfg, hypotheses={"pull": {"overrides": {"states": {"power_on": {"em_force_N": 3000.0}}}}})
     lines = []
-    rec = run_hypothesis(cfg, "pull", str(path), str(tmp_path / "fit.json"), log=lines.append)
+    rec = run_hypothesis(HypothesisJob.from_config(cfg, "pull", check_hypothesis_effects), str(path), str(tmp_path / "fit.json"), log=lines.append)
     assert not rec["own_model"]
     forces = {s["state"]: s["em_force_N"] for s in rec["states"]}
     assert forces == {"power_off": 0.0, "power_on": 3000.0}

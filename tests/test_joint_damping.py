@@ -23,6 +23,7 @@ from jointid.identification import joint_damping as jd
 from jointid.response.damping import joint_energy_share
 from jointid.config.datasets import dataset_folder
 from jointid.config.typed import ModelSpec
+from conftest import truth_settings
 
 ETA = {"k_normal_N_per_m3": 0.08, "k_lateral_N_per_m3": 0.05}
 ZETA0 = 0.004
@@ -190,7 +191,7 @@ def rig_polish(tmp_path_factory):
     rig = diagnosis_rig()
     cfg, model = rig["cfg"], rig["model"]
     folder = tmp_path_factory.mktemp("jd") / "truth"
-    out = synthesise(truth_file(5.0, 5.0), cfg, model=model)
+    out = synthesise(truth_file(5.0, 5.0), truth_settings(truth_file(5.0, 5.0), cfg), model=model)
     ds = write_dataset(folder, out["modes"], out["shapes"], out["frf"], conditions=out["conditions"],
                        measuring_points=out["points"])
     labels = dof_labels(pd.DataFrame(model.meta["points"]))
@@ -296,7 +297,7 @@ def test_misstated_noise_inflates_the_intervals(rig_polish, tmp_path, capsys):
 
     rig = rig_polish
     folder = tmp_path / "misstated"
-    write_synthetic(truth_file(10.0, 2.0), rig["cfg"], folder, model=rig["model"])
+    write_synthetic(truth_file(10.0, 2.0), truth_settings(truth_file(10.0, 2.0), rig["cfg"]), folder, model=rig["model"])
     ds = read_dataset(folder)
     assert ds.conditions["damping_uncertainty_pct"] == 2.0
     polish = rig["polish"]["power_off"]  # same frequencies and shapes (the damping noise has its own stream)

@@ -53,20 +53,28 @@ def test_parameter_check_flags_cfg_in_a_domain_layer_and_many_parameters_without
     assert len(domain) == 3
     assert "solve takes 'cfg'" in domain[0] and "damp takes 'damping_cfg'" in domain[1]
     assert "wide takes 9 parameters" in domain[2]
-    assert layout.parameter_findings(src) == [domain[2]]  # outside fe/identification/response/correlate cfg is fine
+    assert layout.parameter_findings(src) == [domain[2]]  # in the configuration layer cfg is fine
 
 
-def test_parameter_check_finds_config_in_the_domain_layers_of_a_package(tmp_path):
+def test_parameter_check_finds_config_outside_the_configuration_layer_of_a_package(tmp_path):
+    """Every layer but config/ (stages, api, diagnosis ... and the top-level modules) takes typed options."""
     pkg = tmp_path / "jointid"
-    for layer in ("fe", "stages"):
+    for layer in ("fe", "stages", "api", "diagnosis", "config"):
         (pkg / layer).mkdir(parents=True)
         (pkg / layer / "__init__.py").write_text("")
     (pkg / "__init__.py").write_text("")
     (pkg / "fe" / "a.py").write_text("def build(config):\n    return config\n")
-    (pkg / "stages" / "b.py").write_text("def run(config):\n    return config\n")
+    (pkg / "stages" / "b.py").write_text("def run(cfg):\n    return cfg\n")
+    (pkg / "api" / "d.py").write_text("class Study:\n    def __init__(self, config):\n        self.c = config\n")
+    (pkg / "diagnosis" / "e.py").write_text("def diagnose(system, effects_cfg):\n    return system\n")
+    (pkg / "cli.py").write_text("def main(run_config):\n    return run_config\n")
+    (pkg / "config" / "c.py").write_text("def load(cfg):\n    return cfg\n")
     proc = subprocess.run([sys.executable, str(ROOT / "tools" / "layout.py"), str(pkg)], capture_output=True, text=True)
     assert proc.returncode == 1
-    assert "a.py:1: build takes 'config'" in proc.stdout and "b.py" not in proc.stdout
+    assert "a.py:1: build takes 'config'" in proc.stdout and "b.py:1: run takes 'cfg'" in proc.stdout
+    assert "d.py:2: __init__ takes 'config'" in proc.stdout and "e.py:1: diagnose takes 'effects_cfg'" in proc.stdout
+    assert "cli.py:1: main takes 'run_config'" in proc.stdout
+    assert "c.py" not in proc.stdout  # the configuration layer reads the dict
 
 
 def test_a_cycle_through_annotations_only_is_a_cycle_and_a_lazy_package_is_passed_through(tmp_path):

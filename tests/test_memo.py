@@ -7,6 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from jointid.diagnosis.memo import FitMemo, _feed
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from jointid.config.typed_diagnosis import DiagnoseJob
+from conftest import truth_settings
 
 HIDDEN = Path(__file__).parent / "hidden"
 
@@ -69,15 +72,15 @@ def test_a_fit_asked_again_is_evaluated_at_its_recorded_optimum(tmp_path):
 
     rig = diagnosis_rig()
     cfg = frequency_rows_only(rig["cfg"])
-    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), cfg, tmp_path / "ds", model=rig["model"])
-    system, data = _system_and_data(cfg, tmp_path / "ds", None, rig["model"])
+    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), truth_settings(synth.load_truth(HIDDEN / "em_preload.yaml"), cfg), tmp_path / "ds", model=rig["model"])
+    system, data = _system_and_data(DiagnoseJob.from_config(cfg), tmp_path / "ds", None, rig["model"])
     memo = FitMemo()
-    first = Diagnoser(system, cfg, data, memo=memo, log=lambda m: None)
-    base = Variant(system, cfg, [])
+    first = Diagnoser(system, DiagnosisSettings.from_config(cfg), data, memo=memo, log=lambda m: None)
+    base = Variant(system, DiagnosisSettings.from_config(cfg), [])
     f1 = first.fit(base, base.x_start())
     assert memo.misses == 1 and len(memo.records) == 1
     searched = first.solver.n_checks
-    second = Diagnoser(system, cfg, data, memo=FitMemo(memo.records), log=lambda m: None)
+    second = Diagnoser(system, DiagnosisSettings.from_config(cfg), data, memo=FitMemo(memo.records), log=lambda m: None)
     f2 = second.fit(base, base.x_start())
     assert second.memo.hits == 1
     assert np.array_equal(f2.x, f1.x) and np.isclose(f2.chi2, f1.chi2, rtol=1e-6)
@@ -87,7 +90,7 @@ def test_a_fit_asked_again_is_evaluated_at_its_recorded_optimum(tmp_path):
     f3 = second.fit(base, base.x_start() + 0.1)
     assert second.memo.misses == 1 and len(second.memo.records) == 2 and np.isfinite(f3.chi2)
     # other data: another context, nothing recorded applies
-    other = Diagnoser(system, cfg, data[:1], memo=FitMemo(memo.records), log=lambda m: None)
+    other = Diagnoser(system, DiagnosisSettings.from_config(cfg), data[:1], memo=FitMemo(memo.records), log=lambda m: None)
     other.fit(base, base.x_start())
     assert other.memo.hits == 0
 
@@ -116,17 +119,17 @@ def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
 
     rig = diagnosis_rig()
     rig["cfg"] = frequency_rows_only(rig["cfg"])
-    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), rig["cfg"], tmp_path / "ds", model=rig["model"])
-    system, data = _system_and_data(rig["cfg"], tmp_path / "ds", None, rig["model"])
+    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), truth_settings(synth.load_truth(HIDDEN / "em_preload.yaml"), rig["cfg"]), tmp_path / "ds", model=rig["model"])
+    system, data = _system_and_data(DiagnoseJob.from_config(rig["cfg"]), tmp_path / "ds", None, rig["model"])
     memo = FitMemo()
-    first = diagnose(system, rig["cfg"], data, candidates=["em_preload"], drift=False, memo=memo, log=lambda m: None)
+    first = diagnose(system, DiagnosisSettings.from_config(rig["cfg"]), data, candidates=["em_preload"], drift=False, memo=memo, log=lambda m: None)
     refit = first.ranking.set_index("effect").loc["em_preload"]
     assert refit["explains"] and memo.hits == 0
     lines = []
     again = FitMemo(memo.records)
     cfg = {**rig["cfg"], "effects": {"em_preload": {}}}
     first.solver.log = lines.append  # the solver keeps its Sturm counts (a next run reads them from the kept file)
-    second = diagnose(system, cfg, data, candidates=[], drift=False, memo=again, solver=first.solver,
+    second = diagnose(system, DiagnosisSettings.from_config(cfg), data, candidates=[], drift=False, memo=again, solver=first.solver,
                       log=lines.append)
     row = second.ladder[second.ladder.variant == "+em_preload"]
     assert np.allclose(row["chi2"], refit["fit_chi2"], rtol=1e-9)

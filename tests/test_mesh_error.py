@@ -23,7 +23,7 @@ def halvings():
     theta = {"k_normal_N_per_m3": 7e11, "k_lateral_N_per_m3": 6e11}
 
     def solve(model):
-        s = build_system(model, cfg)
+        s = build_system(model, ModelSpec.from_config(cfg))
         kc, mc = baseline_coefficients(s, spec, theta)
         m = solve_modes(s.K(kc), s.M(mc), 6, fixed=s.fixed)
         return m.freqs_Hz, s.probe @ m.phi
@@ -173,8 +173,8 @@ def test_the_mesh_errors_change_with_the_joints_is_its_energy_share_change():
 
     rig = diagnosis_rig()
     cfg, spec = rig["cfg"], ModelSpec.from_config(rig["cfg"])
-    coarse = build_system(rig["model"], cfg)
-    fine = build_system(build_model(spec, halve=("thickness",)), cfg)
+    coarse = build_system(rig["model"], ModelSpec.from_config(cfg))
+    fine = build_system(build_model(spec, halve=("thickness",)), ModelSpec.from_config(cfg))
 
     def state(theta):
         kc, mc = baseline_coefficients(coarse, spec, theta)

@@ -25,6 +25,10 @@ from jointid.diagnosis.loop import diagnose
 from jointid.reporting.diagnosis_outputs import verdict_record
 from jointid.diagnosis.variants import dataset_states
 from conftest import diagnosis_rig
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from jointid.config.typed import ModelSpec
+from jointid.config.hypotheses import LinkedLaw
+from conftest import truth_settings
 
 JOINTS = {"k_normal_N_per_m3": 8.0e11, "k_lateral_N_per_m3": 6.0e11}
 TWO_STATES = {"power_off": {"em_force_N": 0.0}, "power_on": {"em_force_N": 1000.0}}
@@ -40,11 +44,11 @@ def run(rig, truth: dict, folder, **options):
     """Synthesise ``truth``, diagnose it (``options``: ``diagnosis`` settings of this case) and print
     the verdict (pytest -s)."""
     # a truth with overrides (another mesh, other masses) builds a model of its own
-    synth.write_synthetic(truth, rig["cfg"], folder, model=None if truth.get("overrides") else rig["model"])
+    synth.write_synthetic(truth, truth_settings(truth, rig["cfg"]), folder, model=None if truth.get("overrides") else rig["model"])
     ds = read_dataset(folder, measuring_points=rig["system"].meta["points"])
-    data = dataset_states(ds, rig["system"], rig["cfg"])
+    data = dataset_states(ds, rig["system"], DiagnosisSettings.from_config(rig["cfg"]))
     cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), **options}}
-    res = diagnose(rig["system"], cfg, data, log=lambda m: None)
+    res = diagnose(rig["system"], DiagnosisSettings.from_config(cfg), data, log=lambda m: None)
     print(f"\n[{folder.parent.name}] {res.verdict}")
     return res
 
@@ -115,7 +119,8 @@ def test_c_a_lighter_moving_mass_is_covered_by_the_reconstruction_range(rig, tmp
     hypotheses held 70 %.  At 10 % steps 65 % trails 75 % by 4.5 and holds 10 % of the weight: admissible
     as part of the 95 % confidence set."""
     from jointid.config import load_config
-    from jointid.reconstruction.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+    from jointid.config.hypotheses import hypothesis_config, needs_own_model
+    from jointid.reconstruction.hypotheses import fit_hypothesis
     from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
     from jointid.diagnosis.terms import build_system
 
@@ -130,16 +135,16 @@ def test_c_a_lighter_moving_mass_is_covered_by_the_reconstruction_range(rig, tmp
 
     t = truth(seed=34, effects={"em_preload": {"beta": 0.3}})
     t["overrides"] = lighter(0.7)["overrides"]
-    synth.write_synthetic(t, cfg, tmp_path / "ds")  # the truth's own model, built from its overrides
+    synth.write_synthetic(t, truth_settings(t, cfg), tmp_path / "ds")  # the truth's own model, built from its overrides
     factors = {"mass_100": 1.0, "mass_85": 0.85, "mass_75": 0.75, "mass_65": 0.65, "mass_55": 0.55, "mass_40": 0.4}
     records = {}
     for name, f in factors.items():
         hyp = lighter(f)
         assert not needs_own_model(hyp, cfg)  # a coefficient change of the one model
         cfg_h = load_config(hypothesis_config(cfg, name, hyp))
-        system = build_system(rig["model"], cfg_h)
+        system = build_system(rig["model"], ModelSpec.from_config(cfg_h))
         ds = read_dataset(tmp_path / "ds", measuring_points=system.meta["points"])
-        records[name] = fit_hypothesis(system, cfg_h, dataset_states(ds, system, cfg_h), log=lambda m: None)
+        records[name] = fit_hypothesis(system, DiagnosisSettings.from_config(cfg_h), LinkedLaw.from_config(cfg_h), dataset_states(ds, system, DiagnosisSettings.from_config(cfg_h)), log=lambda m: None)
     rows, _, me = rank_hypotheses(records)
     admissible = [r["hypothesis"] for r in rows if r["admissible"]]
     print("\n[c]", me.sentence(), [(r["hypothesis"], round(r["delta_qaicc"], 1), round(r["chi2"], 1)) for r in rows])

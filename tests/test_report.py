@@ -13,7 +13,7 @@ from jointid.reporting import figures as fg
 from jointid.reporting import tables as rp
 from jointid.reporting.checks import check_table1
 from jointid.reporting.provenance import run_record
-from jointid.config import config_hash, load_config
+from jointid.config import ConfigStamp, config_hash, load_config
 
 from conftest import REPO, STATES, clone_run, run_snakemake
 
@@ -108,7 +108,7 @@ def test_check_table1_reports_each_problem(tmp_path):
 
 def test_provenance_has_hash_versions_and_commit():
     cfg = load_config(REPO / "config.yaml")
-    prov = run_record(cfg, REPO)
+    prov = run_record(ConfigStamp.of(cfg), REPO)
     assert prov["config_hash"] == config_hash(cfg) and re.fullmatch(r"[0-9a-f]{12}", prov["config_hash"])
     assert re.match(r"[0-9a-f]{40}", prov["package_commit"])
     assert prov["versions"]["numpy"] == np.__version__

@@ -21,6 +21,7 @@ from jointid.fe.model import base_coefficients, build_model, save_model
 from jointid.identification.rom import ROM, frequency_error, load_rom
 from jointid.identification.rom_build import RomOptions, build_rom, residual_indicator, training_points
 from jointid.identification.polish import PolishFit, polish_on_model
+from jointid.config.options import DoeOptions
 from jointid.stages.doe import doe_sheet
 from jointid.stages.modal import run_modal, run_rom
 from jointid.config.typed import ModelSpec
@@ -61,9 +62,9 @@ def stage(tmp_path_factory):
     folder = tmp_path_factory.mktemp("rom_stage")
     model = build_model(ModelSpec.from_config(cfg))
     save_model(model, folder / "matrices.npz")
-    sheet = doe_sheet(cfg)
+    sheet = doe_sheet(DoeOptions.from_config(cfg))
     io.write_csv(sheet, folder / "points.csv")
-    summary = run_rom(cfg, str(folder / "matrices.npz"), str(folder / "points.csv"), str(folder / "rom.npz"),
+    summary = run_rom(ModelSpec.from_config(cfg), str(folder / "matrices.npz"), str(folder / "points.csv"), str(folder / "rom.npz"),
                       str(folder / "rom.json"))
     return cfg, model, folder, sheet, summary
 
@@ -240,8 +241,8 @@ def test_rom_modal_output_equals_the_full_modal_output(stage, tmp_path, role):
     point = pick.point.iloc[0]
     theta = _theta(cfg, sheet, point)
     full_cfg = {**cfg, "solver": {k: v for k, v in cfg["solver"].items() if k not in ("method", "rom_tolerance")}}
-    run_modal(full_cfg, str(folder / "matrices.npz"), theta, str(tmp_path / "full.npz"))
-    run_modal(cfg, str(folder / "matrices.npz"), theta, str(tmp_path / "rom.npz"), rom=str(folder / "rom.npz"))
+    run_modal(ModelSpec.from_config(full_cfg), str(folder / "matrices.npz"), theta, str(tmp_path / "full.npz"))
+    run_modal(ModelSpec.from_config(cfg), str(folder / "matrices.npz"), theta, str(tmp_path / "rom.npz"), rom=str(folder / "rom.npz"))
     full, red = np.load(tmp_path / "full.npz"), np.load(tmp_path / "rom.npz")
     assert sorted(red.files) == sorted(full.files)
     for key in full.files:
@@ -264,7 +265,8 @@ def test_rom_modal_output_equals_the_full_modal_output(stage, tmp_path, role):
 def test_rom_method_without_the_rom_file_is_a_clear_error(stage, tmp_path):
     cfg, _, folder, sheet, _ = stage
     with pytest.raises(ConfigError, match="solver.method: rom needs the reduced-order model"):
-        run_modal(cfg, str(folder / "matrices.npz"), _theta(cfg, sheet, "d000"), str(tmp_path / "x.npz"))
+        run_modal(ModelSpec.from_config(cfg), str(folder / "matrices.npz"), _theta(cfg, sheet, "d000"),
+                  str(tmp_path / "x.npz"))
     assert not (tmp_path / "x.npz").exists()
 
 
@@ -285,7 +287,7 @@ def test_dry_run_rom_rule_once_with_method_rom_and_never_with_full(tmp_path):
     out = {m: p.communicate(timeout=300)[0] for m, p in runs.items()}  # the two run side by side
     for m, p in runs.items():
         assert p.returncode == 0, tail(out[m])
-    n_points = len(doe_sheet(_cfg()))
+    n_points = len(doe_sheet(DoeOptions.from_config(_cfg())))
     jobs = {m: scheduled_jobs(text) for m, text in out.items()}
     assert jobs["rom"]["rom"] == 1 and jobs["rom"]["modal"] == n_points
     assert "rom" not in jobs["full"] and jobs["full"]["modal"] == n_points

@@ -25,6 +25,8 @@ from jointid.diagnosis.fitting import Diagnoser
 from jointid.diagnosis.loop import diagnose
 from jointid.diagnosis.variants import Variant, dataset_states
 from conftest import diagnosis_rig
+from jointid.config.typed_diagnosis import DiagnosisSettings
+from conftest import truth_settings
 
 TRUTH_EFFECT = {"base_support": {"k_foundation_N_per_m3": 3.0e11}}
 SHAPE_PCT = 23.0  # noise per DOF, % of the mode's RMS: MAC about 1 / (1 + 0.23^2) = 0.95
@@ -56,14 +58,14 @@ def states(rig, out, folder, shapes="all"):
     if sh is None:
         cond.pop("shape_uncertainty_pct", None)
     write_dataset(folder, out["modes"], sh, out["frf"], conditions=cond, measuring_points=out["points"])
-    return dataset_states(read_dataset(folder, measuring_points=rig["system"].meta["points"]), rig["system"], rig["cfg"])
+    return dataset_states(read_dataset(folder, measuring_points=rig["system"].meta["points"]), rig["system"], DiagnosisSettings.from_config(rig["cfg"]))
 
 
 def run(rig, data, shape_residuals=True, candidates=None, solver=None):
     """The diagnosis of ``data`` (``candidates``: the library effects tested; None: all; ``solver``: a
     reduced solver of an earlier run to go on with, its subspace grown, every answer still certified)."""
     cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), "shape_residuals": shape_residuals}}
-    return diagnose(rig["system"], cfg, data, candidates=candidates, solver=solver, log=lambda m: None,
+    return diagnose(rig["system"], DiagnosisSettings.from_config(cfg), data, candidates=candidates, solver=solver, log=lambda m: None,
                     drift=False, compare=False)
 
 
@@ -74,10 +76,10 @@ def lead(res) -> float:
 
 
 def test_shape_jacobian_matches_finite_differences(rig, tmp_path):
-    data = states(rig, synth.synthesise(truth(SHAPE_PCT), rig["cfg"], model=rig["model"]), tmp_path / "ds")
+    data = states(rig, synth.synthesise(truth(SHAPE_PCT), truth_settings(truth(SHAPE_PCT), rig["cfg"]), model=rig["model"]), tmp_path / "ds")
     cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), "shape_residuals": True}}
-    diag = Diagnoser(rig["system"], cfg, data, log=lambda m: None)
-    base = Variant(rig["system"], cfg, [])
+    diag = Diagnoser(rig["system"], DiagnosisSettings.from_config(cfg), data, log=lambda m: None)
+    base = Variant(rig["system"], DiagnosisSettings.from_config(cfg), [])
     x = np.log([8.0e11, 6.0e11])
     index = [p.model_index for p in diag.pair(diag.solve_states(base, x))]
     diag.evaluate(base, x, index)  # the subspace refined at x; then all three on that subspace
@@ -95,7 +97,7 @@ def test_shape_jacobian_matches_finite_differences(rig, tmp_path):
 
 
 def test_frequency_only_dataset_gives_identical_numbers_with_the_switch_on_and_off(rig, tmp_path):
-    data = states(rig, synth.synthesise(truth(0.0, shapes=False), rig["cfg"], model=rig["model"]), tmp_path / "ds")
+    data = states(rig, synth.synthesise(truth(0.0, shapes=False), truth_settings(truth(0.0, shapes=False), rig["cfg"]), model=rig["model"]), tmp_path / "ds")
     assert all(d.shapes is None for d in data)
     on, off = run(rig, data, True, TWO), run(rig, data, False, TWO)  # each from a fresh solver: bit for bit
     cols = ["delta_aicc", "delta_qaicc", "fit_chi2", "estimate", "ci95_low", "ci95_high"]
@@ -109,8 +111,8 @@ def test_frequency_only_dataset_gives_identical_numbers_with_the_switch_on_and_o
                          ids=["three effects", "whole library"])
 def test_a_tie_is_broken_by_shapes(rig, tmp_path, candidates):
     """Frequencies alone tie base_support and rail_fixing; shapes at MAC about 0.95 rank the truth first."""
-    out = synth.synthesise(truth(SHAPE_PCT), rig["cfg"], model=rig["model"])
-    clean = synth.synthesise(truth(0.0), rig["cfg"], model=rig["model"])["shapes"]  # same seed: noise-free shapes
+    out = synth.synthesise(truth(SHAPE_PCT), truth_settings(truth(SHAPE_PCT), rig["cfg"]), model=rig["model"])
+    clean = synth.synthesise(truth(0.0), truth_settings(truth(0.0), rig["cfg"]), model=rig["model"])["shapes"]  # same seed: noise-free shapes
     macs = []
     for (s, m), g in out["shapes"].groupby(["state", "mode"]):
         c = clean[(clean.state == s) & (clean["mode"] == m)].value.to_numpy()
@@ -134,7 +136,7 @@ def test_a_tie_is_broken_by_shapes(rig, tmp_path, candidates):
 def test_the_next_measurement_names_an_accelerometer_pair_that_decides(rig, tmp_path):
     """The frequency-only variant: the proposals include an accelerometer position; the shapes measured
     there (noise 5 % of the pair's RMS, as proposed) raise the truth's lead."""
-    out = synth.synthesise(truth(0.0), rig["cfg"], model=rig["model"])
+    out = synth.synthesise(truth(0.0), truth_settings(truth(0.0), rig["cfg"]), model=rig["model"])
     freq = run(rig, states(rig, out, tmp_path / "freq", shapes=None))
     nxt = freq.next_measurements
     assert "cannot tell them apart" in freq.verdict

@@ -9,6 +9,8 @@ import scipy.sparse as sp
 
 from jointid.fe import basis, fem, warmstart
 from jointid.fe.reduced import ReducedSolver
+from jointid.config.typed_diagnosis import DiagnoseJob
+from conftest import truth_settings
 
 HIDDEN = Path(__file__).parent / "hidden"
 
@@ -115,12 +117,12 @@ def test_a_warm_quick_half_agrees_with_a_cold_one(tmp_path):
 
     rig = diagnosis_rig()
     cfg = {**rig["cfg"], "effects": {"em_preload": {"beta": 0.1}}}
-    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), rig["cfg"], tmp_path / "ds", model=rig["model"])
+    synth.write_synthetic(synth.load_truth(HIDDEN / "em_preload.yaml"), truth_settings(synth.load_truth(HIDDEN / "em_preload.yaml"), rig["cfg"]), tmp_path / "ds", model=rig["model"])
     sub = tmp_path / "subspace.npz"
     runs = []
     for k in range(2):
         lines = []
-        res = run_current(cfg, tmp_path / "ds", None, tmp_path / f"out{k}", model=rig["model"], subspace=sub,
+        res = run_current(DiagnoseJob.from_config(cfg), tmp_path / "ds", None, tmp_path / f"out{k}", model=rig["model"], subspace=sub,
                           log=lines.append)
         runs.append((res, lines, pd.read_csv(tmp_path / f"out{k}" / "ladder.csv")))
     (cold, cold_lines, a), (warm, warm_lines, b) = runs
@@ -138,5 +140,5 @@ def test_a_warm_quick_half_agrees_with_a_cold_one(tmp_path):
     off = {**cfg, "diagnosis": {**(cfg.get("diagnosis") or {}), "reuse_subspace": False}}
     sub2 = tmp_path / "off.npz"
     lines = []
-    run_current(off, tmp_path / "ds", None, tmp_path / "out2", model=rig["model"], subspace=sub2, log=lines.append)
+    run_current(DiagnoseJob.from_config(off), tmp_path / "ds", None, tmp_path / "out2", model=rig["model"], subspace=sub2, log=lines.append)
     assert not sub2.exists() and not any("kept" in ln for ln in lines)

@@ -17,6 +17,7 @@ from conftest import (CORE_RULES, REPO, STATES, TABLE_COLUMNS, TABLES, clone_run
                       extra_rule_names, file_hashes, run_snakemake, scheduled_jobs, temporary_files,
                       write_config)
 from jointid.config import load_config
+from jointid.config.options import DoeOptions
 from jointid.stages.doe import doe_sheet
 
 pytestmark = pytest.mark.slow
@@ -38,7 +39,7 @@ def test_dry_run_lists_every_stage_once_per_state_and_the_doe_in_one_job(tmp_pat
     proc = run_snakemake(wd, "-j2", "-n")
     assert proc.returncode == 0, proc.stderr
     jobs = scheduled_jobs(proc.stdout + proc.stderr)
-    n_points = len(doe_sheet(coarse_config()))
+    n_points = len(doe_sheet(DoeOptions.from_config(coarse_config())))
     assert n_points == 15 + 2  # face-centred CCF in 3 factors + 1 centre, 2 verification points
     expected = {"mesh": 1, "doe": 1, "modal": 1, "gather_modal": 1, "fit_surface": 1,
                 "scout": len(STATES), "doe_zoom": 1, "modal_zoom": 1, "gather_zoom": 1, "fit_zoom": 1,

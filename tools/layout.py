@@ -11,9 +11,12 @@ Prints one line per finding and exits 1 if there is any; prints nothing and exit
   ``# over 600 lines:`` and gives the reason (one concern per module is the rule; the number only catches
   a module that has become several, and no module should be cut to fit it); no function is over 80 lines unless a comment at its top
   (before or right after its docstring) starts with ``# long`` and gives the reason.
-* No function in the domain layers of ``CONFIG_FREE`` takes the whole configuration (a parameter
-  named ``cfg`` or ``config``): they take the typed objects of :mod:`jointid.config.typed` or plain
-  numbers.  No function takes more than 8 parameters (positional and keyword-only, without
+* No function outside the configuration layer (``CONFIG_LAYERS``: ``config/``, where the dict is read and
+  made typed objects) takes the whole configuration (a parameter named ``cfg`` or ``config``, or ending in
+  ``_cfg``/``_config``): every other module of the package, ``cli`` included, takes the typed objects of
+  :mod:`jointid.config.typed`, :mod:`jointid.config.options` ... or plain numbers.  The rule adapters
+  (``workflow/scripts/``) and the Snakefile are outside the package: they hold the dict and build the typed
+  options once.  No function takes more than 8 parameters (positional and keyword-only, without
   ``self``/``cls``, ``*args`` and ``**kwargs``) unless a comment at its top starts with
   ``# many parameters:`` and gives the reason.
 """
@@ -68,8 +71,11 @@ def layer(mod: str) -> int:
 
 
 MAX_MODULE_LINES, MAX_FUNCTION_LINES, MAX_PARAMETERS = 600, 80, 8
-CONFIG_FREE = ("fe", "identification", "response", "correlate")
-"""Layers whose functions take typed objects or numbers, never the whole configuration."""
+CONFIG_LAYERS = ("config",)
+"""The layer that reads the configuration dict and turns it into typed objects (docs/architecture.md)."""
+CONFIG_FREE = tuple(name for name in LAYERS if name not in CONFIG_LAYERS)
+"""Layers whose functions take typed objects or numbers, never the whole configuration: all but
+``CONFIG_LAYERS`` (and so are the package's modules outside ``LAYERS``, e.g. ``progress``)."""
 CONFIG_NAMES = ("cfg", "config")
 """Parameter names of a configuration dict (also as a suffix: ``damping_cfg``, ``rig_config``)."""
 
@@ -92,7 +98,7 @@ def _head(lines: list[str], node) -> list[str]:
 
 def parameter_findings(path: Path, config_free: bool = False) -> list[str]:
     """Functions of ``path`` with more than 8 parameters and no ``# many parameters: <reason>`` comment at
-    their top, and (``config_free``: a module of a layer in ``CONFIG_FREE``) those taking ``cfg`` or ``config``."""
+    their top, and (``config_free``: a module outside ``CONFIG_LAYERS``) those taking ``cfg`` or ``config``."""
     lines = path.read_text().splitlines()
     out = []
     for node in _functions(ast.parse("\n".join(lines))):
@@ -100,7 +106,8 @@ def parameter_findings(path: Path, config_free: bool = False) -> list[str]:
         names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")]
         if config_free:
             out += [f"{path}:{node.lineno}: {node.name} takes {n!r}, the whole configuration — take the typed "
-                    "objects of jointid.config.typed or numbers" for n in names if _config_name(n)]
+                    "objects of jointid.config (typed, options ...), built once at the edge, or numbers"
+                    for n in names if _config_name(n)]
         if len(names) > MAX_PARAMETERS and not any(h.startswith("# many parameters:") for h in _head(lines, node)):
             out.append(f"{path}:{node.lineno}: {node.name} takes {len(names)} parameters, no '# many parameters: "
                        "<reason>' comment at its top")
@@ -168,7 +175,7 @@ def main(argv):
         print("cycle: " + " <-> ".join(comp))
         bad += 1
     for p in sorted(mods.values()):
-        config_free = p.relative_to(root).parts[0] in CONFIG_FREE
+        config_free = Path(p.relative_to(root).parts[0]).stem not in CONFIG_LAYERS
         for line in size_findings(p) + parameter_findings(p, config_free):
             print(line)
             bad += 1

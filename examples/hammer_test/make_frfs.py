@@ -36,7 +36,7 @@ def main(out: Path) -> None:
     truth = load_truth(HERE / "truth.yaml")
     cfg = truth_config(truth, read_merged([ROOT / "config.yaml", ROOT / "tests" / "coarse_config.yaml"]))
     spec = ModelSpec.from_config(cfg)
-    system = build_system(build_model(spec), cfg)
+    system = build_system(build_model(spec), spec)
     points = list(dict.fromkeys(lab.split(":")[0] for lab in system.labels))[:N_POINTS]
     dofs = [(p, d) for p in points for d in "xyz"]
     rows = [system.labels.index(f"{p}:{d}") for p, d in dofs]
@@ -47,7 +47,7 @@ def main(out: Path) -> None:
         effects = [(e.effect, e.values, e.options) for e in enabled_effects(truth.get("effects") or {})]
         kc, mc = apply_effects(system, kc, mc, StateInfo(state, float(scfg["em_force_N"])), effects)
         modes = solve_model(system, kc, mc, 20, shift_Hz=cfg["solver"]["shift_Hz"], backend=cfg["solver"]["backend"])
-        zeta, _ = hysteretic_ratios(system, cfg, kc, modes, truth)
+        zeta, _ = hysteretic_ratios(system, spec, kc, modes, truth)
         keep = (modes.freqs_Hz > 1.0) & (modes.freqs_Hz < 5000.0)
         phi = np.asarray(system.probe @ modes.phi)[rows][:, keep]
         fs = modal_frfs(GRID_HZ, modes.freqs_Hz[keep], zeta[keep], phi, dofs, refs, noise_pct=NOISE_PCT,

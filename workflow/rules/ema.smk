@@ -4,9 +4,10 @@
 #                             results/ema/<name>/report/{poles.csv, stabilisation_<state>.png, frf_<state>.png}
 # Only the named sources run: without ema.sources (the paper's data) nothing here is scheduled.
 
+from jointid.config.snakefile import ema_sources
 from jointid.stages import ema as ema_stage
 
-EMA_SOURCES = ema_stage.sources(config)
+EMA_SOURCES = ema_sources(config)
 CFG_EMA = sections(config, *ema_stage.CONFIG)
 
 

@@ -8,9 +8,11 @@
 #                                           rigidity of a carriage on its rail under its joints
 # A hypothesis that overrides materials, rig or mesh builds its own model inside its job.
 
+from jointid.config.hypotheses import check_hypotheses, cost_rank, needs_own_model
+from jointid.reconstruction.hypotheses import check_hypothesis_effects
 from jointid.stages import hypotheses as hyp_stage
 
-HYPOTHESES = hyp_stage.check_hypotheses(config)  # a bad hypothesis stops the run before any job
+HYPOTHESES = check_hypotheses(config, check_hypothesis_effects)  # a bad hypothesis stops the run before any job
 
 
 def _hypothesis_cfg(wc):
@@ -21,15 +23,13 @@ def _hypothesis_cfg(wc):
 
 def _hypothesis_basis(wc):
     """The shared basis (rules/basis.smk) for a hypothesis on the run's model; none for one that builds its own."""
-    from jointid.reconstruction.hypotheses import needs_own_model
-
     return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
 
 
 def _hypothesis_priority(wildcards, input):
-    """Longest job first among the hypotheses (:func:`jointid.stages.hypotheses.cost_rank`), below the
+    """Longest job first among the hypotheses (:func:`jointid.config.hypotheses.cost_rank`), below the
     diagnosis's priority."""
-    return PRIORITY_HYPOTHESES + hyp_stage.cost_rank(config, wildcards.name)
+    return PRIORITY_HYPOTHESES + cost_rank(config, wildcards.name)
 
 
 if HYPOTHESES:

@@ -11,7 +11,7 @@
 from jointid.config.datasets import dataset_folder as _dataset_folder
 from jointid.config.datasets import registered_datasets as _registered_datasets
 from jointid.stages import harmonic as harmonic_stage
-from jointid.stages.hypotheses import hypothesis_names as _hypothesis_names
+from jointid.config.hypotheses import hypothesis_names as _hypothesis_names
 
 FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
 

@@ -1,4 +1,6 @@
 """Snakemake adapter: fit one reconstruction hypothesis under the linked two-state law."""
+from jointid.config.hypotheses import HypothesisJob
+from jointid.reconstruction.hypotheses import check_hypothesis_effects
 from jointid.stages.hypotheses import run_hypothesis
 from jointid.stages.runner import run_script
 
@@ -10,4 +12,5 @@ def _basis(inp):
 
 
 run_script(snakemake, lambda cfg, inp, out: run_hypothesis(
-    cfg, snakemake.wildcards.name, inp.matrices, out.fit, basis=_basis(inp)), provenance=True)
+    HypothesisJob.from_config(cfg, snakemake.wildcards.name, check_hypothesis_effects), inp.matrices, out.fit,
+    basis=_basis(inp)), provenance=True)

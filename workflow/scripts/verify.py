@@ -1,8 +1,9 @@
 """Snakemake adapter: full FE re-solve at the identified parameters."""
+from jointid.config.typed import ModelSpec
 from jointid.stages.runner import run_script
 from jointid.stages import verify
 
 run_script(snakemake, lambda cfg, inp, out: verify.run_verify(
-    cfg, snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table,
+    ModelSpec.from_config(cfg), snakemake.wildcards.state, inp.params, inp.surface, inp.matrices, out.table,
     edge_matrices=list(inp.get("edges") or []), unpaired_csv=out.unpaired,
     tied_csv=out.tied, certificate_json=out.certificate), provenance=True)

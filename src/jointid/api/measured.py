@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -75,8 +76,9 @@ def pairing(d, modes, min_freq_Hz: float):
 
 
 def identification(state: str, names: list[str], theta0: dict, f_meas, polish: dict, paired_by: PairedBy,
-                   cfg: dict) -> Identification:
-    """The :class:`Identification` of a polish record (:func:`jointid.identification.polish.fe_polish`).
+                   fixed: Mapping[str, float]) -> Identification:
+    """The :class:`Identification` of a polish record (:func:`jointid.identification.polish.fe_polish`);
+    ``fixed``: the fixed joint parameters (``joints.fixed``, N/m^3).
 
     The 95 % intervals are those of ``params.json``
     (:func:`jointid.identification.polish.polish_intervals`).
@@ -85,7 +87,7 @@ def identification(state: str, names: list[str], theta0: dict, f_meas, polish: d
 
     theta = np.asarray(polish["theta"], float)
     _, lo, hi = polish_intervals(polish)
-    fixed = {k: float(v) for k, v in (cfg["joints"].get("fixed") or {}).items()}
+    fixed = {k: float(v) for k, v in fixed.items()}
     return Identification(
         state=state, theta=dict(zip(names, map(float, theta))),
         ci95_low=dict(zip(names, map(float, lo))),
@@ -98,11 +100,10 @@ def identification(state: str, names: list[str], theta0: dict, f_meas, polish: d
         shape_chi2=float(polish.get("shape_chi2") or 0.0), shape_dof=int(polish.get("shape_dof") or 0))
 
 
-def write_diagnosis(res, out_dir, dataset_name: str, cfg: dict) -> None:
+def write_diagnosis(res, out_dir, dataset_name: str, config_hash: str) -> None:
     """The files rule ``diagnose`` writes for ``res`` (:func:`jointid.reporting.diagnosis_outputs.write_outputs`),
-    with the time and the configuration's hash on the page."""
-    from jointid.config import config_hash
+    with the time and the configuration's hash (:func:`jointid.config.config_hash`) on the page."""
     from jointid.reporting.diagnosis_outputs import write_outputs
 
-    run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": config_hash(cfg)}
+    run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": config_hash}
     write_outputs(res, out_dir, dataset_name, run)

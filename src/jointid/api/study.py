@@ -17,7 +17,7 @@ import pandas as pd
 
 import jointid.api.measured as measured
 from jointid.api.results import DiagnosisResult, Identification, ModalResult
-from jointid.config.typed import Settings
+from jointid.config.study import StudySettings
 from jointid.errors import DataError
 
 if TYPE_CHECKING:
@@ -48,11 +48,12 @@ class Study:
     >>> study.modes(n=6).table()                                                # doctest: +SKIP
     """
 
-    def __init__(self, config: dict):
-        """Wrap an already validated configuration (:func:`jointid.config.load_config`); prefer
+    def __init__(self, settings: StudySettings):
+        """Wrap the settings of an already validated configuration
+        (``StudySettings.from_config(load_config(...))``, :class:`jointid.config.study.StudySettings`); prefer
         :meth:`from_config`."""
-        self._cfg = config
-        self._settings = Settings.from_config(config)  # the typed objects the domain layers take
+        self._study = settings
+        self._settings = settings.settings  # the typed objects the domain layers take
         self._model = None
         self._system = None
         self._solver = None
@@ -87,8 +88,8 @@ class Study:
 
         if isinstance(path_or_dict, Sequence) and not isinstance(path_or_dict, (str, bytes)):
             raw, source = read_merged(path_or_dict), " + ".join(map(str, path_or_dict))
-            return cls(load_config(raw, overrides, source=source))
-        return cls(load_config(path_or_dict, overrides))
+            return cls(StudySettings.from_config(load_config(raw, overrides, source=source)))
+        return cls(StudySettings.from_config(load_config(path_or_dict, overrides)))
 
     @classmethod
     def default(cls, overrides: Mapping | None = None) -> Study:
@@ -97,13 +98,13 @@ class Study:
         :meth:`from_config`; no file is read."""
         from jointid.config import load_config
 
-        return cls(load_config({}, overrides, source="the shipped defaults"))
+        return cls(StudySettings.from_config(load_config({}, overrides, source="the shipped defaults")))
 
     @property
     def config(self) -> dict:
         """The validated configuration (every default filled in).  Treat it as read-only: the cached
         model was built from it."""
-        return self._cfg
+        return self._study.config
 
     def parameters(self) -> pd.DataFrame:
         """The joint parameters: one row each, columns ``parameter, identified, lower_N_per_m3,
@@ -236,7 +237,7 @@ class Study:
         """
         from jointid.correlate.pairing import frequency_errors
 
-        frames, min_freq = [], float(self._cfg["solver"]["min_freq_Hz"])
+        frames, min_freq = [], float(self._settings.model.solver.min_freq_Hz)
         for d in self.states(dataset, [state] if state else None):
             m = self.modes(theta, n, state=d.name)
             pairs = measured.pairing(d, m, min_freq)
@@ -290,16 +291,16 @@ class Study:
         from jointid.correlate.pairing import PairedBy
         from jointid.identification.polish import PolishFit, polish_on_model
 
-        cfg, names = self._cfg, list(self._cfg["joints"]["parameters"])
+        names = self._settings.model.joints.names
         (d,) = self.states(dataset, [state])
         start = self.modes({**self.theta(), **(theta0 or {})}, state="start")
         meas_shapes = d.pairing_shapes
-        pairing = measured.pairing(d, start, float(cfg["solver"]["min_freq_Hz"]))
+        pairing = measured.pairing(d, start, float(self._settings.model.solver.min_freq_Hz))
         if len(pairing.unpaired_measured):
             raise DataError(f"measured {state} mode(s) {[i + 1 for i in pairing.unpaired_measured]} pair with "
                             "no model mode at the start — give theta0 nearer the answer, or raise solver.n_modes")
         joints = self._settings.model.joints
-        weights = cfg["identify"].get("weights")
+        weights = self._study.weights
         weights = np.ones(len(d.f_meas)) if not weights else np.asarray(weights, float)
         weights = weights * (d.noise_rms() / d.mode_sigma()) ** 2  # each mode in units of its own uncertainty
         fit = PolishFit(d.f_meas, start.shapes[:, pairing.model_index], joints.lower_N_per_m3, joints.upper_N_per_m3,
@@ -309,7 +310,8 @@ class Study:
         polish = polish_on_model(self._settings.model, self.model(), names, np.array([start.theta[k] for k in names]),
                                  fit, max_iter=max_iter, log=log or _quiet)
         result = measured.identification(state, names, start.theta, d.f_meas, polish,
-                                         PairedBy.FREQUENCY if meas_shapes is None else PairedBy.MAC, cfg)
+                                         PairedBy.FREQUENCY if meas_shapes is None else PairedBy.MAC,
+                                         joints.fixed_N_per_m3)
         self._identified[state] = result
         return result
 
@@ -317,6 +319,8 @@ class Study:
         """Write a synthetic measured dataset with hidden effects (:mod:`jointid.synthetic.generate`) to
         ``folder`` from a truth file or mapping (``tests/hidden/*.yaml`` are examples), solved on this
         study's model; returns the :class:`jointid.data.dataset.Dataset`."""
+        from jointid.config.synthetic import truth_config
+        from jointid.config.typed_diagnosis import DiagnosisSettings
         from jointid.synthetic import generate as synth
 
         if isinstance(truth, Mapping):
@@ -324,7 +328,8 @@ class Study:
             truth = dict(truth)
         else:
             truth = synth.load_truth(truth)
-        return synth.write_synthetic(truth, self._cfg, folder, model=self.model())
+        settings = DiagnosisSettings.from_config(truth_config(truth, self._study.config))
+        return synth.write_synthetic(truth, settings, folder, model=self.model())
 
     def diagnose(self, dataset: DatasetLike, *, candidates: Sequence[str] | None = None,
                  states: Sequence[str] | None = None, effects: Mapping | None = None,
@@ -365,12 +370,12 @@ class Study:
 
         ds = self._as_dataset(dataset)
         data = self.states(ds, states)
-        res = diagnose(self.system(), self._cfg, data, effects_cfg=None if effects is None else dict(effects),
+        res = diagnose(self.system(), self._study.diagnosis, data, effects=None if effects is None else dict(effects),
                        candidates=None if candidates is None else list(candidates), solver=self._solver,
                        log=log or _quiet)
         self._solver = res.solver
         if out_dir is not None:
-            measured.write_diagnosis(res, out_dir, ds.name, self._cfg)
+            measured.write_diagnosis(res, out_dir, ds.name, self._study.config_hash)
         return DiagnosisResult(verdict=res.verdict, explained_by=res.explained_by, ranking=res.ranking,
                                ladder=res.ladder, compare=res.compare, timing_s=res.timing_s, raw=res)
 
@@ -381,7 +386,7 @@ class Study:
         if self._system is None:
             from jointid.diagnosis.terms import build_system
 
-            self._system = build_system(self.model(), self._cfg)
+            self._system = build_system(self.model(), self._settings.model)
         return self._system
 
     def states(self, dataset: DatasetLike, states: Sequence[str] | None = None) -> list:
@@ -397,7 +402,8 @@ class Study:
         """
         from jointid.diagnosis.variants import dataset_states
 
-        return dataset_states(self._as_dataset(dataset), self.system(), self._cfg, list(states) if states else None)
+        return dataset_states(self._as_dataset(dataset), self.system(), self._study.diagnosis,
+                              list(states) if states else None)
 
     def _as_dataset(self, dataset: DatasetLike) -> Dataset:
         from jointid.data.dataset import Dataset
@@ -405,6 +411,6 @@ class Study:
         return dataset if isinstance(dataset, Dataset) else self.dataset(Path(dataset))
 
     def __repr__(self) -> str:
-        names = ", ".join(self._cfg["joints"]["parameters"])
+        names = ", ".join(self._settings.model.joints.names)
         built = f"{self._model.n_dofs} DOFs" if self._model is not None else "model not built yet"
-        return f"Study({self._cfg['mesh']['element']} mesh, {built}; identified: {names})"
+        return f"Study({self._settings.model.mesh.element} mesh, {built}; identified: {names})"

@@ -21,14 +21,19 @@ datasets
     The one state → dataset rule (:func:`dataset_folder`), :func:`registered_datasets` and the
     checks of states and dataset folders.
 hashing
-    :func:`config_hash`, the stable short hash of a configuration or of some sections.
+    :func:`config_hash`, the stable short hash of a configuration or of some sections; the
+    :class:`~jointid.config.hashing.ConfigStamp` (hash and sections) a provenance record keeps.
 reference
     :func:`config_reference_markdown`, the generator of ``docs/config-reference.md``.
 snakefile
-    Helpers the Snakefile uses (``validated``, ``sections``, ``merged``).
+    Helpers the Snakefile uses (``validated``, ``sections``, ``merged``, the config keys of rules
+    ``mesh`` and ``modal``).
 typed, typed_mesh
     The validated configuration as frozen dataclasses (:class:`~jointid.config.typed.Settings`,
     :class:`~jointid.config.typed.ModelSpec` ...), what the domain layers take instead of the dict.
+options
+    The stages' typed options (:class:`~jointid.config.options.DoeOptions`,
+    :class:`~jointid.config.options.IdentifyOptions` ...), built once from the config at the edge.
 __main__
     The command line ``python -m jointid.config check|reference|hash``.
 """
@@ -36,7 +41,7 @@ __main__
 from __future__ import annotations
 
 from jointid.config.datasets import dataset_folder, registered_datasets
-from jointid.config.hashing import config_hash
+from jointid.config.hashing import ConfigStamp, config_hash
 from jointid.config.load import check_config, load_config, section
 from jointid.config.reference import config_reference_markdown
 from jointid.config.rig import MAX_NODES, estimate_node_count
@@ -44,6 +49,7 @@ from jointid.config.schema import SCHEMA_ENV, find_schema, load_schema
 from jointid.yamlio import number_from_text
 
 __all__ = [
+    "ConfigStamp",
     "MAX_NODES",
     "SCHEMA_ENV",
     "check_config",

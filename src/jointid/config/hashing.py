@@ -10,12 +10,13 @@ import json
 import math
 import os
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from jointid.config.load import section
 from jointid.errors import ConfigError
 
-__all__ = ["config_hash"]
+__all__ = ["ConfigStamp", "config_digest", "config_hash"]
 
 
 def _canonical(value: Any) -> Any:
@@ -68,9 +69,26 @@ def config_hash(cfg: Mapping, keys: str | Iterable[str] | None = None) -> str:
         12 lower-case hex digits.
     """
     if keys is None:
-        payload = _canonical(cfg)
-    else:
-        keys = [keys] if isinstance(keys, str) else list(keys)
-        payload = {k: _canonical(section(cfg, k)) for k in keys}
-    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:12]
+        return config_digest(cfg)[:12]
+    keys = [keys] if isinstance(keys, str) else list(keys)
+    return config_digest({k: section(cfg, k) for k in keys})[:12]
+
+
+def config_digest(cfg: Mapping) -> str:
+    """The whole SHA-256 (64 hex digits) of the canonical JSON of ``cfg`` that :func:`config_hash` cuts to 12."""
+    text = json.dumps(_canonical(cfg), sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class ConfigStamp:
+    """What a provenance record keeps of the configuration a result depends on: its hash
+    (:func:`config_hash`, 12 hex digits) and its top-level sections, in the configuration's order."""
+
+    hash: str
+    sections: tuple[str, ...]
+
+    @classmethod
+    def of(cls, cfg: Mapping) -> ConfigStamp:
+        """The stamp of a configuration (or of the sections of it a rule gets)."""
+        return cls(config_hash(cfg), tuple(str(k) for k in cfg))

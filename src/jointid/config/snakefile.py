@@ -11,7 +11,8 @@ from jointid.config.load import load_config
 from jointid.errors import ConfigError
 from jointid.yamlio import deep_merge
 
-__all__ = ["attribute", "merged", "run_folders", "sections", "validated"]
+__all__ = ["attribute", "ema_sources", "merged", "mesh_inputs", "mesh_keys", "modal_keys", "run_folders", "sections",
+           "validated"]
 
 
 def run_folders(config: dict) -> tuple[str, str, str]:
@@ -132,3 +133,45 @@ def paper_input(config: dict, path: str) -> str | list:
     import os
 
     return path if os.path.normpath(config["measurements"]["dataset"]) == PAPER_DATASET else []
+
+
+def mesh_inputs(config: dict) -> list[str]:
+    """Files rule ``mesh`` reads the model from: with ``model.kind: mesh`` the mesh file and the measuring
+    points (so that a changed file rebuilds the model), none for the parametric rig."""
+    m = config.get("model") or {}
+    return [m["path"], m["points"]] if m.get("kind") == "mesh" else []
+
+
+def mesh_keys(config: dict) -> tuple[str, ...]:
+    """Config keys of rule ``mesh``: the mesh, not whether and how identify extrapolates over its
+    edge levels (``mesh.extrapolate_edges``, ``mesh.edge_ratio``)."""
+    if (config.get("model") or {}).get("kind") == "mesh":
+        return ("materials", "model")
+    return ("materials", "rig", "model",
+            *(f"mesh.{k}" for k in config["mesh"] if k not in ("extrapolate_edges", "edge_ratio")))
+
+
+ROM_KEYS = ("method", "rom_tolerance")
+"""``solver`` keys of the reduced-order model only."""
+CONFIG_ROM = ("materials", "rig", "model", "joints", "solver")
+"""Config keys of rule ``rom``."""
+
+
+def modal_keys(config: dict) -> tuple[str, ...]:
+    """Config keys of rules ``modal`` and ``modal_zoom``.
+
+    With ``solver.method: full`` they leave out the ROM keys (:data:`ROM_KEYS`), so that the full
+    path's jobs, params and results stay exactly those it had before the option existed; with
+    ``reduced`` (the default) they hold the method (a switch reruns the DOE solves) but not the
+    ROM's tolerance.
+    """
+    method = config["solver"]["method"]
+    if method == "rom":
+        return CONFIG_ROM
+    left_out = ROM_KEYS if method == "full" else ("rom_tolerance",)
+    return ("materials", "rig", "model", "joints", *(f"solver.{k}" for k in config["solver"] if k not in left_out))
+
+
+def ema_sources(config: dict) -> dict[str, str]:
+    """The named FRF sources of ``ema.sources`` (rule ``ema``; empty without an ``ema`` section)."""
+    return {str(k): str(v) for k, v in ((config.get("ema") or {}).get("sources") or {}).items()}

@@ -15,7 +15,7 @@ import yaml
 
 from jointid.config import load_config
 from jointid.errors import ConfigError, JointidError
-from jointid.config.typed import ModelSpec
+from jointid.config.typed_diagnosis import DiagnoseJob
 from jointid.fe.model import build_model
 from jointid.stages.diagnosis import run_diagnosis
 from jointid.yamlio import read_merged
@@ -80,10 +80,10 @@ def main(argv: list[str] | None = None) -> int:
     :class:`~jointid.errors.JointidError`, reported on stderr)."""
     args = parser().parse_args(argv)
     try:
-        cfg = command_config(args)
-        model = build_model(ModelSpec.from_config(cfg)) if args.matrices is None else None
+        job = DiagnoseJob.from_config(command_config(args))  # the configuration typed once
+        model = build_model(job.settings.model) if args.matrices is None else None
         name = args.dataset.rstrip("/").split("/")[-1]
-        run_diagnosis(cfg, name, args.dataset, args.matrices, args.out, history_csv=args.history, model=model,
+        run_diagnosis(job, name, args.dataset, args.matrices, args.out, history_csv=args.history, model=model,
                       subspace=os.path.join(args.out, "subspace.npz"))
     except JointidError as exc:
         print(str(exc), file=sys.stderr)

@@ -128,7 +128,7 @@ class Effect:
     """A named, documented, parameterised modification of the model.
 
     ``apply(system, kc, mc, state, values, options)`` modifies the coefficient dicts in place;
-    ``values`` maps parameter names to physical values.  ``requires(system, cfg, states, options)``
+    ``values`` maps parameter names to physical values.  ``requires(system, settings, states, options)``
     returns None or a sentence saying why the effect cannot act here.
     """
 
@@ -230,21 +230,21 @@ def _feed_terms(system) -> list[str]:
     return [n for n in system.stiffness if "@" in n and term_component(n) in ("z", "feed")]
 
 
-def _needs_feed(system, cfg, states, opts):
+def _needs_feed(system, settings, states, opts):
     if not _feed_terms(system):
         return "no joint layer has a feed (z) component to stiffen"
     return None
 
 
 def _needs_term(term, where):
-    def requires(system, cfg, states, opts):
+    def requires(system, settings, states, opts):
         if term not in system.stiffness and term not in system.mass:
             return f"the model has no {term} term ({where})"
         return None
     return requires
 
 
-def _needs_two_forces(system, cfg, states, opts):
+def _needs_two_forces(system, settings, states, opts):
     forces = {round(float(s.em_force_N), 6) for s in states}
     if len(forces) < 2:
         return ("needs states with different em_force_N (one force level only: the law cannot be "
@@ -252,7 +252,7 @@ def _needs_two_forces(system, cfg, states, opts):
     return None
 
 
-def _needs_clamped(system, cfg, states, opts):
+def _needs_clamped(system, settings, states, opts):
     if system.support != "clamped":
         return f"applies to a clamped base (rig.support.kind is {system.support})"
     return None
@@ -318,7 +318,7 @@ class Enabled:
     configured: tuple = ()  # the parameters given a value in the config (the others start at their default)
 
 
-def enabled_effects(effects_cfg: dict | None) -> list[Enabled]:
+def enabled_effects(effects: dict | None) -> list[Enabled]:
     """Parse the ``effects`` config section (name -> {param values, options, fit}).
 
     Raises
@@ -327,7 +327,7 @@ def enabled_effects(effects_cfg: dict | None) -> list[Enabled]:
         One line per unknown effect, unknown key or out-of-range value.
     """
     problems, out = [], []
-    for name, spec in (effects_cfg or {}).items():
+    for name, spec in (effects or {}).items():
         if name not in EFFECTS:
             close = difflib.get_close_matches(name, list(EFFECTS), n=1)
             hint = f"did you mean {close[0]!r}? " if close else ""

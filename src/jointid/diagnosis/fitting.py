@@ -33,6 +33,7 @@ import time
 import numpy as np
 from scipy.optimize import least_squares, linear_sum_assignment
 
+from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis import mesh_error
 from jointid.diagnosis.results import Evaluation, Fit
@@ -57,13 +58,12 @@ def print_log(msg: str) -> None:
 class Diagnoser:
     """Evaluates and fits variants of one system on one set of measured states."""
 
-    def __init__(self, system: System, cfg: dict, data: list[StateData], *, n_modes: int | None = None,
+    def __init__(self, system: System, settings: DiagnosisSettings, data: list[StateData], *, n_modes: int | None = None,
                  tol: float = 1e-6, mac_threshold: float = 0.5, solver: ReducedSolver | None = None,
                  start_basis=None, memo=None, log=print_log):
         # many parameters: the fit's solver options beside system, configuration and data, keyword with defaults
-        self.system, self.cfg, self.data = system, cfg, data
-        s = cfg.get("solver", {})
-        self.min_freq = float(s.get("min_freq_Hz", 100.0))
+        self.system, self.settings, self.data = system, settings, data
+        self.min_freq = settings.min_freq_Hz
         m = max(len(d.f_meas) for d in data)
         self.n_modes = n_modes or m + 8
         self.mac_threshold, self.log = mac_threshold, log
@@ -72,17 +72,17 @@ class Diagnoser:
             if solver.system is not system:
                 raise ValueError("the reduced solver belongs to another system")
         self._tol = tol
-        self._shift = float(s.get("shift_Hz", -10.0))
-        self._backend = s.get("backend", "auto")
+        self._shift = settings.shift_Hz
+        self._backend = settings.backend
         self.start_basis = start_basis  # a basis kept from an earlier run (jointid.fe.warmstart)
         self.memo = memo  # fits remembered from an earlier run (jointid.diagnosis.memo.FitMemo)
-        self.shapes = ShapeTerms(cfg, data)  # shape rows where shapes are measured (diagnosis.shape_residuals)
+        self.shapes = ShapeTerms(settings.shape_residuals, data)  # shape rows where shapes are measured (diagnosis.shape_residuals)
         self._context = None
 
     def context_digest(self) -> str:
         """Digest of what every fit of this diagnoser depends on (:meth:`FitMemo.context`), at the data
         as they are now."""
-        return self.memo.context(self.cfg, self.data, self.n_modes, self._tol, self.mac_threshold)
+        return self.memo.context(self.settings, self.data, self.n_modes, self._tol, self.mac_threshold)
 
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis.ambiguity import absorption_notes, explain_tie, tie_groups
 from jointid.diagnosis.combine import combine_candidates, refit_at, refit_on_ladder
@@ -83,7 +84,7 @@ def default_options() -> dict:
     return {k: v["default"] for k, v in props.items()}
 
 
-def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: dict | None = None,
+def diagnose(system: System, settings: DiagnosisSettings, data: list[StateData], *, effects: dict | None = None,
              candidates: list[str] | None = None, n_refit: int | None = None, alpha: float | None = None,
              reference_state: str | None = None, solver: ReducedSolver | None = None,
              start_basis=None, memo=None, compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
@@ -93,11 +94,11 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     Parameters
     ----------
     system : System
-    cfg : dict
-        Validated configuration (joints, solver, identify, diagnosis ...).
+    settings : DiagnosisSettings
+        Of the validated configuration (joints, solver, identify, diagnosis ...).
     data : list of StateData
-    effects_cfg : dict, optional
-        Effects enabled in the model (the ``effects`` config section); default ``cfg['effects']``.
+    effects : dict, optional
+        Effects enabled in the model (an ``effects`` config section); default ``settings.effects``.
     candidates : list of str, optional
         Library effects to test (default: all not enabled).
     n_refit, alpha : optional
@@ -122,14 +123,14 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     Diagnosis
     """
     t_start = time.time()
-    opt = {**default_options(), **(cfg.get("diagnosis") or {})}
+    opt = {**default_options(), **settings.diagnosis}
     opt.update({k: v for k, v in (("n_refit", n_refit), ("alpha", alpha)) if v is not None})
     alpha = float(opt["alpha"])
-    enabled = enabled_effects(cfg.get("effects") if effects_cfg is None else effects_cfg)
+    enabled = enabled_effects(settings.effects if effects is None else effects)
     data = list(data)  # the mesh's errors replace its states by copies (step 1b); the caller's list stays
-    diag = Diagnoser(system, cfg, data, solver=solver, start_basis=start_basis, memo=memo, log=log)
+    diag = Diagnoser(system, settings, data, solver=solver, start_basis=start_basis, memo=memo, log=log)
     notes = []
-    base = Variant(system, cfg, [])
+    base = Variant(system, settings, [])
     check_enough_data(data, base)
     x0, tables = compare_reference(diag, base, reference_state, compare, notes, log)
     if opt.get("mesh_error", True):
@@ -138,7 +139,7 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
     fit_base = diag.fit(base, x0, verify=not enabled)
     compare_tab, mac_mats, shape_res = tables or compare_tables(diag, base, fit_base.x)
     fits, current, ladder_rows, rows, between_share = search_best_basin(diag, fit_base, enabled, candidates,
-                                                                        effects_cfg, opt, notes, log)
+                                                                        effects, opt, notes, log)
     current_table = compare_tables(diag, current.variant, current.x)[0]
     combos, ranking, me, current_weight = combine_and_judge(diag, current, rows, fits, opt, log)
     absorbed = absorption_notes(diag, current, rows, ranking, float(opt["absorption_shift_pct"]), me)
@@ -162,28 +163,28 @@ def diagnose(system: System, cfg: dict, data: list[StateData], *, effects_cfg: d
                      model_error=me)
 
 
-def search(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, effects_cfg, opt: dict, log):
+def search(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, effects, opt: dict, log):
     """Steps 2-4: the ladder on the calibrated baseline, the candidates scored and the leading ones refitted.
     Returns ``(fits, current model, ladder rows, candidate rows, between-state share)``."""
     fits, current, ladder_rows = calibrate_ladder(diag, fit_base, enabled, log)
-    current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects_cfg)
+    current, rows, between_share = score_candidates(diag, current, enabled, candidates, effects)
     alpha = float(opt["alpha"])
     refit_candidates(diag, current, rows, fits, int(opt["n_refit"]), alpha, log, list(fits.values())[:-1])
     profile_candidate(diag, current, rows, fits, alpha, log)
     return fits, current, ladder_rows, rows, between_share
 
 
-def search_best_basin(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, effects_cfg, opt: dict,
+def search_best_basin(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, effects, opt: dict,
                       notes: list, log):
     # many parameters: those of search, and the notes the better basin adds to
     """Steps 2-4c: :func:`search`, and once more from the better basin when the baseline's calibration was in
     a worse one (:func:`better_basin`; a note says so).  Returns what :func:`search` returns."""
-    out = search(diag, fit_base, enabled, candidates, effects_cfg, opt, log)
+    out = search(diag, fit_base, enabled, candidates, effects, opt, log)
     better = None if enabled else better_basin(diag, out[1], out[0], log)
     if better is None:
         return out
     notes.append(better[1])
-    return search(diag, better[0], enabled, candidates, effects_cfg, opt, log)
+    return search(diag, better[0], enabled, candidates, effects, opt, log)
 
 
 def better_basin(diag: Diagnoser, current: Fit, fits: dict, log) -> tuple[Fit, str] | None:
@@ -245,7 +246,7 @@ def compare_reference(diag: Diagnoser, base: Variant, reference_state: str | Non
     diag.ensure_solver(base, x0)
     if not compare:
         return x0, None
-    sub = Diagnoser(diag.system, diag.cfg, [d for d in data if d.name == ref], n_modes=diag.n_modes,
+    sub = Diagnoser(diag.system, diag.settings, [d for d in data if d.name == ref], n_modes=diag.n_modes,
                     solver=diag.solver, memo=diag.memo, log=log)
     log(f"diagnosis: calibrating the baseline on {ref}")
     fit_ref = sub.fit(base, x0)
@@ -286,13 +287,13 @@ def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log
 
 
 def score_candidates(diag: Diagnoser, current: Fit, enabled: list[Enabled], candidates: list[str] | None,
-                     effects_cfg: dict | None) -> tuple[Fit, list, float]:
+                     effects: dict | None) -> tuple[Fit, list, float]:
     """Step 3: score test of every candidate effect at the current model (all states and between states).
 
     Returns the current fit re-evaluated at its optimum, the rows ``(ranking row, EffectSpec or None,
     score-test dict or None)`` per candidate and the between-state share of ``r^T r``.
     """
-    cfg, data = diag.cfg, diag.data
+    data = diag.data
     ev = diag.evaluate(current.variant, current.x, current.ev.index)
     current = Fit(current.variant, ev, current.pairings)
     in_model = {e.effect.name for e in enabled}
@@ -303,8 +304,8 @@ def score_candidates(diag: Diagnoser, current: Fit, enabled: list[Enabled], cand
     rows = []
     for name in names:
         eff = EFFECTS[name]
-        spec = EffectSpec.candidate(eff, (effects_cfg or cfg.get("effects") or {}).get(name))
-        why = eff.requires(diag.system, cfg, [d.info for d in data], spec.options) if eff.requires else None
+        spec = EffectSpec.candidate(eff, (effects or diag.settings.effects or {}).get(name))
+        why = eff.requires(diag.system, diag.settings, [d.info for d in data], spec.options) if eff.requires else None
         row = {"effect": name, "title": eff.title, "parameter": eff.params[0].name, "unit": eff.params[0].unit}
         if why:
             row.update({"explained_fraction": 0.0, "score": 0.0, "p_value": 1.0, "note": f"not applicable: {why}"})

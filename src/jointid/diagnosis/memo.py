@@ -100,13 +100,14 @@ class FitMemo:
         self.hits = self.misses = 0
 
     @staticmethod
-    def context(cfg: dict, data: list, n_modes: int, tol: float, mac_threshold: float) -> str:
-        """Digest of what every fit of one Diagnoser depends on besides the variant and the start."""
+    def context(settings, data: list, n_modes: int, tol: float, mac_threshold: float) -> str:
+        """Digest of what every fit of one Diagnoser depends on besides the variant and the start
+        (``settings``: its :class:`jointid.config.typed_diagnosis.DiagnosisSettings`)."""
         h = hashlib.sha256(code_digest().encode())
-        _feed(h, {k: v for k, v in cfg.items() if k not in ("diagnosis", "dataset", "effects")})
+        _feed(h, settings.fingerprint)  # every section but diagnosis, dataset and effects
         _feed(h, list(data))
-        _feed(h, bool((cfg.get("diagnosis") or {}).get("shape_residuals", True)))  # shape rows in the fits
-        _feed(h, bool((cfg.get("diagnosis") or {}).get("mesh_error", True)))  # the mesh's correction in the fits
+        _feed(h, settings.shape_residuals)  # shape rows in the fits
+        _feed(h, settings.mesh_error)  # the mesh's correction in the fits
         _feed(h, [int(n_modes), float(tol), float(mac_threshold)])
         return h.hexdigest()
 

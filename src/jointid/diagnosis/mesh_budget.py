@@ -22,14 +22,11 @@ __all__ = ["mesh_budget", "answer_mesh_error", "softened_terms", "SOFTENING"]
 def mesh_budget(diag, base, x0, notes: list, log) -> None:
     """Step 1b: each measured mode's mesh correction and known error at ``x0`` of the variant ``base``
     (:mod:`jointid.diagnosis.mesh_error`), set on the diagnoser's states; a note says what was done."""
-    from jointid.config.hashing import mesh_digest
-    from jointid.config.typed import ModelSpec
-
-    if all(d.computed_on_mesh == mesh_digest(diag.cfg) for d in diag.data):
+    if all(d.computed_on_mesh == diag.settings.mesh_digest for d in diag.data):
         notes.append("the mesh error is not in the budget: the data were computed on this very mesh "
                      "(conditions.yaml computed_on_mesh), so the model has no discretisation error against them")
         return
-    if ModelSpec.from_config(diag.cfg).is_mesh_file:
+    if diag.settings.model.is_mesh_file:
         notes.append("the mesh error is not in the budget: a mesh file cannot be refined here (the model error "
                      "sigma_m holds it)")
         return
@@ -41,9 +38,7 @@ def mesh_budget(diag, base, x0, notes: list, log) -> None:
 def _estimate_at(diag, variant, x, log) -> MeshErrors:
     """The mesh errors of every state at ``x`` of ``variant``, from the memo when it holds them.  The states
     must not carry a correction (their modes are solved here as the run's mesh gives them)."""
-    from jointid.config.typed import ModelSpec
-
-    halve = tuple((diag.cfg.get("diagnosis") or {}).get("mesh_error_halve") or DEFAULT_HALVE)
+    halve = diag.settings.mesh_error_halve or DEFAULT_HALVE
     key = rec = None
     if diag.memo is not None:  # asked before at the same point of the same model and data: recorded
         key = diag.memo.value_key(diag.context_digest(), "mesh_errors", variant.name, np.asarray(x, float),
@@ -55,7 +50,7 @@ def _estimate_at(diag, variant, x, log) -> MeshErrors:
     sols = diag.solve_states(variant, x)
     index = [p.model_index for p in diag.pair(sols)]
     diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
-    errors = estimate_mesh_errors(ModelSpec.from_config(diag.cfg), diag.cfg, diag.system, diag.data, sols, index,
+    errors = estimate_mesh_errors(diag.settings.model, diag.system, diag.data, sols, index,
                                   halve, n_modes=diag.n_modes, lift=diag.lift,
                                   solid=[solid_share(diag.solver, s) for s in sols], log=log)
     if key is not None:

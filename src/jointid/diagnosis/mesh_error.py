@@ -177,16 +177,16 @@ class MeshErrors:
         return rows
 
 
-def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tuple, *, n_modes: int,
+def estimate_mesh_errors(spec, system, data, sols, index, halve: tuple, *, n_modes: int,
                          lift=None, solid=None, log=print) -> MeshErrors:
-    # many parameters: the model (spec, cfg, system), the states with their solutions and pairing, the refinement
+    # many parameters: the model (spec, system), the states with their solutions and pairing, the refinement
     """Each measured mode's mesh correction and known error (see the module doc).
 
     Parameters
     ----------
-    spec, cfg, system : ModelSpec, dict, jointid.diagnosis.terms.System
-        The run's model (the parametric rig; a mesh file cannot be refined), the configuration the
-        diagnosis system was built with, and that system on the run's mesh.
+    spec, system : ModelSpec, jointid.diagnosis.terms.System
+        The run's model (the parametric rig; a mesh file cannot be refined; the diagnosis system was built
+        with it), and that system on the run's mesh.
     data : list of StateData
     sols : list of jointid.fe.reduced.Solution
         The modes of every state at the parameter point, on the run's mesh.
@@ -221,7 +221,7 @@ def estimate_mesh_errors(spec, cfg: dict, system, data, sols, index, halve: tupl
                                      "gm": {t: np.zeros(len(sol.freqs_Hz)) for t in c[1]}}
              for c, sol in zip(coarse, sols)]
     for cls in halve:
-        fine = build_system(build_model(spec, halve=(cls,)), cfg)
+        fine = build_system(build_model(spec, halve=(cls,)), spec)
         out.n_dofs = (out.n_dofs[0], max(out.n_dofs[1], int(fine.n_dofs)))
         done = []  # (coefficients, result) of the states solved: states at equal coefficients share one solve
         for k, sol in enumerate(sols):

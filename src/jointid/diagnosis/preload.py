@@ -40,7 +40,7 @@ def _with_preload(variant: Variant, k: int, P: float) -> Variant:
     effects = list(variant.effects)
     s = effects[k]
     effects[k] = EffectSpec(s.effect, dict(s.values), {**s.options, "preload_N": float(P)}, list(s.free))
-    return Variant(variant.system, variant.cfg, effects, theta_fixed=variant.theta_fixed)
+    return Variant(variant.system, variant.settings, effects, theta_fixed=variant.theta_fixed)
 
 
 def _slot(variant: Variant) -> tuple[int, int] | None:

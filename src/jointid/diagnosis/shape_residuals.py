@@ -121,8 +121,7 @@ class ShapeTerms:
     its start values) and then held fixed; :attr:`source` says which.
     """
 
-    def __init__(self, cfg: dict, data):
-        on = bool((cfg.get("diagnosis") or {}).get("shape_residuals", True))
+    def __init__(self, on: bool, data):
         self.data = data
         self.states = [k for k, d in enumerate(data) if on and d.shapes is not None and np.isfinite(d.shapes).any()]
         self.eps = {k: getattr(data[k], "shape_sigma_rel", None) for k in self.states}

@@ -115,10 +115,10 @@ def drift_table(diag: Diagnoser, current: Fit, log, skip: bool = False) -> pd.Da
     var = current.variant
     theta, vals = var.unpack(current.x)
     fixed_specs = [EffectSpec(s.effect, v, s.options, []) for s, v in zip(var.effects, vals)]
-    one = Variant(diag.system, diag.cfg, fixed_specs, theta_fixed=var.theta_fixed)
+    one = Variant(diag.system, diag.settings, fixed_specs, theta_fixed=var.theta_fixed)
     rows = []
     for k, d in enumerate(diag.data):
-        sub = Diagnoser(diag.system, diag.cfg, [d], n_modes=diag.n_modes, solver=diag.solver, memo=diag.memo,
+        sub = Diagnoser(diag.system, diag.settings, [d], n_modes=diag.n_modes, solver=diag.solver, memo=diag.memo,
                         log=log)
         if sum(np.asarray(current.ev.index[k]) >= 0) <= one.n_params:
             continue

@@ -2,7 +2,7 @@
 
 The system of terms (:class:`System`)
 ------------------------------------
-``build_system(model, cfg)`` derives from a built model:
+``build_system(model, spec)`` derives from a built model:
 
 * the joint layers split per carriage: ``K_top_y@0 .. K_top_y@3`` (carriage numbers follow
   ``model.meta['carriage_centres_m']``), so a per-carriage contact pressure can scale each block;
@@ -163,22 +163,21 @@ def term_component(name: str) -> str:
     return name.split("@")[0].rsplit("_", 1)[1]
 
 
-def build_system(model: Model, cfg: dict) -> System:
+def build_system(model: Model, spec: ModelSpec) -> System:
     """Diagnosis system of ``model``: joint terms per carriage and the clamped support as springs.
 
     Parameters
     ----------
     model : Model
         Built or loaded model (``model.build_model`` / ``model.load_model``).
-    cfg : dict
-        Validated configuration (uses ``rig.support.kind``).
+    spec : ModelSpec
+        The configuration's model (its materials; ``rig.support.kind`` where the model does not say).
     """
     centres = np.asarray(model.meta["carriage_centres_m"], float)
     xz = centres[:, [0, 2]]
     loc = model.doflocs[[0, 2]].T  # (n_scalar, 2)
     d2 = ((loc[:, None, :] - xz[None, :, :]) ** 2).sum(axis=2)
     owner = np.repeat(np.argmin(d2, axis=1), 3)
-    spec = ModelSpec.from_config(cfg)
     add_lame_terms(spec, model)  # a part of another Poisson's ratio: its volumetric term
     ks, ms = solid_coefficients(spec, model)  # the configuration's materials against the model's
     stiffness = {"K0": model.stiffness["K0"]}
@@ -189,7 +188,7 @@ def build_system(model: Model, cfg: dict) -> System:
                 stiffness[f"{name}@{c}"] = part
         elif name != "K0":
             stiffness[name] = A
-    support = model.meta.get("support") or cfg["rig"]["support"]["kind"]
+    support = model.meta.get("support") or spec.rig.support_kind
     fixed = np.asarray(model.fixed, dtype=np.int64)
     if support == "clamped":
         fixed = np.array([], dtype=np.int64)  # bonded foundation layer instead (see module doc)

@@ -18,7 +18,7 @@ from jointid.correlate import pairing as correlate
 from jointid.diagnosis.effects import Effect, apply_effects
 from jointid.diagnosis.terms import StateInfo, System, baseline_coefficients
 from jointid.errors import DataError
-from jointid.config.typed import ModelSpec, TestSetup
+from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.identification.visibility import dataset_rule
 
 
@@ -72,11 +72,11 @@ class StateData:
         return self.shapes
 
 
-def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = None) -> list[StateData]:
+def dataset_states(ds, system: System, settings: DiagnosisSettings, states: list[str] | None = None) -> list[StateData]:
     """:class:`StateData` of the requested states of a :class:`jointid.data.dataset.Dataset`.
 
-    The motor force comes from the dataset's ``conditions.yaml`` (the measured input), else from
-    ``cfg['states']``.  The frequency uncertainty is per mode where modes.csv gives
+    The motor force comes from the dataset's ``conditions.yaml`` (the measured input), else from the
+    configured ``states`` (``settings``).  The frequency uncertainty is per mode where modes.csv gives
     ``freq_uncertainty_pct``, else the dataset's ``frequency_uncertainty_pct``, else
     ``identify.frequency_uncertainty_pct``; the shape uncertainty is the dataset's
     ``shape_uncertainty_pct`` (None when not stated: the diagnosis estimates it).  Each state carries the observability rule of its
@@ -87,33 +87,31 @@ def dataset_states(ds, system: System, cfg: dict, states: list[str] | None = Non
     if missing:
         raise DataError([f"{ds.name}: state {s!r} is not in the dataset — its states are "
                          f"{', '.join(ds.states)}" for s in missing])
-    sigma = float(ds.conditions.get("frequency_uncertainty_pct",
-                                    cfg.get("identify", {}).get("frequency_uncertainty_pct", 1.0))) / 100
+    sigma = float(ds.conditions.get("frequency_uncertainty_pct", settings.frequency_uncertainty_pct)) / 100
     shape_pct = ds.conditions.get("shape_uncertainty_pct")
     shape_sigma = None if shape_pct is None else float(shape_pct) / 100
-    low = correlate.below_band(ds.name, {s: ds.freqs(s) for s in names},
-                               float(cfg.get("solver", {}).get("min_freq_Hz", 0.0)))
+    low = correlate.below_band(ds.name, {s: ds.freqs(s) for s in names}, settings.min_freq_Hz)
     if low:
         raise DataError(low)
     out = []
     for s in names:
         cond = ds.state_conditions(s)
-        force = cond.get("em_force_N", cfg.get("states", {}).get(s, {}).get("em_force_N", 0.0))
+        force = cond.get("em_force_N", settings.em_force_N.get(s, 0.0))
         shapes = None
         if ds.shapes is not None and s in set(ds.shapes["state"]):
             shapes = ds.shape_matrix(s, system.labels)
         per = ds.frequency_sigma_rel(s)  # per-mode uncertainties (modes.csv freq_uncertainty_pct), e.g. an EMA's
         out.append(StateData(s, StateInfo(s, float(force)), ds.freqs(s), shapes, sigma if per is None else per,
-                             state_rule(ds, s, system, cfg, shapes), shape_sigma,
+                             state_rule(ds, s, system, settings, shapes), shape_sigma,
                              computed_on_mesh=ds.conditions.get("computed_on_mesh")))
     return out
 
 
-def state_rule(ds, state: str, system: System, cfg: dict, shapes: np.ndarray | None):
+def state_rule(ds, state: str, system: System, settings: DiagnosisSettings, shapes: np.ndarray | None):
     """The observability rule of ``state`` at the system's probe labels
     (:func:`jointid.identification.visibility.dataset_rule`)."""
     return dataset_rule(ds, state, system.labels, system.meta["points"]["point"], shapes,
-                        TestSetup.from_config(cfg), f"{ds.name}/conditions.yaml")
+                        settings.test_setup, f"{ds.name}/conditions.yaml")
 
 
 @dataclass
@@ -140,19 +138,19 @@ class Variant:
     ``(effect number, Param)`` for each of them, in the order of ``x``.
     """
 
-    def __init__(self, system: System, cfg: dict, effects: list[EffectSpec] = (), name: str | None = None,
-                 theta_fixed: dict | None = None):
-        self.system, self.cfg = system, cfg
-        self.spec = ModelSpec.from_config(cfg)  # once: the coefficients are asked for thousands of times
-        jp = cfg["joints"]["parameters"]
+    def __init__(self, system: System, settings: DiagnosisSettings, effects: list[EffectSpec] = (),
+                 name: str | None = None, theta_fixed: dict | None = None):
+        self.system, self.settings = system, settings
+        self.spec = settings.model  # the coefficients are asked for thousands of times
+        jp = {p.name: p for p in self.spec.joints.parameters}
         self.theta_fixed = dict(theta_fixed or {})
         self.joint_names = [n for n in jp if n not in self.theta_fixed]
         self.effects = list(effects)
         self.name = name or ("baseline" if not self.effects else
                              "baseline + " + " + ".join(e.effect.name for e in self.effects))
         self.labels = list(self.joint_names)
-        lo = [math.log(jp[n]["lower"]) for n in self.joint_names]
-        hi = [math.log(jp[n]["upper"]) for n in self.joint_names]
+        lo = [math.log(jp[n].lower_N_per_m3) for n in self.joint_names]
+        hi = [math.log(jp[n].upper_N_per_m3) for n in self.joint_names]
         self.slots = []
         for i, spec in enumerate(self.effects):
             for pname in spec.free:
@@ -222,4 +220,4 @@ class Variant:
 
     def extended(self, spec: EffectSpec) -> "Variant":
         """This variant plus one more effect (its parameters appended at the end of ``x``)."""
-        return Variant(self.system, self.cfg, self.effects + [spec], theta_fixed=self.theta_fixed)
+        return Variant(self.system, self.settings, self.effects + [spec], theta_fixed=self.theta_fixed)

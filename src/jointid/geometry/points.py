@@ -8,16 +8,19 @@ and torsion.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pandas as pd
 
 
-def measuring_points(rig_cfg: dict, dims: dict) -> pd.DataFrame:
-    """Measuring-point table: columns ``point, part, x_m, y_m, z_m``.
+def measuring_points(geometry: Mapping, dims: dict) -> pd.DataFrame:
+    """Measuring-point table: columns ``point, part, x_m, y_m, z_m`` (``geometry``: the rig's description,
+    :attr:`jointid.config.typed.RigModel.geometry`).
 
     Points sit on the top surfaces; coordinates in metres.
     """
-    b, t = rig_cfg["base"], rig_cfg["table"]
+    b, t = geometry["base"], geometry["table"]
     zt = t["position_m"]
     rows = []
     tx = np.array([-0.375, 0.0, 0.375]) * t["width_m"]

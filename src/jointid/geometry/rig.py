@@ -15,6 +15,7 @@ each carriage: lateral, X).  Axes: X lateral, Y up, Z feed; origin at the base's
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -72,10 +73,11 @@ class Rig:
         return ids
 
 
-def build_rig(rig_cfg: dict) -> Rig:
-    """Build the stage geometry from the ``rig`` section of the configuration."""
-    b, r, c, t = rig_cfg["base"], rig_cfg["rails"], rig_cfg["carriages"], rig_cfg["table"]
-    mot, sup = rig_cfg["motors"], rig_cfg["support"]
+def build_rig(geometry: Mapping) -> Rig:
+    """Build the stage geometry from the rig's description (the ``rig`` section of the configuration:
+    :attr:`jointid.config.typed.RigModel.geometry`)."""
+    b, r, c, t = geometry["base"], geometry["rails"], geometry["carriages"], geometry["table"]
+    mot, sup = geometry["motors"], geometry["support"]
     H, rail_top = b["height_m"], b["height_m"] + r["height_m"]
     c_top = b["height_m"] + c["height_m"]
     t_top = c_top + t["thickness_m"]

@@ -27,11 +27,12 @@ contact direction of a guide: ``k_feed`` is one constant for both states, the se
 
 from __future__ import annotations
 
-import copy
 import math
-from dataclasses import dataclass
 
 import numpy as np
+
+from jointid.config.hypotheses import COEFFICIENT_KEYS, HYPOTHESIS_KEYS, MODEL_SECTIONS, LinkedLaw  # noqa: F401
+from jointid.config.typed_diagnosis import DiagnosisSettings
 
 from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
@@ -41,131 +42,53 @@ from jointid.diagnosis.criteria import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
 from jointid.errors import ConfigError
 from jointid.progress import Steps
-from jointid.yamlio import deep_merge
 
-__all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "COEFFICIENT_KEYS", "LinkedLaw", "hypothesis_config", "needs_own_model",
-           "linked_variant", "fit_hypothesis",
-           "state_joints"]
-
-HYPOTHESIS_KEYS = ("description", "overrides", "fixed", "effects")
-MODEL_SECTIONS = ("materials", "rig", "model", "mesh")
-"""Sections the FE model is built from.  An override of them builds the hypothesis's own model
-unless it changes coefficients of the run's model only (:func:`needs_own_model`)."""
-COEFFICIENT_KEYS = (("rig", "motors", "mass_each_kg"), ("rig", "motors", "count"),
-                    ("rig", "rails", "fixing_stiffness_N_per_m3"), ("rig", "support", "k_mount_N_per_m"))
-"""Rig keys that are coefficients of the run's model (``M_motor``, ``K_railfix``, ``K_mount``);
-materials are too (``K_solid_<part>``, ``M_solid_<part>``, :mod:`jointid.fe.model`; a part of another
-Poisson's ratio adds ``K_lambda_<part>``, :mod:`jointid.fe.lame`)."""
+__all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "COEFFICIENT_KEYS", "LinkedLaw", "check_hypothesis_effects",
+           "linked_variant", "fit_hypothesis", "state_joints"]
 
 
-@dataclass(frozen=True)
-class LinkedLaw:
-    """The linked two-state law of the ``linked`` config section."""
-
-    preload_classes_N: tuple = (0.0,)
-    directions: tuple = ("x", "y")
-    beta_start: float = 0.3
-
-    @classmethod
-    def from_config(cls, cfg: dict) -> "LinkedLaw":
-        """The law of ``cfg['linked']`` (defaults where absent)."""
-        sec = dict(cfg.get("linked") or {})
-        classes = tuple(float(p) for p in sec.get("preload_classes_N", (0.0,)))
-        return cls(classes or (0.0,), tuple(sec.get("directions", ("x", "y"))),
-                   float(sec.get("beta_start", 0.3)))
-
-
-def hypothesis_config(cfg: dict, name: str, hyp: dict) -> dict:
-    """The configuration of hypothesis ``name``: ``cfg`` with its overrides merged, its fixed joint
-    parameters moved from ``joints.parameters`` to ``joints.fixed`` and its effects added to
-    ``effects``.  Raise :class:`ConfigError` on an unknown key or a fixed name that is no joint
-    parameter."""
-    where = f"config.yaml: hypotheses.{name}"
-    unknown = [k for k in hyp if k not in HYPOTHESIS_KEYS]
-    if unknown:
-        raise ConfigError([f"{where}.{k}: unknown key — allowed keys: {', '.join(HYPOTHESIS_KEYS)}" for k in unknown])
-    out = deep_merge(copy.deepcopy(cfg), copy.deepcopy(hyp.get("overrides") or {}))
-    joints = out["joints"]
-    params = dict(joints["parameters"])
-    fixed = dict(joints.get("fixed") or {})
-    for k, v in (hyp.get("fixed") or {}).items():
-        if k not in params and k not in fixed:
-            raise ConfigError(f"{where}.fixed.{k}: not a joint parameter — use one of {', '.join(params)}")
-        params.pop(k, None)
-        fixed[k] = float(v)
-    joints["parameters"], joints["fixed"] = params, fixed
-    effects = dict(out.get("effects") or {})
-    effects.update(copy.deepcopy(hyp.get("effects") or {}))
-    out["effects"] = effects
+def check_hypothesis_effects(where: str, effects: dict | None) -> None:
+    """Raise :class:`ConfigError` when the ``effects`` of a hypothesis (``where``: ``config.yaml:
+    hypotheses.<name>``) do not parse (:func:`jointid.diagnosis.effects.enabled_effects`), its lines naming the
+    hypothesis, not the run's effects section (the check :func:`jointid.config.hypotheses.hypothesis_config`
+    is handed)."""
     try:
-        enabled_effects(hyp.get("effects"))
+        enabled_effects(effects)
     except ConfigError as exc:  # name the hypothesis, not the run's effects section
         raise ConfigError([str(line).replace("config.yaml: effects.", f"{where}.effects.")
                            for line in exc.problems]) from None
-    return out
 
 
-def needs_own_model(hyp: dict, cfg: dict | None = None) -> bool:
-    """Whether the hypothesis changes the FE model itself, not only coefficients of the run's model.
-
-    With the run's configuration ``cfg``: whether its overrides change what a coefficient cannot —
-    geometry (thickness, spacing, positions), the support kind, the mesh, a mesh file.  A part's
-    material (``materials``, or another material: Young's modulus, density and Poisson's ratio, the
-    last by the Lamé split of :mod:`jointid.fe.lame`), motor mass or count, rail-fixing or mount
-    stiffness is a coefficient change of the run's model (:func:`jointid.fe.model.base_coefficients`).  Without
-    ``cfg``: whether it overrides any of :data:`MODEL_SECTIONS` at all."""
-    over = hyp.get("overrides") or {}
-    if not any(k in MODEL_SECTIONS for k in over):
-        return False
-    if cfg is None:
-        return True
-    return _model_shape(cfg) != _model_shape(deep_merge(copy.deepcopy(cfg), copy.deepcopy(over)))
-
-
-def _model_shape(cfg: dict) -> dict:
-    """What of the model sections of ``cfg`` no coefficient can change: the sections without the
-    materials, the parts' choice of material and :data:`COEFFICIENT_KEYS` (a mesh file's model: the
-    sections as they are)."""
-    shape = {k: copy.deepcopy(cfg.get(k)) for k in MODEL_SECTIONS}
-    if (shape["model"] or {}).get("kind", "rig") == "mesh":
-        return shape
-    shape.pop("materials")
-    rig = shape["rig"] or {}
-    for section in ("base", "rails", "carriages", "table"):
-        (rig.get(section) or {}).pop("material", None)
-    for sec, sub, key in COEFFICIENT_KEYS:
-        ((shape.get(sec) or {}).get(sub) or {}).pop(key, None)
-    return shape
-
-
-def _effect_specs(cfg: dict) -> list[EffectSpec]:
+def _effect_specs(effects: dict) -> list[EffectSpec]:
     """The hypothesis's effects (``effects`` of its config, the linked law's own effect left out)."""
     specs = []
-    for en in enabled_effects(cfg.get("effects")):
+    for en in enabled_effects(effects):
         if en.effect.name != "em_preload":  # the linked law is this effect
             specs.append(EffectSpec(en.effect, dict(en.values), dict(en.options),
                                     [p.name for p in en.effect.params] if en.fit else []))
     return specs
 
 
-def linked_variant(system, cfg: dict, law: LinkedLaw | None, preload_N: float = 0.0) -> Variant:
-    """The variant of a hypothesis: its effects, plus the contact law at ``preload_N`` unless ``law``
-    is None (one force level: the law cannot act)."""
-    specs = _effect_specs(cfg)
+def linked_variant(system, settings: DiagnosisSettings, law: LinkedLaw | None, preload_N: float = 0.0) -> Variant:
+    """The variant of a hypothesis (``settings``: of its configuration): its effects, plus the contact law at
+    ``preload_N`` unless ``law`` is None (one force level: the law cannot act)."""
+    specs = _effect_specs(settings.effects)
     if law is not None:
         em = EFFECTS["em_preload"]
         opts = {**em.options, "preload_N": float(preload_N), "directions": list(law.directions)}
         specs.append(EffectSpec(em, {"beta": law.beta_start}, opts, ["beta"]))
-    return Variant(system, cfg, specs, theta_fixed=dict(cfg["joints"].get("fixed") or {}))
+    return Variant(system, settings, specs, theta_fixed=dict(settings.model.joints.fixed_N_per_m3))
 
 
 def _forces_differ(data: list[StateData]) -> bool:
     return len({round(d.info.em_force_N, 6) for d in data}) > 1
 
 
-def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None, log=print_log) -> dict:
-    """Fit one hypothesis (its configuration ``cfg``, :func:`hypothesis_config`) to ``data`` under the
-    linked law; the best preload class by chi-square.
+def fit_hypothesis(system, settings: DiagnosisSettings, law: LinkedLaw, data: list[StateData], *, start_basis=None,
+                   log=print_log) -> dict:
+    """Fit one hypothesis (``settings`` and ``law``: of its configuration,
+    :func:`jointid.config.hypotheses.hypothesis_config`) to ``data`` under the linked law; the best preload
+    class by chi-square.
 
     Returns a JSON-ready record: chi-square, counts, AICc, parameters with 95 % intervals scaled by
     ``max(1, sqrt(chi2 / dof))``, per-state errors (misfits counted), the unpaired visible modes, the
@@ -173,17 +96,16 @@ def fit_hypothesis(system, cfg: dict, data: list[StateData], *, start_basis=None
     for measurements not made yet (:func:`jointid.reconstruction.predictions.measurement_predictions`).  ``start_basis``: a basis of ``system`` to start
     the reduced solver from (:mod:`jointid.stages.basis`).
     """
-    law = LinkedLaw.from_config(cfg)
     linked = _forces_differ(data)
     classes = law.preload_classes_N if linked else (law.preload_classes_N[0],)
     # measured shapes are fitted as in the diagnosis: a block of their own, with its own model error in the ranking
-    diag = Diagnoser(system, cfg, data, start_basis=start_basis, log=log)
+    diag = Diagnoser(system, settings, data, start_basis=start_basis, log=log)
     profile, best = [], None
     x_prev = None
     index = None
     steps = Steps(len(classes))
     for P in classes:  # continuation: each class starts at the optimum (and pairing) of the one before
-        var = linked_variant(system, cfg, law if linked else None, P)
+        var = linked_variant(system, settings, law if linked else None, P)
         if x_prev is None:  # the configured start and the hypothesis's effects at their null, best kept
             fit = min((diag.fit(var, x0) for x0 in _starts(var)), key=lambda f: f.chi2)
         else:
@@ -280,19 +202,19 @@ def dynamic_stiffness(fit: Fit, si: int) -> dict:
     of a paired mode.  ``{}`` when the drive point is not a measuring point of the model."""
     from jointid.response.ranges import band_minimum
 
-    h = fit.variant.cfg.get("harmonic") or {}
-    label = f"{h.get('drive_point', 'T05')}:{h.get('direction', 'y')}"
+    h = fit.variant.settings.response
+    label = f"{h.drive_point}:{h.direction}"
     labels = list(fit.variant.system.labels)
     if label not in labels:
         return {}
     sol = fit.ev.solutions[si]
-    zeta = float((h.get("damping") or {}).get("damping_ratio", 0.03))
+    zeta = h.damping_ratio
     idx = np.asarray(fit.ev.index[si])
     paired = np.zeros(len(sol.freqs_Hz), bool)
     paired[idx[idx >= 0]] = True
-    out = band_minimum(h.get("band_Hz", (300.0, 3500.0)), sol.freqs_Hz, np.full(len(sol.freqs_Hz), zeta),
+    out = band_minimum(h.band_Hz, sol.freqs_Hz, np.full(len(sol.freqs_Hz), zeta),
                        np.zeros(len(sol.freqs_Hz)), np.asarray(sol.shapes, float)[labels.index(label)],
-                       paired=paired, n_freq=int(h.get("n_freq", 1601)))
+                       paired=paired, n_freq=h.n_freq)
     return {"k_min_N_per_m": out["k_min_N_per_m"], "f_at_min_Hz": out["f_at_min_Hz"],
             "k_paired_N_per_m": out["k_paired_N_per_m"], "damping_ratio": zeta}
 
@@ -307,7 +229,8 @@ def state_joints(fit: Fit, d: StateData) -> dict:
             continue
         scale = float(np.mean(pressure_ratio(fit.variant.system, d.info, spec.options) ** v["beta"]))
         dirs = set(spec.options.get("directions") or ("x", "y"))
+        directions = fit.variant.settings.directions
         for name in out:
-            if fit.variant.cfg["joints"]["parameters"].get(name, {}).get("direction") in dirs:
+            if directions.get(name) in dirs:
                 out[name] *= scale
     return out

@@ -39,35 +39,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from jointid.config.hypotheses import ProposalOptions
 from jointid.diagnosis.shape_proposal import VISIBLE_RMS, pair_chi2
 from jointid.reconstruction.ranking import admissible, admissible_rows
 
 __all__ = ["ProposalOptions", "ScalarCandidate", "ShapePairCandidate", "expected_gain", "propose",
            "next_measurement_markdown", "COLUMNS"]
-
-
-@dataclass(frozen=True)
-class ProposalOptions:
-    """The assumed uncertainties of the candidate measurements and the draws (config ``next_measurement``)."""
-
-    weight_uncertainty_pct: float = 2.0
-    static_stiffness_uncertainty_pct: float = 5.0
-    shape_uncertainty_pct: float = 5.0
-    n_draws: int = 400
-    seed: int = 50
-    target: str = ""
-    delta: float = 4.0
-
-    @classmethod
-    def from_config(cls, cfg: dict | None, delta: float = 4.0) -> "ProposalOptions":
-        """The options of ``cfg['next_measurement']`` (defaults where absent)."""
-        sec = dict((cfg or {}).get("next_measurement") or {})
-        d = cls()
-        return cls(float(sec.get("weight_uncertainty_pct", d.weight_uncertainty_pct)),
-                   float(sec.get("static_stiffness_uncertainty_pct", d.static_stiffness_uncertainty_pct)),
-                   float(sec.get("shape_uncertainty_pct", d.shape_uncertainty_pct)),
-                   int(sec.get("n_draws", d.n_draws)), int(sec.get("seed", d.seed)),
-                   str(sec.get("target") or ""), float(delta))
 
 
 @dataclass

@@ -82,15 +82,15 @@ def measurement_predictions(diag, fit, data) -> dict:
     """The record's ``predictions`` (module doc) of ``fit`` (a certified fit of ``diag``) on ``data``."""
     system = fit.variant.system
     labels = list(system.labels)
-    h = fit.variant.cfg.get("harmonic") or {}
-    point = str(h.get("drive_point", "T05"))
+    h = fit.variant.settings.response
+    point = h.drive_point
     dirs = [d for d in DIRECTIONS if f"{point}:{d}" in labels]
     rows = [labels.index(f"{point}:{d}") for d in dirs]
     solver = diag.solver
     P, load = None, "point"
     if solver is not None and rows:
         solver.release_factor()  # the fit is done: its factorisation's memory serves the static solve
-        P, load = _drive_rows(system, solver, point, dirs, rows, float(h.get("patch_diameter_m", 0.0)))
+        P, load = _drive_rows(system, solver, point, dirs, rows, h.patch_diameter_m)
     states = []
     for si, d in enumerate(data):
         sol = fit.ev.solutions[si]

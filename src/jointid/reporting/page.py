@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import base64
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import pandas as pd
 from markupsafe import Markup
@@ -24,6 +25,9 @@ from jointid.reporting.more_data import more_data_html
 from jointid.reporting.summary import card_items, key_numbers
 from jointid.reporting.damping_section import damping_section_html, shown as damping_shown
 from jointid.reporting.table_sections import freq_tables_html, table1_html
+
+if TYPE_CHECKING:
+    from jointid.config.options import ReportOptions
 
 __all__ = ["build_html", "html_table", "report_figures"]
 
@@ -61,15 +65,15 @@ def _mode_pictures(data: dict) -> dict[str, list[dict]]:
     return out
 
 
-def report_figures(cfg: dict, data: dict) -> dict[str, bytes]:
+def report_figures(opts: ReportOptions, data: dict) -> dict[str, bytes]:
     """The report's figures as PNG bytes: ``frf, errors, parameters, surface, doe, mode_shapes`` and, when
-    the carriage rigidity has a catalogue comparison, ``catalogue`` (embedded only)."""
+    the carriage rigidity has a catalogue comparison, ``catalogue`` (embedded only; ``opts``: the parameters'
+    bounds and the surfaces' verification limit)."""
     from jointid.reporting import figures as fg
 
     paper1 = data["paper_table1"].set_index("state")["paper_dynamic_stiffness_N_per_mm"].to_dict()
     sigma = {s: float(_or(p.frequency_uncertainty_pct, 1.0)) for s, p in data["params"].items()}
-    bounds = {n: (s["lower"], s["upper"]) for n, s in cfg.get("joints", {}).get("parameters", {}).items()}
-    limit = cfg.get("surface", {}).get("max_verification_error_pct")
+    bounds, limit = dict(opts.bounds_N_per_m3), opts.max_verification_error_pct
     return {
         "frf": fg.png_bytes(fg.frf_overlay(data["frf"], data["stiffness"], paper1,
                                            {s: list(p.f_meas_Hz) for s, p in data["params"].items()})),
@@ -257,16 +261,13 @@ def _hypotheses_html(data: dict) -> str:
                            h.get("next"))
 
 
-def _provenance_html(cfg: dict, prov: dict) -> str:
-    import yaml
-
+def _provenance_html(opts: ReportOptions, prov: dict) -> str:
     rows = [("workflow commit", prov["workflow_commit"]), ("jointid package commit", prov["package_commit"]),
             ("config hash (jointid.config.config_hash)", prov["config_hash"]),
             ("Python", f"{prov['python']} on {prov['platform']}")]
     rows += [(k, v) for k, v in prov["versions"].items()]
     table = html_table(pd.DataFrame(rows, columns=["item", "value"]), text_cols=("item", "value"))
-    text = yaml.safe_dump(cfg, sort_keys=False, default_flow_style=None, width=110)
-    return _env().get_template("provenance.html.j2").render(table=Markup(table), config_text=text)
+    return _env().get_template("provenance.html.j2").render(table=Markup(table), config_text=opts.config_yaml)
 
 
 def _short(commit: str) -> str:
@@ -296,7 +297,7 @@ def _frf_measured_html(data: dict) -> str:
     return frf_section_html(*data["frf_measured"], html_table=html_table)
 
 
-def _sections(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> list[tuple[str, str, str]]:
+def _sections(opts: ReportOptions, data: dict, figs: dict[str, bytes], prov: dict) -> list[tuple[str, str, str]]:
     """The sections below the summary card: (anchor, title, HTML)."""
     return [
         ("table1", "Table 1 — dynamic stiffness", _table1_section(data)),
@@ -322,17 +323,17 @@ def _sections(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> list
           if data.get("hypotheses") else []),
         ("surface", "DOE and response-surface diagnostics", _img(figs["doe"], "DOE")
          + _img(figs["surface"], "surface diagnostics") + _diag_html(data)),
-        ("prov", "Configuration and provenance", _provenance_html(cfg, prov)),
+        ("prov", "Configuration and provenance", _provenance_html(opts, prov)),
     ]
 
 
-def build_html(cfg: dict, data: dict, figs: dict[str, bytes], prov: dict) -> str:
+def build_html(opts: ReportOptions, data: dict, figs: dict[str, bytes], prov: dict) -> str:
     """The report page (one string, figures embedded): the summary card (:func:`card_items`, with the
     parameters figure), then the sections. ``data`` as read by :func:`jointid.stages.report.load_inputs`,
     ``prov`` by :func:`jointid.reporting.provenance.run_record`."""
     reset_ids()
     d0 = next(iter(data["stiffness"].values()))
-    sections = _sections(cfg, data, figs, prov)
+    sections = _sections(opts, data, figs, prov)
     band = f"{d0['band_Hz'][0]:g}–{d0['band_Hz'][1]:g} Hz"
     return _env().get_template("page.html.j2").render(
         prov=prov, short_commit=_short(prov["package_commit"]), d0=d0, band=band, summary=key_numbers(data),

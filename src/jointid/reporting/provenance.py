@@ -16,13 +16,13 @@ depends on, i.e. ``snakemake.params.cfg``), so it changes exactly when the stage
 
 Public API
 ----------
-provenance(config, *, inputs=None, repo=None) -> dict
-write_provenance(table_path, config, *, inputs=None, repo=None) -> pathlib.Path
+provenance(stamp, *, inputs=None, repo=None) -> dict  (stamp: jointid.config.ConfigStamp.of(config))
+write_provenance(table_path, stamp, *, inputs=None, repo=None) -> pathlib.Path
 provenance_path(table_path) -> pathlib.Path
 git_state(repo=None, sections=None) -> (commit, dirty, where)
 pin_config_state(paths) -> None  (the Snakefile: which config sections differ from the commit, at load)
 check_sidecar(path) -> str | None  (why ``path`` does not match its sidecar, or None)
-run_record(config, workdir=".") -> dict  (the provenance of a whole run, as the report page shows it)
+run_record(stamp, workdir=".") -> dict  (the provenance of a whole run, as the report page shows it)
 
 ``git_dirty`` describes the tree when the output is written, with one exception: the config files
 the run loaded count as they were at load time (:func:`pin_config_state`), and only in the sections
@@ -44,7 +44,7 @@ from importlib import metadata
 from pathlib import Path
 
 from jointid import io
-from jointid.config import config_hash
+from jointid.config import ConfigStamp
 
 __all__ = ["PACKAGES", "REPORT_PACKAGES", "SUFFIX", "check_sidecar", "git_state", "pin_config_state", "provenance",
            "provenance_path", "run_record", "sha256_file", "write_provenance"]
@@ -211,14 +211,15 @@ def sha256_file(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def provenance(config: Mapping, *, inputs: Iterable[str | os.PathLike] | None = None,
+def provenance(stamp: ConfigStamp, *, inputs: Iterable[str | os.PathLike] | None = None,
                repo: str | os.PathLike | None = None, input_hashes: Mapping[str, str] | None = None) -> dict:
-    """Provenance record of a result computed from ``config``.
+    """Provenance record of a result computed from the configuration ``stamp`` names.
 
     Parameters
     ----------
-    config : mapping
-        The configuration (or the sections of it) the result depends on.
+    stamp : ConfigStamp
+        The configuration (or the sections of it) the result depends on:
+        :meth:`jointid.config.ConfigStamp.of` of it.
     inputs : iterable of path-like, optional
         Input files; their SHA-256 is recorded (missing files as ``"missing"``).
     repo : path-like, optional
@@ -234,13 +235,13 @@ def provenance(config: Mapping, *, inputs: Iterable[str | os.PathLike] | None = 
         ``packages`` ({distribution: version}), ``python`` (version), ``platform``,
         ``timestamp_utc`` (ISO 8601, seconds, ``Z``) and, if given, ``inputs`` ({path: sha256}).
     """
-    commit, dirty, where = git_state(repo, sections=[str(k) for k in config])
+    commit, dirty, where = git_state(repo, sections=list(stamp.sections))
     rec = {
         "git_commit": commit,
         "git_dirty": dirty,
         "git_where": where,
-        "config_hash": config_hash(config),
-        "config_sections": sorted(str(k) for k in config),
+        "config_hash": stamp.hash,
+        "config_sections": sorted(stamp.sections),
         "packages": {d: _version(d) for d in PACKAGES},
         "python": platform.python_version(),
         "platform": platform.platform(terse=True),
@@ -259,7 +260,7 @@ def provenance_path(table_path: str | os.PathLike) -> Path:
     return p.with_name(p.name + SUFFIX)
 
 
-def write_provenance(table_path: str | os.PathLike, config: Mapping, *,
+def write_provenance(table_path: str | os.PathLike, stamp: ConfigStamp, *,
                      inputs: Iterable[str | os.PathLike] | None = None,
                      repo: str | os.PathLike | None = None, record: Mapping | None = None) -> Path:
     """Write the provenance of ``table_path`` atomically to ``<table>.provenance.json``.
@@ -274,7 +275,7 @@ def write_provenance(table_path: str | os.PathLike, config: Mapping, *,
         Path of the sidecar.
     """
     table_path = Path(table_path)
-    rec = dict(record) if record is not None else provenance(config, inputs=inputs, repo=repo)
+    rec = dict(record) if record is not None else provenance(stamp, inputs=inputs, repo=repo)
     rec["table"] = table_path.name
     rec["table_sha256"] = sha256_file(table_path) if table_path.is_file() else "missing"
     out = provenance_path(table_path)
@@ -315,18 +316,18 @@ def _commit_text(folder: Path) -> str:
     return commit + (" (with uncommitted changes)" if dirty else "")
 
 
-def run_record(config: Mapping, workdir: str | os.PathLike = ".") -> dict:
-    """Provenance of a whole run, as the report page shows it.
+def run_record(stamp: ConfigStamp, workdir: str | os.PathLike = ".") -> dict:
+    """Provenance of a whole run (``stamp``: of its configuration), as the report page shows it.
 
     Returns
     -------
     dict
         ``workflow_commit`` (of ``workdir``), ``package_commit`` (of the jointid package's folder),
-        ``config_hash`` (:func:`jointid.config.config_hash` of ``config``), ``python``,
+        ``config_hash`` (:func:`jointid.config.config_hash` of the configuration), ``python``,
         ``platform`` and ``versions`` ({distribution: version} of :data:`REPORT_PACKAGES`).
     """
     return {"workflow_commit": _commit_text(Path(workdir)),
             "package_commit": _commit_text(Path(__file__).resolve().parents[1]),
-            "config_hash": config_hash(config),
+            "config_hash": stamp.hash,
             "python": platform.python_version(), "platform": platform.platform(),
             "versions": {d: _version(d) for d in REPORT_PACKAGES}}

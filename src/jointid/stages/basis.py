@@ -15,8 +15,8 @@ that part's solid terms: it projects those on the basis and goes on from it.  A 
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
-from jointid.config.datasets import dataset_folder
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.diagnosis.terms import build_system
@@ -26,32 +26,35 @@ from jointid.fe.model import load_model
 from jointid.fe.modal import free_dofs
 from jointid.threads import limit_threads
 
+if TYPE_CHECKING:
+    from jointid.config.typed_diagnosis import DiagnosisSettings
+
 CONFIG = ("materials", "rig", "model", "joints", "states", "measurements", "solver", "identify", "harmonic")
 """Config sections of rule ``diagnosis_basis`` (plus ``datasets`` when a state names one).  Not ``effects``:
 the basis starts at the baseline, and enabling an effect (the loop of docs/effects.md) must not build it again."""
 
 
-def measured_states(cfg: dict, system) -> list:
+def measured_states(settings: DiagnosisSettings, system) -> list:
     """:class:`~jointid.diagnosis.variants.StateData` of every configured state, read from its dataset
-    folder (states sharing a folder are read together)."""
+    folder (``settings.datasets``; states sharing a folder are read together)."""
     folders: dict[str, list[str]] = {}
-    for state in cfg["states"]:
-        folders.setdefault(dataset_folder(cfg, state), []).append(state)
+    for state, folder in settings.datasets.items():
+        folders.setdefault(folder, []).append(state)
     data = []
     for folder, states in folders.items():
         ds = read_dataset(folder, measuring_points=system.meta["points"])
-        data += dataset_states(ds, system, cfg, states)
+        data += dataset_states(ds, system, settings, states)
     return data
 
 
-def run_basis(cfg: dict, matrices: str, out_npz: str, *, log=print_log) -> None:
+def run_basis(settings: DiagnosisSettings, matrices: str, out_npz: str, *, log=print_log) -> None:
     """Build the reduced solver of the run's model at the diagnosis's first point (the baseline at its
     start, the run's measured states) and keep its basis in ``out_npz``."""
     limit_threads(1)
     t0 = time.time()
-    system = build_system(load_model(matrices), cfg)
-    diag = Diagnoser(system, cfg, measured_states(cfg, system), log=log)
-    base = Variant(system, cfg, [])
+    system = build_system(load_model(matrices), settings.model)
+    diag = Diagnoser(system, settings, measured_states(settings, system), log=log)
+    base = Variant(system, settings, [])
     diag.ensure_solver(base, base.x_start())
     # without its products (each reader forms them, about 0.5 s): 39 MB on the default mesh.  (A
     # single-precision start that each reader projects itself took 20 MB, for about 1 s more per reader.)

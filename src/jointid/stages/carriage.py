@@ -3,14 +3,18 @@ carriage on its rail (:mod:`jointid.response.carriage`), the number to hold agai
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from jointid import io
-from jointid.config.typed import ModelSpec
+
+if TYPE_CHECKING:
+    from jointid.config.options import CarriageOptions
 
 CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "catalogue")
 """Config keys of rule ``carriage_rigidity``."""
 
 
-def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str, log=print) -> dict:
+def run_carriage_rigidity(opts: CarriageOptions, state: str, params_json: str, out_json: str, log=print) -> dict:
     """Rule ``carriage_rigidity``: the identified joints of one state as a catalogue's block rigidity.
 
     Writes, per direction: the joint springs alone (parameter x contact area), the carriage and rail
@@ -26,16 +30,16 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
     from jointid.response.carriage import DIRECTIONS, BlockTest, catalogue_comparison, catalogue_verdict
 
     par = IdentificationRecord.read(params_json)
-    cell = cfg["carriage_rigidity"]["cell_size_m"]
-    test = BlockTest(ModelSpec.from_config(cfg), cell)
+    cell = opts.cell_size_m
+    test = BlockTest(opts.model, cell)
     res = test.rigidity(par.theta)
     low, high = test.rigidity(par.theta_low, False), test.rigidity(par.theta_high, False)
     springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction
     along = {"x": "lateral", "y": "normal", "z": "feed"}
-    for name, spec in cfg["joints"]["parameters"].items():
-        per = (par.per_carriage or {}).get(name.replace("_N_per_m3", "_per_carriage_N_per_um"))
+    for p in opts.model.joints.parameters:
+        per = (par.per_carriage or {}).get(p.name.replace("_N_per_m3", "_per_carriage_N_per_um"))
         if per is not None:
-            springs[along[spec["direction"]]] += per.value
+            springs[along[p.direction]] += per.value
     rows = {}
     for d in DIRECTIONS:
         a = res.assembly_N_per_m[d] * 1e-6
@@ -52,7 +56,7 @@ def run_carriage_rigidity(cfg: dict, state: str, params_json: str, out_json: str
            "test": "one carriage on a rail segment (2 rail heights beyond either end), rail bottom clamped, "
                    "carriage top moved as a rigid plate; rigidity = reaction / displacement",
            "directions": rows}
-    doc["catalogue"] = catalogue_comparison(rows, cfg.get("catalogue"))
+    doc["catalogue"] = catalogue_comparison(rows, opts.catalogue)
     for d, c in (doc["catalogue"] or {}).get("directions", {}).items():
         log(f"carriage_rigidity[{state}]: against {doc['catalogue']['block'].split(' (')[0]}: {catalogue_verdict(d, c)}")
     io.write_json(out_json, doc)

@@ -9,8 +9,9 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 from jointid import io
-from jointid.config import config_hash
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
 from jointid.reporting.diagnosis_history import append_history, history_row
@@ -25,27 +26,29 @@ from jointid.fe.modal import free_dofs
 from jointid.stages.basis import load_basis
 from jointid.threads import limit_threads
 
+if TYPE_CHECKING:
+    from jointid.config.typed_diagnosis import DiagnoseJob
 
-def _system_and_data(cfg: dict, dataset_path: str, matrices: str | None, model=None):
+
+def _system_and_data(job: DiagnoseJob, dataset_path: str, matrices: str | None, model=None):
     limit_threads(1)
     model = model or load_model(matrices)
-    system = build_system(model, cfg)
+    system = build_system(model, job.settings.model)
     ds = read_dataset(dataset_path, measuring_points=system.meta["points"])
-    entry = cfg.get("dataset") or {}
-    return system, dataset_states(ds, system, cfg, entry.get("states"))
+    return system, dataset_states(ds, system, job.settings, None if job.states is None else list(job.states))
 
 
-def _kept_file(cfg: dict, subspace: str | None) -> str | None:
+def _kept_file(job: DiagnoseJob, subspace: str | None) -> str | None:
     """``subspace`` unless ``diagnosis.reuse_subspace`` is false (:mod:`jointid.fe.warmstart`)."""
-    return subspace if (cfg.get("diagnosis") or {}).get("reuse_subspace", True) else None
+    return subspace if job.reuse_subspace else None
 
 
-def _warm(cfg: dict, system, subspace: str | None, log, basis: str | None = None) -> tuple:
+def _warm(job: DiagnoseJob, system, subspace: str | None, log, basis: str | None = None) -> tuple:
     """What the last run kept at ``subspace``: its basis and a :class:`FitMemo` of its fits (an empty
     one when there is nothing to start from); ``(None, None)`` when ``diagnosis.reuse_subspace`` is
     false.  Without a kept basis, the shared one at ``basis`` (rule ``diagnosis_basis``) when it is
     this model's."""
-    if _kept_file(cfg, subspace) is None:
+    if _kept_file(job, subspace) is None:
         return load_basis(basis, system, log), None
     kept, why = warmstart.load(subspace, system, len(free_dofs(system.n_dofs, system.fixed)))
     log(f"diagnosis: {why}")
@@ -53,33 +56,33 @@ def _warm(cfg: dict, system, subspace: str | None, log, basis: str | None = None
     return (kept if kept is not None else load_basis(basis, system, log)), memo
 
 
-def _keep(cfg: dict, system, subspace: str | None, res: Diagnosis, memo: FitMemo | None, log) -> None:
+def _keep(job: DiagnoseJob, system, subspace: str | None, res: Diagnosis, memo: FitMemo | None, log) -> None:
     if memo is not None and memo.hits:
         log(f"diagnosis: {memo.hits} of {memo.hits + memo.misses} fits asked exactly as in an earlier run: "
             "evaluated at the recorded optimum (re-checked there unless its check passed on the kept subspace), "
             "not searched again")
-    if _kept_file(cfg, subspace) is not None and res.solver:
+    if _kept_file(job, subspace) is not None and res.solver:
         warmstart.save(subspace, res.solver, system, memo.records if memo is not None else None)
 
 
-def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
+def run_diagnosis(job: DiagnoseJob, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
                   history_csv: str | None = None, model=None, subspace: str | None = None,
                   basis: str | None = None, log=print_log) -> Diagnosis:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Workflow stage: diagnose one dataset and write ``out_dir`` (+ a row of ``history_csv``).
 
-    ``cfg`` holds the sections ``rig, joints, solver, identify, effects, states, harmonic`` (the test
-    band and drive point of the observability rule), ``diagnosis`` and ``dataset``
-    (the ``datasets.<name>`` entry: ``path``, ``states``); the model comes from ``matrices`` (the
+    ``job`` (:meth:`jointid.config.typed_diagnosis.DiagnoseJob.from_config`) is built from the sections ``rig,
+    joints, solver, identify, effects, states, harmonic`` (the test band and drive point of the observability
+    rule), ``diagnosis`` and ``dataset`` (the ``datasets.<name>`` entry: ``path``, ``states``); the model comes from ``matrices`` (the
     cached ``results/model/matrices.npz``) or ``model``.  ``subspace``: the file the reduced solver's
     final basis is kept in and the next run starts from (``diagnosis.reuse_subspace``); ``basis``: the
     run model's shared basis (rule ``diagnosis_basis``), the start when nothing is kept.
     """
-    system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    kept, memo = _warm(cfg, system, subspace, log, basis)
-    res = diagnose(system, cfg, data, start_basis=kept, memo=memo, log=log)
-    _keep(cfg, system, subspace, res, memo, log)
-    h = config_hash({k: v for k, v in cfg.items() if k != "dataset"})
+    system, data = _system_and_data(job, dataset_path, matrices, model)
+    kept, memo = _warm(job, system, subspace, log, basis)
+    res = diagnose(system, job.settings, data, start_basis=kept, memo=memo, log=log)
+    _keep(job, system, subspace, res, memo, log)
+    h = job.config_hash
     run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": h,
            "n_dofs": system.n_dofs, "dataset_path": str(dataset_path), "states": [d.name for d in data]}
     write_outputs(res, out_dir, dataset_name, run)
@@ -89,7 +92,7 @@ def run_diagnosis(cfg: dict, dataset_name: str, dataset_path: str, matrices: str
     return res
 
 
-def run_current(cfg: dict, dataset_path: str, matrices: str | None, out_dir: str, *, model=None,
+def run_current(job: DiagnoseJob, dataset_path: str, matrices: str | None, out_dir: str, *, model=None,
                 subspace: str | None = None, basis: str | None = None, log=print_log) -> Diagnosis:
     """Workflow stage (rule ``current``): the quick half of the loop of docs/effects.md.
 
@@ -99,10 +102,10 @@ def run_current(cfg: dict, dataset_path: str, matrices: str | None, out_dir: str
     against every measured mode) and ``compare.csv``.  Which effect is still missing is the full
     diagnosis' answer (``ranking.csv``).  ``subspace`` and ``basis`` as for :func:`run_diagnosis`.
     """
-    system, data = _system_and_data(cfg, dataset_path, matrices, model)
-    kept, memo = _warm(cfg, system, subspace, log, basis)
-    res = diagnose(system, cfg, data, candidates=[], drift=False, start_basis=kept, memo=memo, log=log)
-    _keep(cfg, system, subspace, res, memo, log)
+    system, data = _system_and_data(job, dataset_path, matrices, model)
+    kept, memo = _warm(job, system, subspace, log, basis)
+    res = diagnose(system, job.settings, data, candidates=[], drift=False, start_basis=kept, memo=memo, log=log)
+    _keep(job, system, subspace, res, memo, log)
     out = Path(out_dir)
     io.write_csv(res.ladder, out / "ladder.csv")
     io.write_csv(res.current, out / "current.csv")

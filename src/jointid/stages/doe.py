@@ -16,25 +16,15 @@ from jointid.stages.runner import log
 if TYPE_CHECKING:
     import pandas as pd
 
+    from jointid.config.options import DoeOptions
+
 CONFIG = ("joints", "doe.design", "doe.n_center", "doe.n_samples", "doe.seed", "doe.n_verification")
 """Config keys of rule ``doe`` (not ``doe.zoom``: that is the second DOE's only)."""
 CONFIG_ZOOM = ("joints", "doe")
 """Config keys of rule ``doe_zoom``."""
 
 
-def parameter_names(cfg: dict) -> list[str]:
-    """Names of the identified joint parameters (``joints.parameters``)."""
-    return list(cfg["joints"]["parameters"])
-
-
-def parameter_bounds(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper bounds of the identified parameters (``joints.parameters``, N/m^3)."""
-    names = parameter_names(cfg)
-    return (np.array([float(cfg["joints"]["parameters"][n]["lower"]) for n in names]),
-            np.array([float(cfg["joints"]["parameters"][n]["upper"]) for n in names]))
-
-
-def doe_sheet(cfg: dict, lower=None, upper=None) -> pd.DataFrame:
+def doe_sheet(opts: DoeOptions, lower=None, upper=None) -> pd.DataFrame:
     """The DOE as a sample sheet: one row per FE solve (design points, then verification points).
 
     Columns: ``point, role, x_<param>`` (coded in [-1, 1] over log10 of the parameter) and
@@ -45,12 +35,10 @@ def doe_sheet(cfg: dict, lower=None, upper=None) -> pd.DataFrame:
 
     from jointid.identification.doe import design, to_physical, verification_points
 
-    names = parameter_names(cfg)
-    d = cfg["doe"]
-    X = design(d["design"], len(names), n_center=d["n_center"], n_samples=d.get("n_samples", 0),
-               seed=d["seed"])
-    V = verification_points(d["n_verification"], len(names), seed=d["seed"] + 1)
-    lo, hi = parameter_bounds(cfg)
+    names = opts.joints.names
+    X = design(opts.design, len(names), n_center=opts.n_center, n_samples=opts.n_samples, seed=opts.seed)
+    V = verification_points(opts.n_verification, len(names), seed=opts.seed + 1)
+    lo, hi = opts.joints.lower_N_per_m3, opts.joints.upper_N_per_m3
     if lower is not None:
         lo, hi = np.asarray(lower, float), np.asarray(upper, float)
     rows = []
@@ -64,34 +52,24 @@ def doe_sheet(cfg: dict, lower=None, upper=None) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def run_doe(cfg: dict, out_csv: str) -> None:
+def run_doe(opts: DoeOptions, out_csv: str) -> None:
     """Rule ``doe``: the sample sheet of the first DOE over the whole bounds -> ``out_csv``."""
-    sheet = doe_sheet(cfg)
+    sheet = doe_sheet(opts)
     io.write_csv(sheet, out_csv)
     log(f"doe: {int((sheet.role == 'design').sum())} design + {int((sheet.role == 'verify').sum())} "
         f"verification points -> {out_csv}")
 
 
-def zoom_enabled(cfg: dict) -> bool:
-    """Whether the zoomed second DOE runs (``doe.zoom.enabled``)."""
-    return bool((cfg["doe"].get("zoom") or {}).get("enabled", False))
-
-
-def zoom_half_width(cfg: dict) -> float:
-    """``doe.zoom.half_width_decades`` (decades of the parameter)."""
-    return float((cfg["doe"].get("zoom") or {}).get("half_width_decades", 0.15))
-
-
-def zoom_box(cfg: dict, optima: dict[str, dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
+def zoom_box(opts: DoeOptions, optima: dict[str, dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
     """Box of the zoomed second DOE around the first-stage optima of all states (N/m^3).
 
     Per parameter: ``[min over states / 10^w, max over states * 10^w]`` with ``w =
     doe.zoom.half_width_decades``, clipped to the bounds of ``joints.parameters``; a box squeezed
     against a bound keeps its full width ``2 w`` on the inside.
     """
-    names = parameter_names(cfg)
-    w = zoom_half_width(cfg)
-    lo_b, hi_b = np.log10(parameter_bounds(cfg)[0]), np.log10(parameter_bounds(cfg)[1])
+    names = opts.joints.names
+    w = opts.zoom_half_width_decades
+    lo_b, hi_b = np.log10(opts.joints.lower_N_per_m3), np.log10(opts.joints.upper_N_per_m3)
     opt = np.log10(np.array([[float(o[n]) for n in names] for o in optima.values()]))
     lo, hi = opt.min(axis=0) - w, opt.max(axis=0) + w
     span = np.minimum(hi - lo, hi_b - lo_b)
@@ -101,14 +79,14 @@ def zoom_box(cfg: dict, optima: dict[str, dict[str, float]]) -> tuple[np.ndarray
     return 10.0 ** lo, 10.0 ** hi
 
 
-def run_doe_zoom(cfg: dict, scout_jsons: dict[str, str], out_csv: str, out_json: str) -> None:
+def run_doe_zoom(opts: DoeOptions, scout_jsons: dict[str, str], out_csv: str, out_json: str) -> None:
     """Rule ``doe_zoom``: the same design in :func:`zoom_box` around the states' surface optima."""
-    names = parameter_names(cfg)
+    names = opts.joints.names
     optima = {s: io.read_json(p)["surface_optimum"] for s, p in scout_jsons.items()}
-    lo, hi = zoom_box(cfg, optima)
-    sheet = doe_sheet(cfg, lo, hi)
+    lo, hi = zoom_box(opts, optima)
+    sheet = doe_sheet(opts, lo, hi)
     io.write_json(out_json, {"names": names, "lower": lo.tolist(), "upper": hi.tolist(),
-                             "half_width_decades": zoom_half_width(cfg),
+                             "half_width_decades": opts.zoom_half_width_decades,
                              "first_stage_optima": optima})
     io.write_csv(sheet, out_csv)
     log("doe zoom: " + ", ".join(f"{n} {a:.3g}..{b:.3g}" for n, a, b in zip(names, lo, hi))

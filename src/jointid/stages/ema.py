@@ -10,22 +10,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from jointid.ema.options import EmaOptions
+from typing import TYPE_CHECKING
+
 from jointid.ema.run import run_ema
 from jointid.progress import stamp
 
+if TYPE_CHECKING:
+    from jointid.ema.options import EmaOptions
+
 CONFIG = ("ema",)
-"""The config sections rule ema reads."""
+"""The config sections rule ema reads (its sources: :func:`jointid.config.snakefile.ema_sources`)."""
 
 
-def sources(cfg: dict) -> dict[str, str]:
-    """The named FRF sources of ``ema.sources`` (empty without an ``ema`` section)."""
-    return {str(k): str(v) for k, v in ((cfg.get("ema") or {}).get("sources") or {}).items()}
-
-
-def run_ema_stage(cfg: dict, source, out_dataset, out_poles) -> None:
-    """EMA of ``source`` with the criteria of ``cfg['ema']``: the dataset folder ``out_dataset``, and
-    ``out_poles`` (poles.csv) with the figures beside it."""
-    options = EmaOptions.from_section(cfg.get("ema"))
+def run_ema_stage(options: EmaOptions, source, out_dataset, out_poles) -> None:
+    """EMA of ``source`` with the criteria ``options`` (``EmaOptions.from_section(cfg.get("ema"))``): the dataset
+    folder ``out_dataset``, and ``out_poles`` (poles.csv) with the figures beside it."""
     run_ema(source, out_dataset, report=Path(out_poles).parent, options=options,
             log=lambda m: print(stamp(m), flush=True))

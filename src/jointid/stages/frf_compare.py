@@ -24,17 +24,20 @@ declared outputs of the rule) and say so: the table has its columns and no row, 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.config.datasets import dataset_folder
 from jointid.correlate.frf import COMPARE_COLUMNS, compare_table
 from jointid.errors import JointidError
 from jointid.response.drive_point import drive_vector
 from jointid.response.harmonic import frf_modal, resonance_grid
 from jointid.response.measured import measured_dynamic_stiffness
+
+if TYPE_CHECKING:
+    from jointid.config.options import HarmonicOptions
 
 __all__ = ["OUTPUTS", "model_curves", "write_frf_comparison"]
 
@@ -44,13 +47,13 @@ NO_FRF = "no measured FRF: the dataset has no frf.csv for this state"
 """What the three files say without measured FRFs."""
 
 
-def _measured(cfg: dict, state: str, progress):
+def _measured(folder: str, state: str, progress):
     """``(dataset, drive_point, drive_direction)`` of the state's measured FRFs, or None without any (or
     when the dataset cannot be read here: the identify stage has validated it, so that is said only)."""
     from jointid.data.dataset import read_dataset
 
     try:
-        ds = read_dataset(dataset_folder(cfg, state))
+        ds = read_dataset(folder)
     except (JointidError, OSError) as exc:
         progress(f"harmonic[{state}]: dataset not readable here ({str(exc).splitlines()[0]}): no FRF comparison")
         return None
@@ -141,16 +144,15 @@ def _stiffness_doc(curves: list, band: list[float], table1: dict, drive: str, di
     return doc
 
 
-def write_frf_comparison(cfg: dict, state: str, model, modes, res, pts: dict, table1: dict, stiffness_json,
+def write_frf_comparison(opts: HarmonicOptions, state: str, model, modes, res, pts: dict, table1: dict, stiffness_json,
                          progress=print) -> dict | None:
     # many parameters: the harmonic stage's results (model, modes, response, points, Table 1) passed on
     """Compare the state's measured FRFs with the model's and write :data:`OUTPUTS` into ``out_dir``.
 
     Parameters
     ----------
-    cfg : dict
-        The harmonic stage's config (``harmonic.band_Hz``; ``states``, ``measurements``, ``datasets``
-        name the dataset).
+    opts : HarmonicOptions
+        The harmonic stage's options (the band, the state's dataset).
     state : str
         Operating state.
     model, modes, res, pts
@@ -171,7 +173,7 @@ def write_frf_comparison(cfg: dict, state: str, model, modes, res, pts: dict, ta
     from jointid.reporting.figures import png_bytes
 
     out_dir = Path(stiffness_json).parent
-    measured = _measured(cfg, state, progress)
+    measured = _measured(opts.dataset, state, progress)
     if measured is None:  # the declared outputs, saying so
         io.write_csv(pd.DataFrame(columns=COMPARE_COLUMNS), str(out_dir / OUTPUTS[0]))
         io.write_json(str(out_dir / OUTPUTS[1]), {"state": state, "available": False, "note": NO_FRF})
@@ -181,7 +183,7 @@ def write_frf_comparison(cfg: dict, state: str, model, modes, res, pts: dict, ta
     ds, drive, direction = measured
     curves, note = model_curves(model, modes, res, pts, ds, state, drive, direction)
     table = compare_table(curves)
-    doc = _stiffness_doc(curves, [float(b) for b in cfg["harmonic"]["band_Hz"]], table1, drive, direction, note)
+    doc = _stiffness_doc(curves, list(opts.band_Hz), table1, drive, direction, note)
     io.write_csv(table, str(out_dir / OUTPUTS[0]))
     io.write_json(str(out_dir / OUTPUTS[1]), doc)
     with io.atomic_path(str(out_dir / OUTPUTS[2])) as tmp:

@@ -24,6 +24,7 @@ from jointid.response.harmonic import RIGID_HZ, static_residual
 from jointid.response.ranges import band_minimum
 
 if TYPE_CHECKING:
+    from jointid.config.options import HarmonicOptions
     from jointid.identification.record import IdentificationRecord
 
 
@@ -40,7 +41,7 @@ def frf_frame(res) -> pd.DataFrame:
                          "dynamic_stiffness_N_per_m": 1.0 / np.abs(res.H)})
 
 
-def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv: str, out_json: str,
+def run_harmonic(opts: HarmonicOptions, state: str, params_json: str, matrices: str, out_csv: str, out_json: str,
                  out_modes: str | None = None, verify_csv: str | None = None, out_points: str | None = None,
                  out_vtu: str | None = None, out_uff: str | None = None, tied_csv: str | None = None,
                  progress=print) -> dict:
@@ -54,9 +55,9 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
 
     Parameters
     ----------
-    cfg : dict
-        Sections ``rig, joints, solver, harmonic`` (+ ``states, measurements, datasets`` for measured
-        damping).  The damping: the identified joint damping of ``params.json`` when the data carry
+    opts : HarmonicOptions
+        The model, the band, the drive point, the damping and the state's dataset (sections ``rig, joints,
+        solver, harmonic``; ``states, measurements, datasets`` name the dataset).  The damping: the identified joint damping of ``params.json`` when the data carry
         damping ratios, else the configured one (:func:`jointid.stages.harmonic_damping.state_damping`).
     state : str
         Operating state (names the dataset's damping ratios).
@@ -78,26 +79,23 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     dict
         The content of ``out_json``.
     """
-    from jointid.config.typed import ModelSpec
     from jointid.fe.model import base_coefficients, load_model
-
-    h = cfg["harmonic"]
     from jointid.identification.record import IdentificationRecord
 
     par = IdentificationRecord.read(params_json)
     theta = {n: float(v) for n, v in par.theta.items()}
     model = load_model(matrices)
-    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
-    band = [float(b) for b in h["band_Hz"]]
+    kc, mc = base_coefficients(opts.model, model, theta)
+    band = list(opts.band_Hz)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res, modes, desc, damping, pts = _response(cfg, state, par, model, kc, mc, band, verify_csv, progress)
+        res, modes, desc, damping, pts = _response(opts, state, par, model, kc, mc, band, verify_csv, progress)
     notes = [str(w.message) for w in caught]
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     io.write_csv(frf_frame(res), out_csv)
     order = _measured_order(verify_csv, res.governing)
-    out = _summary(cfg, state, res, desc, damping, band, theta, notes, order)
+    out = _summary(opts, state, res, desc, damping, band, theta, notes, order)
     out.update(_paired_summary(res, desc, pts["measured_order"], band))
     out["tie"] = tie_note(tied_csv, res.governing, order, float(res.freqs_Hz[res.governing]), par)
     if out["tie"]["rests_on_tie"]:
@@ -105,14 +103,14 @@ def run_harmonic(cfg: dict, state: str, params_json: str, matrices: str, out_csv
     orders = pairing_orders(pts["measured_order"], tied_csv)
     out["pairings"] = [{"pairing": name, "governing_measured_order": int(o[res.governing]) or None,
                         **_paired_summary(res, desc, o, band)} for name, o in orders.items()]
-    out["damping_range"] = damping_range(h, band, res, orders, damping)
+    out["damping_range"] = damping_range(opts, band, res, orders, damping)
     for p in out["pairings"]:
         progress(f"harmonic[{state}]: under the {p['pairing']} pairing: {p['status']}")
     io.write_json(out_json, out)
     if out_points:
         io.write_npz(out_points, **pts)
     _write_mode_files(model, state, res, modes, desc, out_vtu, out_uff, out_modes)
-    write_frf_comparison(cfg, state, model, modes, res, pts, out, out_json, progress)  # with frf.csv only
+    write_frf_comparison(opts, state, model, modes, res, pts, out, out_json, progress)  # with frf.csv only
     g = res.governing
     static = out["static_stiffness_N_per_mm"]
     progress(f"harmonic[{state}]: K_dyn,min = {out['dynamic_stiffness_N_per_mm']:.5g} N/mm at "
@@ -244,18 +242,17 @@ def _measured_order(verify_csv: str | None, g: int) -> int | None:
     return int(ver.loc[hit[0], "order"]) if len(hit) else None
 
 
-def _summary(cfg, state, res, desc, damping, band, theta, notes, order) -> dict:
+def _summary(opts, state, res, desc, damping, band, theta, notes, order) -> dict:
     # many parameters: the parts of dynamic_stiffness.json that run_harmonic computed
     """The content of ``dynamic_stiffness.json``."""
-    h = cfg["harmonic"]
     g = res.governing
     k_r = (2 * np.pi * res.freqs_Hz[g]) ** 2 / res.participation[g] ** 2
     dyn = res.dynamic
     R, H0 = res.residual_flexibility_m_per_N, res.static_receptance_m_per_N
     return {
         "state": state,
-        "drive_point": h["drive_point"], "direction": h.get("direction", "y"),
-        "patch_diameter_m": float(h.get("patch_diameter_m", 0.0)),
+        "drive_point": opts.drive_point, "direction": opts.direction,
+        "patch_diameter_m": opts.patch_diameter_m,
         "band_Hz": band,
         "dynamic_stiffness_N_per_m": dyn["k_dyn_min_N_per_m"],
         "dynamic_stiffness_N_per_mm": dyn["k_dyn_min_N_per_m"] * 1e-3,
@@ -282,39 +279,39 @@ def _summary(cfg, state, res, desc, damping, band, theta, notes, order) -> dict:
     }
 
 
-def _response(cfg, state, par, model, kc, mc, band, verify_csv, progress):
+def _response(opts, state, par, model, kc, mc, band, verify_csv, progress):
     # many parameters: the computing part of run_harmonic, with the inputs it read
     """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`), and
     the modal data of every table point (:func:`point_data`)."""
     from jointid.fe.describe import describe_modes
     from jointid.fe.modal import release_model_pages
 
-    h, s = cfg["harmonic"], cfg["solver"]
+    s = opts.model.solver
     K, M = model.K(kc), model.M(mc)
     release_model_pages(model)  # assembled: the model file's pages are not needed while factorising
-    modes, shifted = solve_band_modes(K, M, band[1], fixed=model.fixed, n_start=max(int(s["n_modes"]), 12),
-                                      shift_Hz=s["shift_Hz"], backend=s["backend"], progress=progress,
+    modes, shifted = solve_band_modes(K, M, band[1], fixed=model.fixed, n_start=max(int(s.n_modes), 12),
+                                      shift_Hz=s.shift_Hz, backend=s.backend, progress=progress,
                                       keep_factor=True, ordering=model.ordering)
-    direction = h.get("direction", "y")
+    direction = opts.direction
     try:
-        names, P = drive_patches(model, h["drive_point"], direction, float(h.get("patch_diameter_m", 0.0)))
+        names, P = drive_patches(model, opts.drive_point, direction, opts.patch_diameter_m)
         resid = [static_residual(K, np.asarray(P[k].toarray()).ravel(), modes.phi, modes.freqs_Hz, fixed=model.fixed,
-                                 backend=s["backend"], shifted=shifted) for k in range(len(names))]
+                                 backend=s.backend, shifted=shifted) for k in range(len(names))]
     finally:
         shifted.free_memory()
-    k0 = names.index(h["drive_point"])
+    k0 = names.index(opts.drive_point)
     p = np.asarray(P[k0].toarray()).ravel()
     R, H0, note = resid[k0]
     desc = describe_modes(model, modes.phi, kc, mc)
     progress(f"harmonic[{state}]: {note}")
     share = np.where(modes.freqs_Hz >= RIGID_HZ, desc["strain_joints"].to_numpy(float), 0.0)
-    damping = state_damping(cfg, state, par.joint_damping, model, modes, kc, share, verify_csv)
+    damping = state_damping(opts, state, par.joint_damping, model, modes, kc, share, verify_csv)
     zeta = damping["zeta"]
     progress(f"harmonic[{state}]: damping {damping['text']}")
-    res = harmonic_response(modes, p, zeta, band, n_freq=int(h["n_freq"]), residual=R, static_receptance=H0)
+    res = harmonic_response(modes, p, zeta, band, n_freq=opts.n_freq, residual=R, static_receptance=H0)
     res.damping_source, res.residual_note = damping["source"], note
     pts = point_data(names, P @ modes.phi, resid, modes.freqs_Hz, share, _measured_orders(verify_csv, modes.freqs_Hz.size),
-                     desc, zeta, direction, float(h.get("patch_diameter_m", 0.0)))
+                     desc, zeta, direction, opts.patch_diameter_m)
     return res, modes, desc, damping, pts
 
 

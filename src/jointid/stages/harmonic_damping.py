@@ -16,16 +16,18 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from jointid import io
+from typing import TYPE_CHECKING
 
-from jointid.config.datasets import dataset_folder
-from jointid.config.typed import Damping
+from jointid import io
 from jointid.identification.damping_law import ASSUMED, IDENTIFIED, MEASURED, law_ratios, law_text, usable_record
 from jointid.response.drive_point import modal_damping_ratios
 from jointid.response.harmonic import RIGID_HZ
 from jointid.response.ranges import damping_ratio_range, damping_vectors_range
 
-__all__ = ["DAMPING_RANGE_WHY", "DAMPING_RATIO_RANGE", "DAMPING_WHY", "damping_range", "measured_damping",
+if TYPE_CHECKING:
+    from jointid.config.options import HarmonicOptions
+
+__all__ = ["DAMPING_RANGE_WHY", "DAMPING_WHY", "damping_range", "measured_damping",
            "state_damping"]
 
 DAMPING_WHY = {  # why each damping model, for dynamic_stiffness.json
@@ -42,8 +44,6 @@ DAMPING_WHY = {  # why each damping model, for dynamic_stiffness.json
 IDENTIFIED_WHY = ("joint damping identified from the measured modal damping ratios (identify stage): every mode's "
                   "ratio from its joint strain-energy shares per direction at the identified stiffness, ")
 
-DAMPING_RATIO_RANGE = (0.02, 0.05)
-"""The default of ``harmonic.damping.damping_ratio_range`` (schema.yaml)."""
 DAMPING_RANGE_WHY = ("harmonic.damping.damping_ratio_range, assumed (the paper publishes no damping): the modal "
                      "damping ratio of bolted, rolling-guide machine structures; every mode without a measured "
                      "ratio at one constant ratio over the range")
@@ -52,13 +52,13 @@ IDENTIFIED_RANGE_WHY = ("the identified damping's 95 % intervals: every mode at 
                         "above the noise)")
 
 
-def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
-    """Measured damping ratios by 0-based FE mode index (paired via verify.csv), and a note."""
+def measured_damping(folder: str, state: str, verify_csv) -> tuple[dict, str]:
+    """Measured damping ratios by 0-based FE mode index (paired via verify.csv; ``folder``: the state's
+    dataset), and a note."""
     from jointid.data.dataset import read_dataset
 
     if verify_csv is None:
         return {}, "no verify table: measured damping not used"
-    folder = dataset_folder(cfg, state)
     try:
         ds = read_dataset(folder)
     except Exception as exc:  # the identify stage has validated the dataset already
@@ -74,13 +74,13 @@ def measured_damping(cfg, state, verify_csv) -> tuple[dict, str]:
     return out, f"measured damping ratios of {len(out)} paired modes from {folder}"
 
 
-def state_damping(cfg: dict, state: str, joint_damping: dict | None, model, modes, kc: dict, share, verify_csv) -> dict:
+def state_damping(opts: HarmonicOptions, state: str, joint_damping: dict | None, model, modes, kc: dict, share, verify_csv) -> dict:
     """The damping ratio of every band mode of one state, and its source (module docstring).
 
     Parameters
     ----------
-    cfg : dict
-        The harmonic stage's config (``harmonic.damping``, ``joints``, ``model``; the dataset's keys).
+    opts : HarmonicOptions
+        The harmonic stage's options (the configured damping, the model's joints, the state's dataset).
     state : str
     joint_damping : dict or None
         The identification's ``joint_damping`` record (:attr:`jointid.identification.record.IdentificationRecord.joint_damping`;
@@ -100,25 +100,23 @@ def state_damping(cfg: dict, state: str, joint_damping: dict | None, model, mode
         ``IDENTIFIED``), ``text`` (what Table 1 states), and with ``IDENTIFIED`` ``zeta_low, zeta_high`` and
         the ``law``.
     """
-    dcfg = dict(cfg["harmonic"].get("damping") or {"model": "modal", "damping_ratio": 0.03})
-    dcfg.pop("damping_ratio_range", None)  # the model's own fields; the range is Table 1's (damping_range)
-    measured, mnote = measured_damping(cfg, state, verify_csv)
+    dcfg = dict(opts.damping)  # the model's own fields; the range is Table 1's (damping_range)
+    measured, mnote = measured_damping(opts.dataset, state, verify_csv)
     rec, note = usable_record(joint_damping)
     if rec is None:
-        zeta, source = modal_damping_ratios(Damping.from_section(dcfg), modes.freqs_Hz, joint_share=share,
+        zeta, source = modal_damping_ratios(opts.damping_model, modes.freqs_Hz, joint_share=share,
                                             measured=measured)
         kind = MEASURED if MEASURED in source else ASSUMED
         return {"zeta": zeta, "source": source, "config": dcfg, "measured": mnote, "kind": kind,
                 "text": (f"{kind}: harmonic.damping model {dcfg.get('model', 'modal')}"
                          + (", the measured ratios of the paired modes over it" if kind == MEASURED else "")
                          + ("" if joint_damping is None else f" ({note})"))}
-    from jointid.config.typed import ModelSpec
     from jointid.synthetic.generate import joint_shares
     from jointid.fe.model import joint_terms
 
     fr = np.asarray(modes.freqs_Hz, float)
     el = fr >= RIGID_HZ
-    spec = ModelSpec.from_config(cfg)
+    spec = opts.model
     shares = joint_shares(model, modes.phi[:, el], fr[el], kc, joint_terms(spec.joints, spec.mesh_file),
                           rec["directions"])
     r = law_ratios(rec, shares, fr[el])
@@ -130,7 +128,7 @@ def state_damping(cfg: dict, state: str, joint_damping: dict | None, model, mode
     return out
 
 
-def damping_range(h: dict, band: list[float], res, orders: dict, damping: dict) -> dict:
+def damping_range(opts: HarmonicOptions, band: list[float], res, orders: dict, damping: dict) -> dict:
     """``dynamic_stiffness.json``'s ``damping_range``: the band minimum and the paired peaks under each pairing
     of ``orders`` (:func:`jointid.stages.harmonic.pairing_orders`), with its ``source``.
 
@@ -142,8 +140,8 @@ def damping_range(h: dict, band: list[float], res, orders: dict, damping: dict) 
     if damping["kind"] != IDENTIFIED:
         rng = damping_ratio_range(
             band, res.freqs_Hz, res.zeta, res.participation, res.residual_flexibility_m_per_N or 0.0,
-            (h.get("damping") or {}).get("damping_ratio_range", DAMPING_RATIO_RANGE),
-            fixed=np.asarray(res.damping_source) == "measured", paired=paired, n_freq=int(h["n_freq"]))
+            opts.damping_ratio_range,
+            fixed=np.asarray(res.damping_source) == "measured", paired=paired, n_freq=opts.n_freq)
         rng["source"] = DAMPING_RANGE_WHY
         return rng
     g = res.governing
@@ -151,7 +149,7 @@ def damping_range(h: dict, band: list[float], res, orders: dict, damping: dict) 
            "damping_ratio_grid": ["low", "value", "high"]}
     rng.update(damping_vectors_range(band, res.freqs_Hz, [damping[k] for k in ("zeta_low", "zeta", "zeta_high")],
                                      res.participation, res.residual_flexibility_m_per_N or 0.0, paired=paired,
-                                     n_freq=int(h["n_freq"])))
+                                     n_freq=opts.n_freq))
     rng["source"] = IDENTIFIED_RANGE_WHY
     return rng
 

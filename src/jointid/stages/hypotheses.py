@@ -15,23 +15,24 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.config import load_config
-from jointid.config.typed import ModelSpec
 from jointid.diagnosis.fitting import print_log
-from jointid.reconstruction.hypotheses import fit_hypothesis, hypothesis_config, needs_own_model
+from jointid.reconstruction.hypotheses import fit_hypothesis
 from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
 from jointid.reconstruction.next_measurement import ProposalOptions, next_measurement_markdown, propose
 from jointid.diagnosis.terms import build_system
-from jointid.errors import ConfigError
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 from jointid.stages.basis import load_basis, measured_states
 from jointid.fe.model import build_model, load_model
 from jointid.threads import limit_threads
+
+if TYPE_CHECKING:
+    from jointid.config.hypotheses import HypothesisJob, RankingOptions
 
 CONFIG = ("materials", "rig", "model", "mesh", "joints", "states", "measurements", "datasets", "solver", "identify",
           "harmonic", "effects", "linked", "hypotheses")
@@ -39,13 +40,14 @@ CONFIG = ("materials", "rig", "model", "mesh", "joints", "states", "measurements
 ADMISSIBLE_DELTA_AICC = 4.0
 
 
-def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *, basis: str | None = None,
+def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, basis: str | None = None,
                    log=print_log) -> dict:
-    """Fit hypothesis ``name`` and write its record to ``out_json``.
+    """Fit the hypothesis of ``job`` (:meth:`jointid.config.hypotheses.HypothesisJob.from_config`) and write
+    its record to ``out_json``.
 
     The hypothesis's configuration is validated like config.yaml (its problems name the
     hypothesis).  It reuses the run's model (``matrices``) unless it changes the model beyond its
-    coefficients (geometry, support kind, mesh: :func:`~jointid.reconstruction.hypotheses.needs_own_model`);
+    coefficients (geometry, support kind, mesh: :func:`~jointid.config.hypotheses.needs_own_model`);
     then it builds its own.  A part's material (Young's modulus, density, Poisson's ratio), the motor
     mass and the like are coefficients of the run's model.
     An override of ``states.<state>.em_force_N`` is the hypothesis's attraction in that state and
@@ -55,31 +57,24 @@ def run_hypothesis(cfg: dict, name: str, matrices: str | None, out_json: str, *,
     """
     limit_threads(1)
     t0 = time.time()
-    hyp = dict((cfg.get("hypotheses") or {}).get(name) or {})
-    if not hyp and name not in (cfg.get("hypotheses") or {}):
-        raise ConfigError(f"config.yaml: hypotheses.{name}: no such hypothesis — the configured ones are "
-                          f"{', '.join(cfg.get('hypotheses') or {}) or 'none'}")
-    raw = hypothesis_config(cfg, name, hyp)
-    cfg_h = load_config(raw, source=f"config.yaml (hypothesis {name})")
-    own = needs_own_model(hyp, cfg)
+    name, spec, forces = job.name, job.settings.model, job.forces_N
+    own = job.own_model
     log(f"hypothesis {name}: {'building its own model' if own else 'the run model'}")
-    model = build_model(ModelSpec.from_config(cfg_h)) if own else load_model(matrices)
-    if not own and needs_own_model(hyp) and "solids" not in model.meta and model.meta.get("kind") != "mesh":
+    model = build_model(spec) if own else load_model(matrices)
+    if not own and job.overrides_model and "solids" not in model.meta and model.meta.get("kind") != "mesh":
         own = True  # a model file written before the solids were kept per part: no material coefficients
         log(f"hypothesis {name}: {matrices} has no per-part solids (written by an older version); building its own")
-        model = build_model(ModelSpec.from_config(cfg_h))
-    system = build_system(model, cfg_h)
-    data = measured_states(cfg_h, system)
-    forces = {s: v["em_force_N"] for s, v in (((hyp.get("overrides") or {}).get("states")) or {}).items()
-              if isinstance(v, dict) and "em_force_N" in v}
+        model = build_model(spec)
+    system = build_system(model, spec)
+    data = measured_states(job.settings, system)
     for d in data:
         if d.name in forces and float(forces[d.name]) != d.info.em_force_N:
             log(f"hypothesis {name}: {d.name} attraction {float(forces[d.name]):g} N (the dataset's: "
                 f"{d.info.em_force_N:g} N)")
             d.info = dataclasses.replace(d.info, em_force_N=float(forces[d.name]))
     start = None if own else load_basis(basis, system, log)
-    rec = fit_hypothesis(system, cfg_h, data, start_basis=start, log=log)
-    rec.update({"hypothesis": name, "description": str(hyp.get("description", "")), "own_model": own,
+    rec = fit_hypothesis(system, job.settings, job.law, data, start_basis=start, log=log)
+    rec.update({"hypothesis": name, "description": job.description, "own_model": own,
                 "n_dofs": system.n_dofs})  # no timing: the record is byte-identical run to run
     io.write_json(out_json, rec)
     log(f"hypothesis {name}: chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f} ({time.time() - t0:.0f} s)")
@@ -93,14 +88,15 @@ CREDIBLE_RATIO = (0.6, 1.5)
 """Lateral/normal rigidity ratio of a carriage on its rail that a guide catalogue makes credible."""
 
 
-def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv: str, out_md: str,
+def run_ranking(opts: RankingOptions, fit_jsons: list[str], out_csv: str, spread_csv: str, out_md: str,
                 linked_json: str | None = None, ranges_csv: str | None = None, next_csv: str | None = None, *,
                 log=print_log) -> pd.DataFrame:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rank the fitted hypotheses by QAICc and write the ranking, the parameter spread and a summary;
-    with ``linked_json`` (and ``cfg``, :data:`RANKING_CONFIG`) also the best hypothesis's linked fit
-    per state with the rigidity of one carriage on its rail under its joints; with ``next_csv`` the
-    candidate measurements over the admissible hypotheses, best first (``cfg['next_measurement']``,
+    with ``linked_json`` (``opts``: :meth:`jointid.config.hypotheses.RankingOptions.from_config` of
+    :data:`RANKING_CONFIG`) also the best hypothesis's linked fit per state with the rigidity of one carriage
+    on its rail under its joints; with ``next_csv`` the candidate measurements over the admissible
+    hypotheses, best first (``next_measurement`` of the configuration,
     :func:`jointid.reconstruction.next_measurement.propose`; ranking.md has them either way)."""
     records = {}
     for path in fit_jsons:
@@ -111,14 +107,13 @@ def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv
     ranking["rank"] = ranking["rank"].astype("Int64")  # blank for the hypotheses listed apart
     linked = None
     if linked_json:
-        linked = linked_summary(cfg, records[rows[0]["hypothesis"]], log)
+        linked = linked_summary(opts, records[rows[0]["hypothesis"]], log)
     io.write_csv(ranking, out_csv)
     io.write_csv(pd.DataFrame(spread), spread_csv)
     ranges = pd.DataFrame(reconstruction_ranges(records, rows, delta=ADMISSIBLE_DELTA_AICC))
     if ranges_csv:
         io.write_csv(ranges, ranges_csv)
-    opts = ProposalOptions.from_config(cfg, delta=ADMISSIBLE_DELTA_AICC)
-    proposal = propose(records, rows, opts, sigma_model_rel=me.sigma_model_rel,
+    proposal = propose(records, rows, opts.proposal, sigma_model_rel=me.sigma_model_rel,
                        sigma_shape_rel=me.shape.sigma_model_rel if me.shape is not None else 0.0)
     if next_csv:
         io.write_csv(proposal[0], next_csv)
@@ -128,21 +123,20 @@ def run_ranking(cfg: dict | None, fit_jsons: list[str], out_csv: str, spread_csv
         log(f"next measurement: {best['measurement']} — {t} x{proposal[1]['before']:.2f} -> "
             f"x{best[t + '_ratio_after']:.2f}, {best['expected_hypotheses_left']:.1f} hypotheses left")
     io.write_text(out_md, ranking_markdown(ranking, pd.DataFrame(spread), records, linked, me, ranges,
-                                           proposal=proposal, opts=opts))
+                                           proposal=proposal, opts=opts.proposal))
     if linked_json:
         io.write_json(linked_json, linked)
     return ranking
 
 
-def linked_summary(cfg: dict, rec: dict, log=print_log) -> dict:
+def linked_summary(opts: RankingOptions, rec: dict, log=print_log) -> dict:
     """The best hypothesis's linked fit per state: joint stiffness per area and the lateral, normal
     and feed rigidity of one carriage on its rail (:class:`jointid.response.carriage.BlockTest`),
     with the lateral/normal ratio and whether it lies in :data:`CREDIBLE_RATIO`."""
     from jointid.response.carriage import BlockTest
 
     name = rec["hypothesis"]
-    cfg_h = hypothesis_config(cfg, name, (cfg.get("hypotheses") or {}).get(name) or {})
-    test = BlockTest(ModelSpec.from_config(cfg_h), cfg_h["carriage_rigidity"]["cell_size_m"])
+    test = BlockTest(*opts.carriage_tests[name])
     states = {}
     for s in rec["states"]:
         res = test.rigidity(s["joints_N_per_m3"])
@@ -218,35 +212,6 @@ def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict,
     if proposal is not None:
         lines += next_measurement_markdown(proposal[0], proposal[1], opts)
     return "\n".join(lines) + "\n"
-
-
-def check_hypotheses(cfg: dict) -> list[str]:
-    """Every configured hypothesis's configuration built and its effects parsed (before any job runs);
-    returns the names, raises :class:`ConfigError` with one line per problem of any of them."""
-    names, problems = hypothesis_names(cfg), []
-    for name in names:
-        try:
-            hypothesis_config(cfg, name, cfg["hypotheses"][name])
-        except ConfigError as exc:
-            problems += exc.problems
-    if problems:
-        raise ConfigError(problems)
-    return names
-
-
-def cost_rank(cfg: dict, name: str) -> int:
-    """0, 1 or 2: how much work hypothesis ``name`` makes beyond a coefficient change of the run's
-    model (one for building its own model, one for fitting an effect's parameters, which grows the
-    shared basis).  Rule ``hypothesis`` adds it to its priority, so that on few cores the longer jobs
-    start first and the run ends on short ones."""
-    hyp = cfg["hypotheses"][name] or {}
-    return int(needs_own_model(hyp, cfg)) + int(bool(hyp.get("effects")))
-
-
-def hypothesis_names(cfg: dict) -> list[str]:
-    """The configured hypotheses, in config order (an entry set to null in a later config file is
-    switched off)."""
-    return [n for n, h in (cfg.get("hypotheses") or {}).items() if h is not None]
 
 
 def fit_path(results: str, name: str) -> str:

@@ -13,12 +13,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from jointid import io
-from jointid.config.datasets import dataset_folder
-from jointid.config.typed import Damping, ModelSpec, TestSetup
-from jointid.stages.doe import parameter_bounds
 from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
+
+if TYPE_CHECKING:
+    from jointid.config.options import IdentifyOptions
+    from jointid.config.typed import ModelSpec
 
 AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are reported as alternatives
 TIE_DAMPING_KEYS = tuple(f"harmonic.damping.{k}" for k in ("model", "damping_ratio", "alpha_per_s", "beta_s"))
@@ -42,7 +45,7 @@ def scout_config_keys(states: list[str]) -> tuple[str, ...]:
             *(f"states.{s}.dataset" for s in states))
 
 
-def measured_modes(cfg: dict, state: str, pts):
+def measured_modes(opts: IdentifyOptions, state: str, pts):
     """``(frequencies, shapes or None, frequency uncertainty in %)`` of one state's measured modes
     (``pts``: the measuring-point table).  With per-mode uncertainties in modes.csv
     (``freq_uncertainty_pct``, e.g. from the EMA) the uncertainty is their root mean square, and
@@ -52,35 +55,35 @@ def measured_modes(cfg: dict, state: str, pts):
     from jointid.errors import DataError
     from jointid.geometry.points import dof_labels
 
-    ds = read_dataset(dataset_folder(cfg, state), measuring_points=pts)
-    low = below_band(ds.name, {state: ds.freqs(state)}, float(cfg["solver"]["min_freq_Hz"]))
+    ds = read_dataset(opts.datasets[state], measuring_points=pts)
+    low = below_band(ds.name, {state: ds.freqs(state)}, opts.min_freq_Hz)
     if low:
         raise DataError(low)
     shapes = None
     if ds.shapes is not None and state in set(ds.shapes["state"]):
         shapes = ds.shape_matrix(state, dof_labels(pts))
-    sigma_pct = ds.conditions.get("frequency_uncertainty_pct", cfg["identify"]["frequency_uncertainty_pct"])
+    sigma_pct = ds.conditions.get("frequency_uncertainty_pct", opts.frequency_uncertainty_pct)
     per = ds.frequency_sigma_rel(state)
     if per is not None:
         sigma_pct = 100 * float(np.sqrt(np.mean(per ** 2)))
     return ds.freqs(state), shapes, float(sigma_pct)
 
 
-def noise_weights(cfg: dict, state: str, pts, sigma_pct: float, weights):
+def noise_weights(opts: IdentifyOptions, state: str, pts, sigma_pct: float, weights):
     """``identify.weights`` (None: ones) times each mode's ``(sigma / sigma_i)^2`` where modes.csv gives
     per-mode frequency uncertainties ``sigma_i`` (``sigma``: :func:`measured_modes`' root mean square):
     the fit's residual of mode i is then in units of its own uncertainty.  ``weights`` as given
     without per-mode uncertainties."""
     from jointid.data.dataset import read_dataset
 
-    per = read_dataset(dataset_folder(cfg, state), measuring_points=pts).frequency_sigma_rel(state)
+    per = read_dataset(opts.datasets[state], measuring_points=pts).frequency_sigma_rel(state)
     if per is None:
         return weights
     w = np.ones(len(per)) if weights is None else np.asarray(weights, float)
     return w * (sigma_pct / 100 / per) ** 2
 
 
-def visibility_rule(cfg: dict, state: str, pts):
+def visibility_rule(opts: IdentifyOptions, state: str, pts):
     """The observability rule of ``state`` (:class:`jointid.identification.visibility.VisibilityRule`),
     from its dataset's ``test_setup`` (default: the hammer at ``harmonic.drive_point`` in x, y and z,
     the responses where shapes were measured, else at every point in x, y and z); None when
@@ -89,28 +92,28 @@ def visibility_rule(cfg: dict, state: str, pts):
     from jointid.geometry.points import dof_labels
     from jointid.identification.visibility import dataset_rule
 
-    if cfg["identify"].get("visible_threshold", 0.25) is None:
+    if opts.test_setup.visible_threshold is None:
         return None
-    folder = dataset_folder(cfg, state)
+    folder = opts.datasets[state]
     ds = read_dataset(folder, measuring_points=pts)
     labels = dof_labels(pts)
     shapes = None
     if ds.shapes is not None and state in set(ds.shapes["state"]):
         shapes = ds.shape_matrix(state, labels)
-    return dataset_rule(ds, state, labels, list(pts["point"]), shapes, TestSetup.from_config(cfg),
+    return dataset_rule(ds, state, labels, list(pts["point"]), shapes, opts.test_setup,
                         f"{folder}/conditions.yaml")
 
 
-def tie_damping(cfg: dict, state: str, f_meas) -> tuple:
+def tie_damping(opts: IdentifyOptions, state: str, f_meas) -> tuple:
     """``(damping ratio of each measured mode or None, its source)`` for the resolvability rule among
     tied pairings (:func:`jointid.identification.ties.tie_damping`): the dataset's measured ratios,
     else the configured ``harmonic.damping``."""
     from jointid.data.dataset import read_dataset
     from jointid.identification.ties import tie_damping as _tie_damping
 
-    ds = read_dataset(dataset_folder(cfg, state))
+    ds = read_dataset(opts.datasets[state])
     measured = ds.damping(state) if state in ds.states else None
-    return _tie_damping(len(f_meas), measured, Damping.from_section((cfg.get("harmonic") or {}).get("damping")), f_meas)
+    return _tie_damping(len(f_meas), measured, opts.damping, f_meas)
 
 
 def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, rule: str) -> list[str]:
@@ -153,21 +156,20 @@ def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, 
     return notes
 
 
-def _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule):
+def _shared_pairing(opts, doc, state, states, pts, lower, upper, weights, rule):
     # many parameters: the inputs of the joint pairing that run_identify has read (surfaces, states, bounds, weights, rule)
     """``(shared pairing, joint-pairing record, notes)`` of frequency-only states of equal mode counts
     (:func:`jointid.identification.updating.identify_states_jointly`); ``(None, None, [])`` otherwise."""
     from jointid.identification.updating import identify_states_jointly
 
-    ic = cfg["identify"]
-    others = {s: measured_modes(cfg, s, pts) for s in states}
+    others = {s: measured_modes(opts, s, pts) for s in states}
     if not (all(o[1] is None for o in others.values()) and len({len(o[0]) for o in others.values()}) == 1):
         return None, None, []
-    damping = {s: tie_damping(cfg, s, o[0]) for s, o in others.items()}
+    damping = {s: tie_damping(opts, s, o[0]) for s, o in others.items()}
     shared, joint_info = identify_states_jointly(
         doc, {s: o[0] for s, o in others.items()}, lower, upper, weights=weights,
-        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel={s: o[2] / 100 for s, o in others.items()},
-        rule={s: visibility_rule(cfg, s, pts) for s in states},
+        n_starts=opts.n_starts, seed=opts.seed, sigma_rel={s: o[2] / 100 for s, o in others.items()},
+        rule={s: visibility_rule(opts, s, pts) for s in states},
         damping=None if any(d[0] is None for d in damping.values()) else {s: d[0] for s, d in damping.items()})
     joint_info["tie_rule"]["damping_ratio_source"] = {s: d[1] for s, d in damping.items()}
     return shared, joint_info, pairing_notes(doc, state, states, shared, joint_info, rule)
@@ -258,7 +260,7 @@ def _polish_step(spec: ModelSpec, state: str, names: list[str], fit, surface_the
     return theta, ci_lo, ci_hi, polish["f_fe"], polish, edge
 
 
-def _polish_fit(cfg: dict, state: str, doc: dict, pairing, measured: tuple, weights, fixed, rule):
+def _polish_fit(opts: IdentifyOptions, state: str, doc: dict, pairing, measured: tuple, weights, fixed, rule):
     # many parameters: the state, its surface and pairing, the measured modes with their weights and the test
     """What the FE polish fits (:class:`jointid.identification.polish.PolishFit`): the measured modes
     ``measured`` (:func:`measured_modes`), following the surface model's reference shapes of their paired
@@ -268,18 +270,19 @@ def _polish_fit(cfg: dict, state: str, doc: dict, pairing, measured: tuple, weig
     from jointid.identification.polish import PolishFit
 
     f_meas, shapes, sigma_pct = measured
-    shape_pct = None if shapes is None else stated_shape_uncertainty(cfg, state)
-    b_lo, b_hi = parameter_bounds(cfg)
+    shape_pct = None if shapes is None else stated_shape_uncertainty(opts.datasets[state])
+    b_lo, b_hi = opts.model.joints.lower_N_per_m3, opts.model.joints.upper_N_per_m3
     return PolishFit(f_meas, np.asarray(doc["ref_shapes"])[:, pairing], b_lo, b_hi, weights=weights,
                      sigma_rel=sigma_pct / 100, repair=shapes is None and fixed is None, rule=rule, shapes=shapes,
                      shape_sigma_rel=None if shape_pct is None else float(shape_pct) / 100)
 
 
-def stated_shape_uncertainty(cfg: dict, state: str) -> float | None:
-    """The dataset's ``shape_uncertainty_pct`` (conditions.yaml; None: not stated, the polish estimates it)."""
+def stated_shape_uncertainty(folder: str) -> float | None:
+    """The ``shape_uncertainty_pct`` of the dataset in ``folder`` (conditions.yaml; None: not stated, the polish
+    estimates it)."""
     from jointid.data.dataset import read_dataset
 
-    value = read_dataset(dataset_folder(cfg, state)).conditions.get("shape_uncertainty_pct")
+    value = read_dataset(folder).conditions.get("shape_uncertainty_pct")
     return None if value is None else float(value)
 
 
@@ -341,7 +344,7 @@ def _model_error(polish: dict, sigma_pct: float, state: str) -> dict:
     return me.record()
 
 
-def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_json: str,
+def run_identify(opts: IdentifyOptions, state: str, surface_json: str, points_csv: str, out_json: str,
                  matrices: str | None = None, rom: str | None = None, states: list[str] | None = None,
                  summary_json: str | None = None) -> None:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
@@ -365,23 +368,22 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     from jointid.identification.record import Observability, TieRule
 
     doc, pts = io.read_json(surface_json), io.read_csv(points_csv)
-    f_meas, shapes, sigma_pct = measured_modes(cfg, state, pts)
-    ic = cfg["identify"]
-    weights = noise_weights(cfg, state, pts, sigma_pct, np.asarray(ic["weights"], float) if ic.get("weights") else None)
+    f_meas, shapes, sigma_pct = measured_modes(opts, state, pts)
+    weights = noise_weights(opts, state, pts, sigma_pct, None if opts.weights is None else np.asarray(opts.weights, float))
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
     names, zoom = doc["names"], doc.get("stage") == "zoom"
-    rule = ic["pairing"]  # the schema gives the default
+    rule = opts.pairing  # the schema gives the default
     shared, joint_info, pair_msgs = None, None, []
     log(f"identify[{state}]: {len(f_meas)} measured modes, {len(doc['tracked_modes'])} tracked modes; pairing "
         f"them on the {'zoomed ' if zoom else ''}response surfaces")
     if states and len(states) > 1 and state in states and shapes is None:
-        shared, joint_info, pair_msgs = _shared_pairing(cfg, doc, state, states, pts, lower, upper, weights, rule)
+        shared, joint_info, pair_msgs = _shared_pairing(opts, doc, state, states, pts, lower, upper, weights, rule)
     fixed = shared if rule == "shared" else None
-    vis_rule = visibility_rule(cfg, state, pts)
-    zeta, zeta_source = tie_damping(cfg, state, f_meas)
+    vis_rule = visibility_rule(opts, state, pts)
+    zeta, zeta_source = tie_damping(opts, state, f_meas)
     decision = {}
     res, pairing, msgs = updating.identify_state(doc, f_meas, lower, upper, meas_shapes=shapes, weights=weights,
-                                        n_starts=ic["n_starts"], seed=ic["seed"], sigma_rel=sigma_pct / 100,
+                                        n_starts=opts.n_starts, seed=opts.seed, sigma_rel=sigma_pct / 100,
                                         pairing=fixed, rule=vis_rule, damping=zeta, decision=decision)
     tie_rule = joint_info["tie_rule"] if fixed is not None else (
         {**decision, "damping_ratio_source": {state: zeta_source}} if decision else None)
@@ -391,21 +393,21 @@ def run_identify(cfg: dict, state: str, surface_json: str, points_csv: str, out_
     if zoom:  # an edge of the zoomed box is no bound of the parameters: the FE polish may pass it
         msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in names)]
     theta, ci_lo, ci_hi = np.asarray(res.theta, float), res.ci_lower, res.ci_upper
-    f_final, polish, edge, edges = res.f_model, None, None, bool((cfg.get("mesh") or {}).get("extrapolate_edges"))
-    if edges and not (matrices and ic.get("fe_polish", True)):
+    f_final, polish, edge, edges = res.f_model, None, None, opts.extrapolate_edges
+    if edges and not (matrices and opts.fe_polish):
         msgs.append("mesh.extrapolate_edges needs identify.fe_polish: the frequencies fitted are those of the "
                     "base mesh")
-    if matrices and cfg["identify"].get("fe_polish", True):
-        fit = _polish_fit(cfg, state, doc, pairing, (f_meas, shapes, sigma_pct), weights, fixed, vis_rule)
+    if matrices and opts.fe_polish:
+        fit = _polish_fit(opts, state, doc, pairing, (f_meas, shapes, sigma_pct), weights, fixed, vis_rule)
         theta, ci_lo, ci_hi, f_final, polish, edge = _polish_step(
-            ModelSpec.from_config(cfg), state, doc["names"], fit, res.theta, matrices, rom, edges)
+            opts.model, state, doc["names"], fit, res.theta, matrices, rom, edges)
         msgs += _polish_notes(polish, shapes)
     if zoom:
         msgs += _zoom_notes(names, theta, lower, upper, polish, res)
     summary = summary_json or points_csv.replace("measuring_points.csv", "summary.json")
-    per_carriage = _per_carriage(ModelSpec.from_config(cfg), names, theta, ci_lo, ci_hi,
+    per_carriage = _per_carriage(opts.model, names, theta, ci_lo, ci_hi,
                                  io.read_json(summary)["contact_area_per_carriage_m2"])
-    damping = joint_damping.params_entry(dataset_folder(cfg, state), state, names, polish, f_meas, weights, edge, log)
+    damping = joint_damping.params_entry(opts.datasets[state], state, names, polish, f_meas, weights, edge, log)
     rec = replace(_identification(state, doc, res, pairing, _paired_by(shapes, fixed), joint_info, f_meas, sigma_pct,
                                   (theta, ci_lo, ci_hi, f_final), polish, edge, rom, per_carriage, msgs),
                   tie_rule=None if tie_rule is None else TieRule.from_json(tie_rule),  # None: no frequency-only choice

@@ -8,13 +8,16 @@ Imports of the numerical modules are inside the functions (see :mod:`jointid.sta
 from __future__ import annotations
 
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from jointid import io
-from jointid.config.typed import ModelSpec
 from jointid.errors import ModelError
 from jointid.stages.modal import SOLVE_KEYS
+
+if TYPE_CHECKING:
+    from jointid.config.options import MeshCheckOptions
 
 CONFIG = ("materials", "rig", "model", "mesh", "mesh_check", "joints", "identify.weights", *SOLVE_KEYS)
 """Config keys of rule ``mesh_check``."""
@@ -60,7 +63,7 @@ def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
     return modes_f.freqs_Hz, modes_f.freqs_Hz, shapes_f, fine.n_dofs
 
 
-def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, matrices: str,
+def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_csv: str, matrices: str,
                    out_json: str, out_csv: str, log=print) -> dict:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rule ``mesh_check`` for one state's identified parameters (see the module doc); with
@@ -78,8 +81,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     from jointid.identification.meshcheck import error_budget, first_order_shift, mode_table, parameter_changes
     from jointid.identification.record import IdentificationRecord
 
-    mc_cfg = cfg["mesh_check"]
-    halve = tuple(mc_cfg["halve"])
+    halve = opts.halve
     par = IdentificationRecord.read(params_json)
     ver = io.read_csv(verify_csv)
     names = par.names
@@ -87,8 +89,8 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     theta_d = dict(zip(names, theta))
     say = lambda m: log(f"mesh_check[{state}]: {m}")  # noqa: E731
     # mesh_check.edge_levels: both meshes extrapolated over their edge levels; else both at their base level
-    spec = ModelSpec.from_config(cfg)
-    edges = bool(mc_cfg.get("edge_levels", False) and cfg["mesh"].get("extrapolate_edges", False))
+    spec = opts.model
+    edges = opts.extrapolate
     say("default mesh at the identified parameters")
     f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(
         spec, theta_d, names, theta, matrices, edge_level_builders(spec, progress=say) if edges else [], say)
@@ -102,9 +104,9 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
                          "(MAC < 0.8 at the measuring points for every paired mode) — check the mesh settings")
     rows = fe_mode[use]
     dlnf = np.log(f_f[index[rows]] / f_c[rows])
-    weights = np.asarray(cfg["identify"].get("weights") or np.ones(len(fe_mode)), float)[use]
+    weights = np.asarray(opts.weights or np.ones(len(fe_mode)), float)[use]
     delta = first_order_shift(J_all[rows], dlnf, weights)
-    limit = float(mc_cfg["max_parameter_change_pct"])
+    limit = opts.max_parameter_change_pct
     warnings = []
     lost = [i + 1 for i in np.flatnonzero((fe_mode >= 0) & ~use)]
     if lost:
@@ -117,7 +119,7 @@ def run_mesh_check(cfg: dict, state: str, params_json: str, verify_csv: str, mat
     io.write_csv(table, out_csv)
     change = np.full(len(fe_mode), np.nan)
     change[use] = 100 * np.expm1(dlnf)
-    budget = error_budget(change, par, float(mc_cfg.get("budget_fraction", 1 / 3)))
+    budget = error_budget(change, par, opts.budget_fraction)
     doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": edges,
            "budget": budget,
            "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),

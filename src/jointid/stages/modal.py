@@ -10,50 +10,35 @@ from __future__ import annotations
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from jointid import io
-from jointid.config.typed import ModelSpec
-from jointid.stages.doe import parameter_names
+from jointid.config.snakefile import CONFIG_ROM, ROM_KEYS  # noqa: F401  (rule rom's keys; modal's: modal_keys)
 from jointid.stages.runner import log
+
+if TYPE_CHECKING:
+    from jointid.config.typed import ModelSpec
 
 SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min_freq_Hz")
 """Config keys of a full FE solve (:func:`jointid.identification.polish.solve_point`) in the later stages."""
-ROM_KEYS = ("method", "rom_tolerance")
-"""``solver`` keys of the reduced-order model only."""
-CONFIG_ROM = ("materials", "rig", "model", "joints", "solver")
-"""Config keys of rule ``rom``."""
 
 
-def config_keys(config: dict) -> tuple[str, ...]:
-    """Config keys of rules ``modal`` and ``modal_zoom``.
-
-    With ``solver.method: full`` they leave out the ROM keys (:data:`ROM_KEYS`), so that the full
-    path's jobs, params and results stay exactly those it had before the option existed; with
-    ``reduced`` (the default) they hold the method (a switch reruns the DOE solves) but not the
-    ROM's tolerance.
-    """
-    method = config["solver"]["method"]
-    if method == "rom":
-        return CONFIG_ROM
-    left_out = ROM_KEYS if method == "full" else ("rom_tolerance",)
-    return ("materials", "rig", "model", "joints", *(f"solver.{k}" for k in config["solver"] if k not in left_out))
-
-
-def run_modal(cfg: dict, matrices: str, theta: dict[str, float], out_npz: str, rom: str | None = None) -> None:
+def run_modal(spec: ModelSpec, matrices: str, theta: dict[str, float], out_npz: str, rom: str | None = None) -> None:
     """Modes at one DOE point -> ``out_npz`` (freqs_Hz, shapes, labels, description, strain_joints, theta).
 
     ``solver.method``: ``full`` solves the FE model; ``rom`` evaluates the reduced-order
     model ``rom`` (written by :func:`run_rom`) and expands its modes to full DOF vectors for the
-    mode descriptions.  Both write the same arrays.
+    mode descriptions.  Both write the same arrays.  ``spec``: the model's :class:`~jointid.config.typed.ModelSpec`.
     """
     from jointid.fe.model import load_model
 
     model = load_model(matrices)
-    if cfg["solver"].get("method", "full") == "rom":
-        freqs, shapes, desc = _rom_point(cfg, model, theta, rom)
+    if spec.solver.method == "rom":
+        freqs, shapes, desc = _rom_point(spec, model, theta, rom)
     else:
         from jointid.identification.polish import solve_point
 
-        freqs, shapes, desc, _ = solve_point(ModelSpec.from_config(cfg), model, theta)
+        freqs, shapes, desc, _ = solve_point(spec, model, theta)
     _write_point(out_npz, freqs, shapes, desc, _labels(model), theta)
     log("modal: " + ", ".join(f"{f:.1f}" for f in freqs) + " Hz")
 
@@ -74,7 +59,7 @@ def _write_point(out_npz: str, freqs, shapes, desc, labels, theta: dict[str, flo
                  theta_names=np.array(list(theta)), theta=np.array(list(theta.values())), **extra)
 
 
-def run_modal_points(cfg: dict, matrices: str, sheet_csv: str, out_npzs: list[str]) -> None:
+def run_modal_points(spec: ModelSpec, matrices: str, sheet_csv: str, out_npzs: list[str]) -> None:
     """``solver.method: reduced``: the modes of every point of ``sheet_csv`` in one job, on one reduced
     basis certified point by point (:mod:`jointid.identification.doe_modes`) -> one file per point
     (``out_npzs``, named ``<point>.npz``; the arrays of :func:`run_modal` and the point's
@@ -88,7 +73,7 @@ def run_modal_points(cfg: dict, matrices: str, sheet_csv: str, out_npzs: list[st
     from jointid.identification.doe_modes import solve_points
     from jointid.progress import Steps
 
-    names = parameter_names(cfg)
+    names = spec.joints.names
     paths = {os.path.splitext(os.path.basename(p))[0]: p for p in out_npzs}
     sheet = io.read_csv(sheet_csv)
     if sorted(sheet["point"]) != sorted(paths):
@@ -101,7 +86,7 @@ def run_modal_points(cfg: dict, matrices: str, sheet_csv: str, out_npzs: list[st
     t0 = time.time()
     model = load_model(matrices)
     labels, steps = _labels(model), Steps(len(points))
-    for point, theta, res in zip(points, thetas, solve_points(ModelSpec.from_config(cfg), model, thetas, log=log)):
+    for point, theta, res in zip(points, thetas, solve_points(spec, model, thetas, log=log)):
         _write_point(paths[point], res.freqs_Hz, res.shapes, res.description, labels, theta,
                      residual_error=np.float64(res.error), basis_size=np.int64(res.basis_size))
         log(f"modal {point} {steps.done()}: " + ", ".join(f"{f:.1f}" for f in res.freqs_Hz) +
@@ -109,7 +94,7 @@ def run_modal_points(cfg: dict, matrices: str, sheet_csv: str, out_npzs: list[st
     log(f"modal: {len(points)} points on one reduced basis ({model.n_dofs} DOFs) in {time.time() - t0:.1f} s")
 
 
-def _rom_point(cfg: dict, model, theta: dict[str, float], rom: str | None):
+def _rom_point(spec: ModelSpec, model, theta: dict[str, float], rom: str | None):
     """``(freqs_Hz, shapes at the measuring points, description)`` of the ROM file ``rom`` at ``theta``."""
     from jointid.errors import ConfigError
     from jointid.fe.describe import describe_modes
@@ -120,12 +105,12 @@ def _rom_point(cfg: dict, model, theta: dict[str, float], rom: str | None):
         raise ConfigError("solver.method: rom needs the reduced-order model (rule rom, "
                           "results/rom/rom.npz) — build it with run_rom, or set solver.method: full")
     reduced = load_rom(rom)
-    kc, mc = base_coefficients(ModelSpec.from_config(cfg), model, theta)
-    modes = full_modes(reduced, kc, mc, cfg["solver"]["n_modes"])
+    kc, mc = base_coefficients(spec, model, theta)
+    modes = full_modes(reduced, kc, mc, spec.solver.n_modes)
     return modes.freqs_Hz, model.probe @ modes.phi, describe_modes(model, modes.phi, kc, mc)
 
 
-def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: str) -> dict:
+def run_rom(spec: ModelSpec, matrices: str, sheet_csv: str, out_npz: str, out_json: str) -> dict:
     """Build the parametric reduced-order model once (``solver.method: rom``) with error control.
 
     Training: a full solve at the centre of the joint-parameter box (``solver.n_modes`` + 2 modes),
@@ -151,20 +136,20 @@ def run_rom(cfg: dict, matrices: str, sheet_csv: str, out_npz: str, out_json: st
     from jointid.fe.model import load_model
     from jointid.identification.rom_build import RomOptions, build_rom
 
-    s = cfg["solver"]
-    tol = float(s.get("rom_tolerance", 1e-4))
+    s = spec.solver
+    tol = float(s.rom_tolerance)
     model = load_model(matrices)
     sheet = io.read_csv(sheet_csv)
-    doe_x = sheet[[f"x_{n}" for n in parameter_names(cfg)]].to_numpy(float)
+    doe_x = sheet[[f"x_{n}" for n in spec.joints.names]].to_numpy(float)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)  # not verified: raised as an error below
-        rom = build_rom(model, ModelSpec.from_config(cfg), "corners", RomOptions(n_modes=s["n_modes"], tol=tol),
+        rom = build_rom(model, spec, "corners", RomOptions(n_modes=s.n_modes, tol=tol),
                         candidates=doe_x, progress=log)
     rep = rom.report
     n_inverse = sum(1 for t in rep["training"] if t.get("how", "full solve") != "full solve")
     n_full = len(rep["training"]) - n_inverse + sum(len(r["points"]) for r in rep["rounds"])
     summary = {"n_dofs": int(model.n_dofs), "n_modes": rep["n_modes"], "n_train_modes": rep["n_train_modes"],
-               "min_freq_Hz": float(s["min_freq_Hz"]), "tolerance": tol, "max_error": rep["max_error"],
+               "min_freq_Hz": float(s.min_freq_Hz), "tolerance": tol, "max_error": rep["max_error"],
                "verified": rep["verified"], "basis_size": rom.size, "n_full_solves": n_full,
                "n_inverse_iteration_points": n_inverse,
                "n_training_points": len(rep["training"]), "n_doe_candidates": int(len(doe_x)),

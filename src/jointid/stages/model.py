@@ -1,43 +1,32 @@
 """Rule ``mesh``: build and cache the FE model of the rig.
 
 Imports of the numerical modules are inside the functions: every workflow job is a fresh Python
-process and loads only what its stage uses, and the Snakefile reads :func:`config_keys` at parse
-time without loading the FE code.
+process and loads only what its stage uses, and the Snakefile imports the stages at parse time without
+loading the FE code.  Rule ``mesh``'s config keys and input files are
+:func:`jointid.config.snakefile.mesh_keys` and :func:`~jointid.config.snakefile.mesh_inputs`.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from jointid import io
 from jointid.stages.runner import log
 
-
-def input_files(config: dict) -> list[str]:
-    """Files the model is read from: with ``model.kind: mesh`` the mesh file and the measuring
-    points (so that a changed file rebuilds the model), none for the parametric rig."""
-    m = config.get("model") or {}
-    return [m["path"], m["points"]] if m.get("kind") == "mesh" else []
+if TYPE_CHECKING:
+    from jointid.config.typed import ModelSpec
 
 
-def config_keys(config: dict) -> tuple[str, ...]:
-    """Config keys of rule ``mesh``: the mesh, not whether and how identify extrapolates over its
-    edge levels (``mesh.extrapolate_edges``, ``mesh.edge_ratio``)."""
-    if (config.get("model") or {}).get("kind") == "mesh":
-        return ("materials", "model")
-    return ("materials", "rig", "model",
-            *(f"mesh.{k}" for k in config["mesh"] if k not in ("extrapolate_edges", "edge_ratio")))
-
-
-def run_mesh(cfg: dict, matrices: str, points_csv: str, vtu: str | None = None,
+def run_mesh(spec: ModelSpec, matrices: str, points_csv: str, vtu: str | None = None,
              summary_json: str | None = None) -> None:
     """Build and cache the model matrices, the measuring-point table, the model summary
     (:func:`model_summary`; ``summary_json``, by default ``summary.json`` beside ``points_csv``) and a
-    VTK file of the mesh."""
+    VTK file of the mesh (``spec``: the model's :class:`~jointid.config.typed.ModelSpec`)."""
     import pandas as pd
 
-    from jointid.config.typed import ModelSpec
     from jointid.fe.model import edge_level_model, save_model
 
-    model = edge_level_model(ModelSpec.from_config(cfg), 0, progress=log)  # with its ordering
+    model = edge_level_model(spec, 0, progress=log)  # with its ordering
     save_model(model, matrices)
     pts = pd.DataFrame(model.meta["points"])
     io.write_csv(pts, points_csv)

@@ -4,9 +4,13 @@ figures as PNG files (for ``snakemake --report``)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from jointid import io
 from jointid.stages.runner import log
+
+if TYPE_CHECKING:
+    from jointid.config.options import ReportOptions
 
 
 def _as_list(x) -> list:
@@ -99,13 +103,13 @@ def _hypotheses(inputs: dict):
             "ranges": beside("reconstruction.csv"), "next": beside("next_measurements.csv")}
 
 
-def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
+def run_report(opts: ReportOptions, inputs: dict, outputs: dict, workdir=".") -> str:
     """The ``report`` workflow stage.
 
     Parameters
     ----------
-    cfg : dict
-        The whole configuration (shown, and hashed).
+    opts : ReportOptions
+        Of the whole configuration (shown, and hashed): :meth:`jointid.config.options.ReportOptions.from_config`.
     inputs : dict
         Paths: ``table1, table2, table3, paper_table1, diagnostics, sheet, points`` (one each),
         ``table1_ranges`` (optional),
@@ -130,12 +134,12 @@ def run_report(cfg: dict, inputs: dict, outputs: dict, workdir=".") -> str:
     from jointid.reporting.provenance import run_record
 
     data = load_inputs(inputs)
-    figs = report_figures(cfg, data)
+    figs = report_figures(opts, data)
     for name, png in figs.items():
         if outputs.get(name):
             with io.atomic_path(outputs[name]) as tmp:
                 tmp.write_bytes(png)
-    page = build_html(cfg, data, figs, run_record(cfg, workdir))
+    page = build_html(opts, data, figs, run_record(opts.stamp, workdir))
     io.write_text(outputs["html"], page)
     log(f"report: {outputs['html']} ({len(page) / 1e6:.1f} MB, {len(figs)} figures)")
     return page

@@ -85,14 +85,15 @@ def check_inputs(inputs: Iterable[str]) -> dict[str, str]:
     return hashes
 
 
-def write_sidecars(outputs: Iterable[str], cfg, inputs: Iterable[str], input_hashes=None) -> list:
+def write_sidecars(outputs: Iterable[str], stamp, inputs: Iterable[str], input_hashes=None) -> list:
     """Provenance sidecar ``<output>.provenance.json`` of each output (see :mod:`jointid.reporting.provenance`):
-    one record for the job (git state, input hashes), each output's own SHA-256 added."""
+    one record for the job (git state, input hashes, ``stamp``: the :class:`jointid.config.ConfigStamp` of
+    the rule's config), each output's own SHA-256 added."""
     from jointid.reporting.provenance import provenance, write_provenance
 
     inputs = input_files(inputs)
-    record = provenance(cfg, inputs=inputs, input_hashes=input_hashes)
-    return [write_provenance(out, cfg, record=record) for out in outputs]
+    record = provenance(stamp, inputs=inputs, input_hashes=input_hashes)
+    return [write_provenance(out, stamp, record=record) for out in outputs]
 
 
 def _one_line(exc: BaseException, limit: int = 200) -> str:
@@ -104,7 +105,8 @@ def run_script(smk, fn, provenance: bool | Iterable[str] = True) -> None:
     """Run ``fn(cfg, input, output)`` with stdout/stderr sent to the rule's log.
 
     ``cfg`` is ``smk.params.cfg`` (the config sections the rule depends on, passed through ``params:``
-    so that a change reruns exactly the affected rules).  The inputs are checked against their
+    so that a change reruns exactly the affected rules); ``fn``, the rule script's adapter, turns it into its
+    stage's typed options once (:mod:`jointid.config.options`): the stages never see the dict.  The inputs are checked against their
     provenance sidecars first (:func:`check_inputs`).  A :class:`JointidError` is printed as its
     problem lines (no traceback) and the script exits 1; Snakemake then removes the rule's outputs.
     Any other exception prints one line (what failed, in which rule, where the traceback is) and
@@ -129,7 +131,9 @@ def run_script(smk, fn, provenance: bool | Iterable[str] = True) -> None:
         fn(smk.params.cfg, smk.input, smk.output)
         if provenance:
             outs = list(smk.output) if provenance is True else [getattr(smk.output, n) for n in provenance]
-            write_sidecars(outs, smk.params.cfg, list(smk.input), hashes)
+            from jointid.config.hashing import ConfigStamp
+
+            write_sidecars(outs, ConfigStamp.of(smk.params.cfg), list(smk.input), hashes)
     except JointidError as exc:
         if len(exc.problems) == 1:
             print(f"error in rule {smk.rule}: {exc.problems[0]}", file=sys.stderr)

@@ -4,8 +4,13 @@ and Markdown."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from jointid import io
 from jointid.stages.runner import log
+
+if TYPE_CHECKING:
+    from jointid.config.options import Table1Options
 
 PAPER_TABLES_COLUMNS = ("state", "order", "paper_simulation_Hz")
 PAPER_TABLE1_COLUMNS = ("state", "paper_dynamic_stiffness_N_per_mm", "paper_increase_pct")
@@ -61,12 +66,13 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
 
 
 def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md: str, *,
-               points_npz: list[str] | None = None, cfg: dict | None = None, out_ranges: str | None = None,
+               points_npz: list[str] | None = None, opts: Table1Options | None = None, out_ranges: str | None = None,
                out_cases: str | None = None, out_pairings: str | None = None):
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rule ``table1``: read the harmonic results, write Table 1 (CSV and Markdown) and, given the
     states' ``drive_points.npz`` (same order as ``stiffness_jsons``), its ranges over the table points
-    and the damping laws (``out_ranges``, ``out_cases``: one row per state, point and law);
+    and the damping laws (``out_ranges``, ``out_cases``: one row per state, point and law; ``opts``: their band and
+    number of frequencies, default :meth:`Table1Options.from_config` of no configuration);
     ``out_pairings``: Table 1 under every admissible pairing (the chosen one and each exactly tied
     alternative, :func:`jointid.reporting.tables.table1_pairings_frame`); returns Table 1's frame."""
     import pandas as pd
@@ -80,7 +86,11 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
         io.write_csv(pairings, out_pairings)
     ranges = None
     if points_npz:
-        ranges, cases = table1_ranges(docs, points_npz, reference_state(list(df.state)), cfg or {},
+        if opts is None:
+            from jointid.config.options import Table1Options
+
+            opts = Table1Options.from_config(None)
+        ranges, cases = table1_ranges(docs, points_npz, reference_state(list(df.state)), opts,
                                       dict(zip(df.state, df.paper_increase_pct)))
         io.write_csv(ranges, out_ranges)
         if out_cases:
@@ -108,12 +118,12 @@ def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md:
     return df
 
 
-def table1_ranges(docs: list[dict], points_npz: list[str], reference: str, cfg: dict, paper_increase: dict):
+def table1_ranges(docs: list[dict], points_npz: list[str], reference: str, opts: Table1Options, paper_increase: dict):
     """The ranges of Table 1 (:func:`jointid.response.ranges.range_table`) and their cases.
 
     The three damping laws are calibrated on the reference state's drive point: the mode that sets its
     lowest paired resonance peak (else its band minimum) gets the damping ratio the configured model
-    gives it.  Returns ``(ranges, cases)``."""
+    gives it; the band is ``opts``' (None: the reference state's).  Returns ``(ranges, cases)``."""
     import numpy as np
     import pandas as pd
 
@@ -126,9 +136,8 @@ def table1_ranges(docs: list[dict], points_npz: list[str], reference: str, cfg: 
     ref = data[reference]
     laws = {law: calibrate(law, float(cal["damping_ratio"]), float(ref["freqs_Hz"][r]), float(ref["joint_share"][r]))
             for law in LAWS}
-    h = cfg.get("harmonic", {})
-    band = h.get("band_Hz", doc["band_Hz"])
-    cases = {s: case_table(d, laws, band_Hz=band, n_freq=int(h.get("n_freq", 1601))) for s, d in data.items()}
+    band = doc["band_Hz"] if opts.band_Hz is None else opts.band_Hz
+    cases = {s: case_table(d, laws, band_Hz=band, n_freq=opts.n_freq) for s, d in data.items()}
     ranges = range_table(cases, reference, doc["drive_point"], paper_increase)
     for law, v in laws.items():
         log(f"table1: damping law {law} calibrated on FE mode {r + 1} ({ref['freqs_Hz'][r]:.1f} Hz, joint share "

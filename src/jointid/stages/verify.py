@@ -11,11 +11,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from jointid import io
-from jointid.config.typed import ModelSpec
 from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
+    from jointid.config.typed import ModelSpec
     from jointid.identification.record import IdentificationRecord
 
 CONFIG = ("materials", "rig", "model", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
@@ -28,8 +28,9 @@ def visibility_rule(par: "IdentificationRecord", labels: list[str]):
     return None if par.observability is None else par.observability.rule(labels)
 
 
-def _pairing(cfg: dict, par: "IdentificationRecord", doc: dict, f_all, shapes, rule=None):
-    """``(FE mode index, MAC to the tracked mode)`` of each measured mode at the identified parameters."""
+def _pairing(min_freq_Hz: float, par: "IdentificationRecord", doc: dict, f_all, shapes, rule=None):
+    """``(FE mode index, MAC to the tracked mode)`` of each measured mode at the identified parameters (FE modes
+    from ``min_freq_Hz`` up)."""
     from jointid.correlate.pairing import PairedBy
     from jointid.identification.updating import verify_pairing
 
@@ -38,7 +39,7 @@ def _pairing(cfg: dict, par: "IdentificationRecord", doc: dict, f_all, shapes, r
         from jointid.correlate.mac import mac
         from jointid.correlate.pairing import pair_by_frequency
 
-        cand = np.flatnonzero(f_all >= cfg["solver"]["min_freq_Hz"])
+        cand = np.flatnonzero(f_all >= min_freq_Hz)
         if rule is None:
             index = cand[pair_by_frequency(f_meas, f_all[cand])]
         else:
@@ -117,11 +118,12 @@ def write_certificate(state: str, par: "IdentificationRecord", modes, out_json: 
     return rec
 
 
-def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
+def run_verify(spec: ModelSpec, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
                edge_matrices: list[str] | None = None, unpaired_csv: str | None = None,
                tied_csv: str | None = None, certificate_json: str | None = None) -> None:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
-    """Full FE re-solve at the identified parameters: the tables' simulated frequencies.
+    """Full FE re-solve at the identified parameters: the tables' simulated frequencies (``spec``: the model's
+    :class:`~jointid.config.typed.ModelSpec`).
 
     ``unpaired_csv``: the model modes the test would clearly have seen that no measured mode is paired
     with (:mod:`jointid.identification.visibility`; columns ``model_mode, freq_Hz,
@@ -142,7 +144,6 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     from jointid.identification.polish import solve_point
     from jointid.identification.record import IdentificationRecord
 
-    spec = ModelSpec.from_config(cfg)
     par, doc = IdentificationRecord.read(params_json), io.read_json(surface_json)
     model = load_model(matrices)
     freqs, shapes, desc, modes = solve_point(spec, model, par.theta, certify=True)
@@ -155,7 +156,7 @@ def run_verify(cfg: dict, state: str, params_json: str, surface_json: str, matri
     from jointid.identification.visibility import misfit_table
 
     rule = visibility_rule(par, dof_labels(pd.DataFrame(model.meta["points"])))
-    index, macs = _pairing(cfg, par, doc, f_all, shapes, rule)
+    index, macs = _pairing(spec.solver.min_freq_Hz, par, doc, f_all, shapes, rule)
     paired = np.clip(index, 0, None)
     fe = np.where(index >= 0, freqs[paired], np.nan)
     sim, extra = fe, {}

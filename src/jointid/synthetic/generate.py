@@ -47,20 +47,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from jointid.config import load_config
-from jointid.config.hashing import mesh_digest
+from jointid.config.synthetic import identification_config, truth_config  # noqa: F401  (truth_config: for callers)
+from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.data.dataset import write_dataset
 from jointid.diagnosis.effects import apply_effects, enabled_effects
 from jointid.diagnosis.terms import StateInfo, baseline_coefficients, build_system, term_component
 from jointid.errors import ConfigError, JointidError
 from jointid.fe.modal import solve_model
-from jointid.config.typed import ModelSpec
 from jointid.fe.model import build_model, joint_terms
 from jointid.response.damping import joint_energy_share
 from jointid.response.drive_point import joint_stiffness
 from jointid.response.harmonic import frf_modal
 from jointid.threads import limit_threads
-from jointid.yamlio import deep_merge, read_merged, read_yaml
+from jointid.yamlio import read_merged, read_yaml
 
 __all__ = ["synthesise", "write_synthetic", "load_truth", "main", "joint_shares", "hysteretic_ratios"]
 
@@ -105,12 +104,6 @@ def check_truth(truth: dict, where: str = "truth") -> None:
         raise ConfigError(problems)
 
 
-def truth_config(truth: dict, base_cfg: dict) -> dict:
-    """Validated configuration of the truth model (base config + the truth's overrides)."""
-    cfg = deep_merge(base_cfg, truth.get("overrides") or {})
-    return load_config(cfg)
-
-
 def _perturb(system, kc, mc, perturbations):
     for p in perturbations or []:
         if p["kind"] == "carriage_joint_scale":
@@ -130,15 +123,16 @@ def _perturb(system, kc, mc, perturbations):
                                   f"{', '.join(list(system.stiffness) + list(system.mass))}")
 
 
-def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
+def synthesise(truth: dict, settings: DiagnosisSettings, *, model=None) -> dict:
     """Solve the truth model and return the dataset tables.
 
     Parameters
     ----------
     truth : dict
         Parsed truth file (see module doc).
-    base_cfg : dict
-        Configuration the truth's ``overrides`` are merged into.
+    settings : DiagnosisSettings
+        Of the truth model's configuration (:func:`jointid.config.synthetic.truth_config`: the base configuration
+        with the truth's ``overrides`` merged in).
     model : fem.Model, optional
         A model already built for exactly the truth configuration (saves the assembly).
 
@@ -150,10 +144,9 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         and ``truth_damping`` per state with hidden joint damping (:func:`_hidden_damping`).
     """
     check_truth(truth)
-    cfg = truth_config(truth, base_cfg)
-    spec = ModelSpec.from_config(cfg)
+    spec = settings.model
     model = model or build_model(spec)
-    system = build_system(model, cfg)
+    system = build_system(model, spec)
     meas = {**MEASUREMENT_DEFAULTS, **(truth.get("measurement") or {})}
     noise = {**NOISE_DEFAULTS, **(truth.get("noise") or {})}
     rng = np.random.default_rng(int(noise["seed"]))
@@ -172,8 +165,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         kc, mc = apply_effects(system, kc, mc, state, [(s.effect, s.values, s.options) for s in specs])
         _perturb(system, kc, mc, truth.get("perturbations"))
         n = int(meas["max_modes"]) + 8
-        modes = solve_model(system, kc, mc, n, shift_Hz=cfg["solver"]["shift_Hz"],
-                            backend=cfg["solver"]["backend"])
+        modes = solve_model(system, kc, mc, n, shift_Hz=settings.shift_Hz, backend=settings.backend)
         in_band = np.flatnonzero((modes.freqs_Hz >= lo) & (modes.freqs_Hz <= hi))
         sel = in_band[: int(meas["max_modes"])]
         truncated = truncated or len(in_band) > len(sel)
@@ -184,7 +176,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
         zeta = noise["damping_ratio"] * (1 + 0.1 * rng.standard_normal(len(sel)))
         zeta_all = None
         if {"joint_loss_factors", "zeta0"} & set(truth):  # hidden damping (else as before this key existed)
-            zeta, zeta_all, truth_damping[sname] = _hidden_damping(system, cfg, kc, modes, truth, sel, rng_damping)
+            zeta, zeta_all, truth_damping[sname] = _hidden_damping(system, spec, kc, modes, truth, sel, rng_damping)
         shapes = (system.probe @ modes.phi[:, sel])
         for new, j in enumerate(order):
             modes_rows.append({"state": sname, "mode": new + 1, "freq_Hz": float(f_noisy[j]),
@@ -205,7 +197,7 @@ def synthesise(truth: dict, base_cfg: dict, *, model=None) -> dict:
             cond.update({"frf_drive_point": meas["drive_point"], "frf_drive_direction": meas["drive_direction"]})
         conds[sname] = cond
     conditions = _conditions(noise, conds, None if truncated else [lo, hi], bool(truth_damping), bool(meas["shapes"]))
-    conditions["computed_on_mesh"] = mesh_digest(cfg)  # the truth's discretisation (diagnosis.mesh_error)
+    conditions["computed_on_mesh"] = settings.mesh_digest  # the truth's discretisation (diagnosis.mesh_error)
     return {"modes": pd.DataFrame(modes_rows),
             "shapes": pd.DataFrame(shape_rows) if shape_rows else None,
             "frf": pd.DataFrame(frf_rows) if frf_rows else None,
@@ -231,12 +223,12 @@ def _conditions(noise: dict, states: dict, band_Hz, damped: bool, shapes: bool =
     return conditions
 
 
-def _hidden_damping(system, cfg, kc, modes, truth, sel, rng):
+def _hidden_damping(system, spec, kc, modes, truth, sel, rng):
     """The truth's hysteretic joint damping in one state: ``(measured ratios of the modes sel, with the
     relative noise noise.damping_pct; ratios of every solved mode; the truth's record)``."""
     meas = {**MEASUREMENT_DEFAULTS, **(truth.get("measurement") or {})}
     pct = float({**NOISE_DEFAULTS, **(truth.get("noise") or {})}.get("damping_pct", 0.0))
-    zeta_all, shares = hysteretic_ratios(system, cfg, kc, modes, truth)
+    zeta_all, shares = hysteretic_ratios(system, spec, kc, modes, truth)
     zeta = zeta_all[sel] * (1 + pct / 100 * rng.standard_normal(len(sel)))
     return zeta, zeta_all, {"freqs_Hz": modes.freqs_Hz, "damping_ratio": zeta_all, "shares": shares,
                             "measured_modes": sel, "drive_participation": drive_participation(system, modes, meas)}
@@ -276,10 +268,10 @@ def joint_shares(system, phi, freqs_Hz, kc: dict, terms: dict[str, list[str]], n
     return out
 
 
-def hysteretic_ratios(system, cfg: dict, kc: dict, modes, truth: dict):
+def hysteretic_ratios(system, spec, kc: dict, modes, truth: dict):
     """``(zeta (n_modes,), shares (n_modes, n_dirs))`` of every solved mode under the truth's hysteretic
-    joint damping: ``zeta_r = zeta0 + sum_j eta_j e_rj / 2`` (``joint_loss_factors``, ``zeta0``)."""
-    spec = ModelSpec.from_config(cfg)
+    joint damping: ``zeta_r = zeta0 + sum_j eta_j e_rj / 2`` (``joint_loss_factors``, ``zeta0``; ``spec``: the
+    truth's :class:`~jointid.config.typed.ModelSpec`)."""
     terms = joint_terms(spec.joints, spec.mesh_file)
     eta = {str(k): float(v) for k, v in (truth.get("joint_loss_factors") or {}).items()}
     unknown = sorted(set(eta) - set(terms))
@@ -317,28 +309,19 @@ def drive_point_frf(system, modes, state: str, meas: dict, damping_ratio: float)
              "freq_Hz": float(fq), "re": float(h.real), "im": float(h.imag)} for fq, h in zip(f_axis, H)]
 
 
-def identification_rig(cfg: dict) -> dict:
-    """The rig the synthetic diagnosis cases are analysed on, from a configuration dict (not yet
-    validated): the normal and lateral joint stiffness identified (2e11..4e12 N/m^3), the feed stiffness
-    fixed at 1e10 N/m^3 (so the feed effect is not absorbed by an identified parameter).  Returns
-    ``{"cfg", "model", "system", "solver"}`` (solver None: the first diagnosis makes it)."""
-    from jointid.threads import limit_threads
-
+def identification_rig(settings: DiagnosisSettings) -> dict:
+    """The rig the synthetic diagnosis cases are analysed on (``settings``: of
+    :func:`jointid.config.synthetic.identification_config`).  Returns ``{"settings", "model", "system",
+    "solver"}`` (solver None: the first diagnosis makes it)."""
     limit_threads(1)
-    cfg = dict(cfg)
-    cfg["joints"] = {**cfg["joints"],
-                     "parameters": {"k_normal_N_per_m3": {"direction": "y", "lower": 2.0e11, "upper": 4.0e12},
-                                    "k_lateral_N_per_m3": {"direction": "x", "lower": 2.0e11, "upper": 4.0e12}},
-                     "fixed": {"k_feed_N_per_m3": 1.0e10}}
-    cfg = load_config(cfg)
-    model = build_model(ModelSpec.from_config(cfg))
-    return {"cfg": cfg, "model": model, "system": build_system(model, cfg), "solver": None}
+    model = build_model(settings.model)
+    return {"settings": settings, "model": model, "system": build_system(model, settings.model), "solver": None}
 
 
-def write_synthetic(truth: dict, base_cfg: dict, out_dir, *, model=None):
-    """Synthesise and write the dataset folder ``out_dir``; returns the
-    :class:`jointid.data.dataset.Dataset`."""
-    out = synthesise(truth, base_cfg, model=model)
+def write_synthetic(truth: dict, settings: DiagnosisSettings, out_dir, *, model=None):
+    """Synthesise and write the dataset folder ``out_dir`` (``settings``: of the truth model's configuration,
+    see :func:`synthesise`); returns the :class:`jointid.data.dataset.Dataset`."""
+    out = synthesise(truth, settings, model=model)
     return write_dataset(out_dir, out["modes"], out["shapes"], out["frf"], conditions=out["conditions"],
                          measuring_points=out["points"])
 
@@ -358,7 +341,7 @@ def main(argv: list[str] | None = None) -> int:
         paths = args.config or truth.get("base_config") or ["config.yaml"]
         if isinstance(paths, str):
             paths = [paths]
-        ds = write_synthetic(truth, read_merged(paths), args.out)
+        ds = write_synthetic(truth, DiagnosisSettings.from_config(truth_config(truth, read_merged(paths))), args.out)
     except JointidError as exc:
         print(str(exc), file=sys.stderr)
         return 1
