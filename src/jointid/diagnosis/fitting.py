@@ -84,6 +84,11 @@ class Diagnoser:
         as they are now."""
         return self.memo.context(self.settings, self.data, self.n_modes, self._tol, self.mac_threshold)
 
+    def reset_context(self) -> None:
+        """Forget the memo's context digest: the states changed (a new mesh correction), so a fit recorded
+        before is not the same fit."""
+        self._context = None
+
     # ------------------------------------------------------------ engine
     def ensure_solver(self, variant: Variant, x):
         """Set up the reduced solver at ``x`` of ``variant`` (first state's coefficients) unless there is one."""

@@ -93,9 +93,11 @@ def answer_mesh_error(diag, fits: dict, answer: str | None, notes: list, log) ->
         diag.data[:] = [replace(d, mesh_reference=None, known_rel=None) for d in saved]
         errors = _estimate_at(diag, lead.variant, lead.x, log)
         errors.apply(diag.data)
+        diag.reset_context()  # a fit recorded at the baseline's correction is not this fit
         fits[label] = diag.fit(lead.variant, lead.x, index=lead.ev.index)
     finally:
         diag.data[:] = saved
+        diag.reset_context()
     notes.append(f"the answer {label[1:]} softens {', '.join(soft)} to less than 1/{SOFTENING:g} of its "
                  f"coefficient at the baseline: its value and interval were refitted with the mesh error computed "
                  f"at its own optimum (chi-square {lead.chi2:.1f} -> {fits[label].chi2:.1f} there); the ranking "
