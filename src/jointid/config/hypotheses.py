@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from jointid.config.load import load_config
+from jointid.config.options import given
+from jointid.config.schema import default as schema_default
 from jointid.config.typed import ModelSpec, read_only
 from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.errors import ConfigError
@@ -39,44 +41,55 @@ EffectsCheck = Callable[[str, "Mapping | None"], None]
 """``check(where, effects)``: raises :class:`ConfigError` naming ``where`` for a bad ``effects`` section."""
 
 
+def _schema(key: str, convert=lambda v: v):
+    """A dataclass field whose default is the schema's default of ``key`` (converted)."""
+    return field(default_factory=lambda: convert(schema_default(key)))
+
+
+def _classes(values) -> tuple[float, ...]:
+    """Preload classes (N) as floats; none: one class at 0 N."""
+    return tuple(float(p) for p in values) or (0.0,)
+
+
 @dataclass(frozen=True)
 class LinkedLaw:
-    """The linked two-state law of the ``linked`` config section."""
+    """The linked two-state law of the ``linked`` config section (defaults: the schema's)."""
 
-    preload_classes_N: tuple = (0.0,)
-    directions: tuple = ("x", "y")
-    beta_start: float = 0.3
+    preload_classes_N: tuple = _schema("linked.preload_classes_N", _classes)
+    directions: tuple = _schema("linked.directions", tuple)
+    beta_start: float = _schema("linked.beta_start", float)
 
     @classmethod
     def from_config(cls, cfg: Mapping) -> LinkedLaw:
-        """The law of ``cfg['linked']`` (defaults where absent)."""
+        """The law of ``cfg['linked']`` (the schema's defaults where absent)."""
         sec = dict(cfg.get("linked") or {})
-        classes = tuple(float(p) for p in sec.get("preload_classes_N", (0.0,)))
-        return cls(classes or (0.0,), tuple(sec.get("directions", ("x", "y"))),
-                   float(sec.get("beta_start", 0.3)))
+        return cls(_classes(given(sec, "preload_classes_N", "linked.preload_classes_N")),
+                   tuple(given(sec, "directions", "linked.directions")),
+                   float(given(sec, "beta_start", "linked.beta_start")))
 
 
 @dataclass(frozen=True)
 class ProposalOptions:
-    """The assumed uncertainties of the candidate measurements and the draws (config ``next_measurement``)."""
+    """The assumed uncertainties of the candidate measurements and the draws (config ``next_measurement``;
+    defaults: the schema's), and the admissible delta QAICc."""
 
-    weight_uncertainty_pct: float = 2.0
-    static_stiffness_uncertainty_pct: float = 5.0
-    shape_uncertainty_pct: float = 5.0
-    n_draws: int = 400
-    seed: int = 50
-    target: str = ""
+    weight_uncertainty_pct: float = _schema("next_measurement.weight_uncertainty_pct", float)
+    static_stiffness_uncertainty_pct: float = _schema("next_measurement.static_stiffness_uncertainty_pct", float)
+    shape_uncertainty_pct: float = _schema("next_measurement.shape_uncertainty_pct", float)
+    n_draws: int = _schema("next_measurement.n_draws", int)
+    seed: int = _schema("next_measurement.seed", int)
+    target: str = _schema("next_measurement.target", str)
     delta: float = 4.0
 
     @classmethod
     def from_config(cls, cfg: Mapping | None, delta: float = 4.0) -> ProposalOptions:
-        """The options of ``cfg['next_measurement']`` (defaults where absent)."""
+        """The options of ``cfg['next_measurement']`` (the schema's defaults where absent)."""
         sec = dict((cfg or {}).get("next_measurement") or {})
-        d = cls()
-        return cls(float(sec.get("weight_uncertainty_pct", d.weight_uncertainty_pct)),
-                   float(sec.get("static_stiffness_uncertainty_pct", d.static_stiffness_uncertainty_pct)),
-                   float(sec.get("shape_uncertainty_pct", d.shape_uncertainty_pct)),
-                   int(sec.get("n_draws", d.n_draws)), int(sec.get("seed", d.seed)),
+        key = "next_measurement."
+        return cls(float(given(sec, "weight_uncertainty_pct", key + "weight_uncertainty_pct")),
+                   float(given(sec, "static_stiffness_uncertainty_pct", key + "static_stiffness_uncertainty_pct")),
+                   float(given(sec, "shape_uncertainty_pct", key + "shape_uncertainty_pct")),
+                   int(given(sec, "n_draws", key + "n_draws")), int(given(sec, "seed", key + "seed")),
                    str(sec.get("target") or ""), float(delta))
 
 

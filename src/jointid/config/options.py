@@ -5,7 +5,7 @@ configuration with ``<Options>.from_config(cfg)`` and passes them to the stage f
 :mod:`jointid.stages`; no function below ``config/`` takes the dict (``tools/layout.py`` checks it).
 A rule gets only the config keys it hashes (``params: cfg=``, the ``CONFIG`` of its stage module), so
 each ``from_config`` reads only those.  A key a section does not give takes the schema's default
-(:func:`jointid.config.schema.default`): the defaults live in ``schema.yaml`` alone.
+(:func:`jointid.config.schema.given`): the defaults live in ``schema.yaml`` alone.
 
 * :class:`DoeOptions` - rules ``doe`` and ``doe_zoom``;
 * :class:`SurfaceOptions` - rules ``fit_surface`` and ``fit_zoom``;
@@ -24,21 +24,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from jointid.config.datasets import dataset_folder
 from jointid.config.hashing import ConfigStamp
-from jointid.config.schema import default as schema_default
+from jointid.config.schema import given
 from jointid.config.typed import Damping, Joints, ModelSpec, TestSetup, read_only
 
 __all__ = ["CarriageOptions", "DoeOptions", "HarmonicOptions", "IdentifyOptions", "MeshCheckOptions",
            "ReportOptions", "SurfaceOptions", "Table1Options", "given"]
-
-
-def given(section: Mapping | None, key: str, dotted: str) -> Any:
-    """``section[key]`` where the section gives it, else the schema's default of the dotted key ``dotted``."""
-    section = section or {}
-    return section[key] if key in section else schema_default(dotted)
 
 
 def _weights(section: Mapping) -> tuple[float, ...] | None:

@@ -112,6 +112,13 @@ def default(key: str) -> Any:
     return copy.deepcopy(node["default"])
 
 
+def given(section: Mapping | None, key: str, dotted: str) -> Any:
+    """``section[key]`` where the section gives it, else the schema's :func:`default` of the dotted key
+    ``dotted`` (a rule gets only the keys it hashes; the typed options fill the rest from here)."""
+    section = section or {}
+    return section[key] if key in section else default(dotted)
+
+
 def subschema(schema: Mapping, key: str) -> Mapping | None:
     """The schema of ``key`` inside an object ``schema`` (properties, patterns, then map entries)."""
     props = schema.get("properties", {})

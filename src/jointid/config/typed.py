@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from jointid.config.schema import default as schema_default
+from jointid.config.schema import given
 from jointid.config.typed_mesh import MeshFileModel, read_only
-from jointid.correlate.observability import VISIBLE_THRESHOLD
 
 __all__ = ["Damping", "JointParameter", "Joints", "Material", "MeshOptions", "ModelSpec", "RigModel", "Settings",
            "SolverOptions", "TestSetup", "read_only"]
@@ -240,16 +240,18 @@ class TestSetup:
 
     __test__ = False  # not a pytest test class
 
-    drive_point: str = "T05"
-    band_Hz: tuple[float, float] = (300.0, 3500.0)
-    visible_threshold: float | None = VISIBLE_THRESHOLD
+    drive_point: str = dataclasses.field(default_factory=lambda: schema_default("harmonic.drive_point"))
+    band_Hz: tuple[float, float] = dataclasses.field(default_factory=lambda: tuple(schema_default("harmonic.band_Hz")))
+    visible_threshold: float | None = dataclasses.field(
+        default_factory=lambda: schema_default("identify.visible_threshold"))
 
     @classmethod
     def from_config(cls, cfg: Mapping) -> TestSetup:
-        """The test setup of a configuration (sections harmonic and identify)."""
-        harmonic = cfg.get("harmonic", {})
-        return cls(harmonic.get("drive_point", "T05"), tuple(harmonic.get("band_Hz", (300.0, 3500.0))),
-                   cfg.get("identify", {}).get("visible_threshold", VISIBLE_THRESHOLD))
+        """The test setup of a configuration (sections harmonic and identify; a key they lack: the schema's)."""
+        harmonic, ident = cfg.get("harmonic", {}), cfg.get("identify", {})
+        return cls(given(harmonic, "drive_point", "harmonic.drive_point"),
+                   tuple(given(harmonic, "band_Hz", "harmonic.band_Hz")),
+                   given(ident, "visible_threshold", "identify.visible_threshold"))
 
 
 @dataclass(frozen=True)
