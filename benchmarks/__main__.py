@@ -55,6 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         if name == "j":
             kw = {"cases": a.cases, "rig": a.rig, "options": mod.parse_options(a.set), "subset": a.subset,
                   "only": tuple(x for x in a.only.split(",") if x), "shard": mod.parse_shard(a.shard),
+                  "resume": a.resume,
                   "command": "python -m benchmarks " + " ".join(argv if argv is not None else sys.argv[1:])}
         res = mod.run(quick=a.quick, blas_threads=a.blas_threads or None, **kw)
         res.data["benchmark_wall_s"] = time.perf_counter() - t0

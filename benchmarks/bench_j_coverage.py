@@ -520,7 +520,7 @@ def shard_of(cases: list[dict], shard: tuple[int, int] | None) -> list[dict]:
 
 def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = None, rig: str = "coarse",
         options: dict | None = None, doc: bool = True, command: str = "", subset: str = "all",
-        only: tuple = (), shard: tuple[int, int] | None = None) -> Result:
+        only: tuple = (), shard: tuple[int, int] | None = None, resume: bool = False) -> Result:
     from jointid.threads import limit_threads
 
     limit_threads(blas_threads or 1)
@@ -532,6 +532,10 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
     if only:  # a probe of named cases: a run of its own, never in the doc
         todo = [c for c in design() if c["case"] in only]
         label, doc = label + " (probe)", False
+    if resume:  # after a stop: the cases this run already has at this commit are kept, not run again
+        done = done_cases(label)
+        todo = [c for c in todo if c["case"] not in done]
+        print(f"[j] --resume: {len(done)} cases of '{label}' already run at {head_commit()[:10]}", flush=True)
     res = Result("j")
     t0 = time.perf_counter()
     print(f"[j] coverage study: {len(todo)} cases, run '{label}'", flush=True)
@@ -597,6 +601,16 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
         res.notes.append(f"docs/validation.md written ({DOC})")
     res.notes.append(f"cases: {CSV}")
     return res
+
+
+def done_cases(label: str) -> set[str]:
+    """The cases of run ``label`` in the CSV that were run at the checked-out commit."""
+    if not CSV.exists():
+        return set()
+    old = pd.read_csv(CSV)
+    old = old[old["run"] == label]
+    here = head_commit()
+    return {c for c, m in zip(old["case"], old["meta"]) if json.loads(m)["commit"] == here}
 
 
 def _command(quick, cases, rig, options, subset="all") -> str:
@@ -726,22 +740,26 @@ def write_doc() -> Path:
     df = rejudge(pd.read_csv(CSV))
     df = df[~df["run"].str.endswith("--quick") & ~df["run"].str.endswith("(probe)")]
     for label, g in df.groupby("run", sort=False):
-        meta = json.loads(g["meta"].iloc[0])
+        metas = [json.loads(m) for m in g["meta"].unique()]  # shards and resumed parts save their own record
+        meta = max(metas, key=lambda m: m["when"])
+        commits = sorted({m["commit"] for m in metas})
         main, splits, met = summary_tables(g)
         parts += [f"## Run: {label}", "",
-                  f"- command: `{meta['command']}`",
-                  f"- commit: `{meta['commit']}`, {meta['when']}",
+                  f"- command: `{meta['command']}`"
+                  + (f" ({len(metas)} processes: shards, or a run resumed with `--resume`)" if len(metas) > 1 else ""),
+                  (f"- commit: `{commits[0]}`, last case {meta['when']}" if len(commits) == 1 else
+                   f"- commits: MIXED ({', '.join(f'`{c[:10]}`' for c in commits)}): rows of different code"),
                   f"- machine: {meta['machine']}, shared with other jobs"
                   + (f" (load average {meta['load_average_1min']:.1f} at the end of the run)"
                      if meta.get("load_average_1min") is not None else "")
                   + ": the times are wall times under that load",
                   f"- rig: {meta['rig']}, {meta['rig_dofs']} DOFs (built in {meta['rig_build_s']:.0f} s); truth model "
                   f"{meta['truth_dofs'] or '(datasets kept from an earlier run)'} DOFs",
-                  f"- {meta['n_cases']} cases"
+                  f"- {len(g)} cases"
                   + (f" (of {meta['planned_cases']} planned: the run was stopped)"
-                     if meta.get("planned_cases", meta["n_cases"]) > meta["n_cases"] else "")
-                  + f" in {meta['total_s'] / 60:.1f} min: diagnosis {meta['mean_case_s']:.1f} s "
-                  f"per case on average (synthesis {meta['mean_synth_s']:.1f} s, 0 when the dataset was kept)",
+                     if len(metas) == 1 and meta.get("planned_cases", len(g)) > len(g) else "")
+                  + f", diagnosis {g['time_s'].mean():.1f} s per case on average ({g['time_s'].sum() / 60:.0f} min "
+                  f"in all; synthesis {g['synth_s'].mean():.1f} s, 0 when the dataset was kept)",
                   *([f"- note: {meta['note']}"] if meta.get("note") else []),
                   f"- targets met: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in met.items()), "",
                   main, "", "Splits (no cell of the noise and shapes splits may fall below 80 %):", "", splits, "",
@@ -765,7 +783,7 @@ def main(argv: list[str] | None = None) -> int:
     from .common import format_table, write_result
 
     res = run(quick=a.quick, cases=a.cases, rig=a.rig, options=parse_options(a.set), doc=not a.no_doc, subset=a.subset,
-              only=tuple(x for x in a.only.split(",") if x), shard=parse_shard(a.shard),
+              only=tuple(x for x in a.only.split(",") if x), shard=parse_shard(a.shard), resume=a.resume,
               command="python -m benchmarks.bench_j_coverage " + " ".join(argv if argv is not None else sys.argv[1:]))
     write_result(res, a.quick)
     print(format_table([res]))
@@ -794,6 +812,8 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
                     help="(j) only the cases with shapes, or with frequencies only (default: all)")
     ap.add_argument("--shard", default=None, metavar="K/N",
                     help="(j) every N-th case from the K-th: N processes share one run (then --doc-only)")
+    ap.add_argument("--resume", action="store_true",
+                    help="(j) after a stop: run only the cases the run has not yet run at this commit")
     ap.add_argument("--set", action="append", metavar="KEY=VALUE",
                     help="(j) a diagnosis option, e.g. shape_residuals=true (repeatable)")
 
