@@ -6,24 +6,24 @@
 #                                           hypotheses' joint parameters (also in ranking.md)
 #   results/hypotheses/linked.json          the best hypothesis's linked fit per state, with the
 #                                           rigidity of a carriage on its rail under its joints
-# A hypothesis that overrides materials, rig or mesh builds its own model inside its job.
+# A hypothesis that changes the model itself (geometry, support kind, mesh) builds its own model in its own
+# job (rule hypothesis); those that change only coefficients of the run's model (materials, masses, forces,
+# effects, the contact law) are fitted together in one job (rule hypotheses_run_model): the model loaded
+# once, one set of terms, one reduced solver grown from fit to fit.
 
 from jointid.config.hypotheses import check_hypotheses, cost_rank, needs_own_model
 from jointid.reconstruction.hypotheses import check_hypothesis_effects
 from jointid.stages import hypotheses as hyp_stage
 
 HYPOTHESES = check_hypotheses(config, check_hypothesis_effects)  # a bad hypothesis stops the run before any job
+OWN_MODEL = [n for n in HYPOTHESES if needs_own_model(config["hypotheses"][n], config)]
+RUN_MODEL = [n for n in HYPOTHESES if n not in OWN_MODEL]
 
 
-def _hypothesis_cfg(wc):
+def _hypotheses_cfg(names):
     cfg = sections(config, *[k for k in hyp_stage.CONFIG if k != "hypotheses"])
-    cfg["hypotheses"] = {wc.name: config["hypotheses"][wc.name]}
+    cfg["hypotheses"] = {n: config["hypotheses"][n] for n in names}
     return cfg
-
-
-def _hypothesis_basis(wc):
-    """The shared basis (rules/basis.smk) for a hypothesis on the run's model; none for one that builds its own."""
-    return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
 
 
 def _hypothesis_priority(wildcards, input):
@@ -32,19 +32,41 @@ def _hypothesis_priority(wildcards, input):
     return PRIORITY_HYPOTHESES + cost_rank(config, wildcards.name)
 
 
-if HYPOTHESES:
+if RUN_MODEL:
+
+    rule hypotheses_run_model:
+        input:
+            matrices=rules.mesh.output.matrices,
+            dataset=_run_datasets(),
+            basis=BASIS,
+        output:
+            fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=RUN_MODEL),
+        params:
+            cfg=_hypotheses_cfg(RUN_MODEL),
+        log:
+            f"{LOGS}/hypotheses/run_model.log",
+        benchmark:
+            f"{BENCH}/hypotheses/run_model.tsv"
+        priority: PRIORITY_HYPOTHESES + 2
+        threads: 1
+        resources:
+            mem_mb=4500,
+            runtime=30,
+        script:
+            "../scripts/hypotheses_run_model.py"
+
+if OWN_MODEL:
 
     rule hypothesis:
         input:
             matrices=rules.mesh.output.matrices,
             dataset=_run_datasets,
-            basis=_hypothesis_basis,
         output:
             fit=f"{R}/hypotheses/{{name}}/fit.json",
         params:
-            cfg=_hypothesis_cfg,
+            cfg=lambda wc: _hypotheses_cfg([wc.name]),
         wildcard_constraints:
-            name="|".join(HYPOTHESES),
+            name="|".join(OWN_MODEL),
         log:
             f"{LOGS}/hypotheses/{{name}}.log",
         benchmark:
@@ -56,6 +78,8 @@ if HYPOTHESES:
             runtime=20,
         script:
             "../scripts/hypothesis.py"
+
+if HYPOTHESES:
 
     rule hypotheses:
         input:

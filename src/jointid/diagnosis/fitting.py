@@ -68,9 +68,8 @@ class Diagnoser:
         self.n_modes = n_modes or m + 8
         self.mac_threshold, self.log = mac_threshold, log
         self.solver: ReducedSolver | None = solver
-        if solver is not None:
-            if solver.system is not system:
-                raise ValueError("the reduced solver belongs to another system")
+        if solver is not None and not shares_terms(solver.system, system):
+            raise ValueError("the reduced solver belongs to another system")
         self._tol = tol
         self._shift = settings.shift_Hz
         self._backend = settings.backend
@@ -358,6 +357,13 @@ class Diagnoser:
             if same_pairs and (not changed_space or not variant.n_params):
                 break
         return ev
+
+
+def shares_terms(a: System, b: System) -> bool:
+    """Whether a reduced solver of system ``a`` serves ``b``: the same system, or one of the same terms
+    (:func:`jointid.diagnosis.terms.build_systems`: configurations that differ only in coefficients)."""
+    return a is b or (a.stiffness is b.stiffness and a.mass is b.mass and a.probe is b.probe
+                      and np.array_equal(a.fixed, b.fixed))
 
 
 def term_directions(system: System) -> list[tuple[dict, dict]]:

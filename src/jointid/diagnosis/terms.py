@@ -22,7 +22,7 @@ See docs/effects.md; the effects themselves are in :mod:`jointid.diagnosis.effec
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -38,7 +38,7 @@ from jointid.geometry.points import dof_labels
 from jointid.geometry.rig import PART_IDS
 
 __all__ = ["BONDED_N_PER_M3", "JOINT_FACES", "StateInfo", "System", "baseline_coefficients", "build_system",
-           "carried_mass_kg"]
+           "build_systems", "carried_mass_kg"]
 
 BONDED_N_PER_M3 = RAIL_BONDED_N_PER_M3
 
@@ -200,6 +200,22 @@ def build_system(model: Model, spec: ModelSpec) -> System:
     return System(stiffness=stiffness, mass=mass, fixed=fixed, probe=model.probe,
                   labels=dof_labels(pts), carriage_xz_m=xz, carried_mass_kg=carried_mass_kg(model, M0, motors),
                   support=support, model=model, meta={"points": pts}, layers=layers)
+
+
+def build_systems(model: Model, specs: list[ModelSpec]) -> list[System]:
+    """The systems of several configurations on one model (hypotheses that change only coefficients of it,
+    :func:`jointid.config.hypotheses.needs_own_model`): each is :func:`build_system`'s, except that all share
+    one set of terms, the union of what each needs.  A term a configuration does not use has no coefficient
+    in it, so its ``K`` and ``M`` are those of its own system; and one reduced solver serves them all (it
+    needs the same term dicts, :class:`jointid.diagnosis.fitting.Diagnoser`).  Each keeps its carried mass."""
+    systems = [build_system(model, spec) for spec in specs]
+    stiffness, mass = dict(systems[0].stiffness), dict(systems[0].mass)
+    for s in systems[1:]:
+        for name, A in s.stiffness.items():
+            stiffness.setdefault(name, A)
+        for name, A in s.mass.items():
+            mass.setdefault(name, A)
+    return [replace(s, stiffness=stiffness, mass=mass) for s in systems]
 
 
 def baseline_coefficients(system: System, spec: ModelSpec, theta: dict | None = None) -> tuple[dict, dict]:

@@ -44,7 +44,7 @@ from jointid.errors import ConfigError
 from jointid.progress import Steps
 
 __all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "COEFFICIENT_KEYS", "LinkedLaw", "check_hypothesis_effects",
-           "linked_variant", "fit_hypothesis", "state_joints"]
+           "linked_variant", "fit_hypothesis", "fit_with", "state_joints"]
 
 
 def check_hypothesis_effects(where: str, effects: dict | None) -> None:
@@ -96,10 +96,16 @@ def fit_hypothesis(system, settings: DiagnosisSettings, law: LinkedLaw, data: li
     for measurements not made yet (:func:`jointid.reconstruction.predictions.measurement_predictions`).  ``start_basis``: a basis of ``system`` to start
     the reduced solver from (:mod:`jointid.stages.basis`).
     """
+    # measured shapes are fitted as in the diagnosis: a block of their own, with its own model error in the ranking
+    return fit_with(Diagnoser(system, settings, data, start_basis=start_basis, log=log), law, log)
+
+
+def fit_with(diag: Diagnoser, law: LinkedLaw, log=print_log) -> dict:
+    """:func:`fit_hypothesis` with a diagnoser of the hypothesis's system, settings and data (its reduced solver
+    possibly shared with other hypotheses on the same terms, :func:`jointid.diagnosis.terms.build_systems`)."""
+    system, settings, data = diag.system, diag.settings, diag.data
     linked = _forces_differ(data)
     classes = law.preload_classes_N if linked else (law.preload_classes_N[0],)
-    # measured shapes are fitted as in the diagnosis: a block of their own, with its own model error in the ranking
-    diag = Diagnoser(system, settings, data, start_basis=start_basis, log=log)
     profile, best = [], None
     x_prev = None
     index = None

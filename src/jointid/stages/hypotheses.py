@@ -22,10 +22,12 @@ import pandas as pd
 
 from jointid import io
 from jointid.diagnosis.fitting import print_log
-from jointid.reconstruction.hypotheses import fit_hypothesis
+from jointid.diagnosis.fitting import Diagnoser
+from jointid.progress import Steps
+from jointid.reconstruction.hypotheses import fit_hypothesis, fit_with
 from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
 from jointid.reconstruction.next_measurement import ProposalOptions, next_measurement_markdown, propose
-from jointid.diagnosis.terms import build_system
+from jointid.diagnosis.terms import build_system, build_systems
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
 from jointid.stages.basis import load_basis, measured_states
 from jointid.fe.model import build_model, load_model
@@ -57,7 +59,7 @@ def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, b
     """
     limit_threads(1)
     t0 = time.time()
-    name, spec, forces = job.name, job.settings.model, job.forces_N
+    name, spec = job.name, job.settings.model
     own = job.own_model
     log(f"hypothesis {name}: {'building its own model' if own else 'the run model'}")
     model = build_model(spec) if own else load_model(matrices)
@@ -66,18 +68,57 @@ def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, b
         log(f"hypothesis {name}: {matrices} has no per-part solids (written by an older version); building its own")
         model = build_model(spec)
     system = build_system(model, spec)
-    data = measured_states(job.settings, system)
-    for d in data:
-        if d.name in forces and float(forces[d.name]) != d.info.em_force_N:
-            log(f"hypothesis {name}: {d.name} attraction {float(forces[d.name]):g} N (the dataset's: "
-                f"{d.info.em_force_N:g} N)")
-            d.info = dataclasses.replace(d.info, em_force_N=float(forces[d.name]))
+    data = _states(job, system, log)
     start = None if own else load_basis(basis, system, log)
     rec = fit_hypothesis(system, job.settings, job.law, data, start_basis=start, log=log)
-    rec.update({"hypothesis": name, "description": job.description, "own_model": own,
+    return _write(job, rec, own, system, out_json, t0, log)
+
+
+def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str], *, basis: str | None = None,
+                   log=print_log) -> list[dict]:
+    """Fit the hypotheses of ``jobs``, which change only coefficients of the run's model
+    (:func:`~jointid.config.hypotheses.needs_own_model` false), in one process: the model loaded once, one set
+    of terms for all (:func:`jointid.diagnosis.terms.build_systems`) and one reduced solver, started from the
+    shared ``basis`` and grown by each fit for the next.  Each record goes to its own file, as
+    :func:`run_hypothesis` writes it; the values agree with separate jobs' to the solver's tolerance
+    (another basis), not to the last digit."""
+    limit_threads(1)
+    model = load_model(matrices)
+    if "solids" not in model.meta and model.meta.get("kind") != "mesh" and any(j.overrides_model for j in jobs):
+        # a model file written before the solids were kept per part: each hypothesis as its own job would
+        return [run_hypothesis(j, matrices, out, basis=basis, log=log) for j, out in zip(jobs, out_jsons)]
+    systems = build_systems(model, [j.settings.model for j in jobs])
+    start, solver, recs = load_basis(basis, systems[0], log), None, []
+    steps = Steps(len(jobs))
+    for job, system, out in zip(jobs, systems, out_jsons):
+        t0 = time.time()
+        log(f"hypothesis {job.name} {steps.next()}: the run model"
+            + (", the reduced solver of the hypotheses before" if solver is not None else ""))
+        diag = Diagnoser(system, job.settings, _states(job, system, log), solver=solver,
+                         start_basis=start if solver is None else None, log=log)
+        rec = fit_with(diag, job.law, log)
+        solver = diag.solver
+        recs.append(_write(job, rec, False, system, out, t0, log))
+    return recs
+
+
+def _states(job: HypothesisJob, system, log) -> list:
+    """The measured states of hypothesis ``job`` on ``system``, with the attraction its overrides give."""
+    data = measured_states(job.settings, system)
+    for d in data:
+        if d.name in job.forces_N and float(job.forces_N[d.name]) != d.info.em_force_N:
+            log(f"hypothesis {job.name}: {d.name} attraction {float(job.forces_N[d.name]):g} N (the dataset's: "
+                f"{d.info.em_force_N:g} N)")
+            d.info = dataclasses.replace(d.info, em_force_N=float(job.forces_N[d.name]))
+    return data
+
+
+def _write(job: HypothesisJob, rec: dict, own: bool, system, out_json: str, t0: float, log) -> dict:
+    """The hypothesis's record with its name, description and model, written to ``out_json``."""
+    rec.update({"hypothesis": job.name, "description": job.description, "own_model": own,
                 "n_dofs": system.n_dofs})  # no timing: the record is byte-identical run to run
     io.write_json(out_json, rec)
-    log(f"hypothesis {name}: chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f} ({time.time() - t0:.0f} s)")
+    log(f"hypothesis {job.name}: chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f} ({time.time() - t0:.0f} s)")
     return rec
 
 
