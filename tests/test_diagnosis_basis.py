@@ -18,19 +18,21 @@ from jointid.config import load_config
 from jointid.config.typed import ModelSpec
 from jointid.fe.model import build_model, save_model
 from jointid.stages.basis import run_basis
-from jointid.stages.hypotheses import run_hypothesis
+from jointid.stages.hypotheses import run_hypotheses, run_hypothesis
 from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.config.hypotheses import HypothesisJob
 from jointid.reconstruction.hypotheses import check_hypothesis_effects
 
 HYPOTHESIS = {"description": "a steel table and 3 kg more on each motor (coefficients of the run's model)",
               "overrides": {"rig": {"table": {"material": "steel"}, "motors": {"mass_each_kg": 6.0}}}}
+LIGHT = {"description": "1 kg motors (a coefficient of the run's model)",
+         "overrides": {"rig": {"motors": {"mass_each_kg": 1.0}}}}
 
 
 @pytest.fixture(scope="module")
 def case(tmp_path_factory):
     raw = coarse_config_dict()
-    raw["hypotheses"] = {"heavy": HYPOTHESIS}
+    raw["hypotheses"] = {"heavy": HYPOTHESIS, "light": LIGHT}
     cfg = load_config(raw)
     tmp = tmp_path_factory.mktemp("basis")
     matrices = tmp / "matrices.npz"
@@ -66,6 +68,30 @@ def test_a_hypothesis_from_the_shared_basis_fits_as_from_its_own(case):
     assert shared["chi2"] == pytest.approx(fresh["chi2"], rel=1e-5)
     assert worst <= 1e-4
     assert shared["aicc"] == pytest.approx(fresh["aicc"], abs=0.01)
+
+
+def test_hypotheses_in_one_job_fit_as_in_their_own(case):
+    """Rule hypotheses_run_model: the coefficient-only hypotheses fitted in one process on one set of terms and
+    one reduced solver, grown from fit to fit, give each the fit of its own job to the solver's tolerance
+    (the same bounds as the shared basis above); the second says it takes the solver of the first."""
+    cfg, tmp, matrices, basis, _ = case
+    jobs = [HypothesisJob.from_config(cfg, n, check_hypothesis_effects) for n in ("light", "heavy")]
+    lines = []
+    together = run_hypotheses(jobs, str(matrices), [str(tmp / "t_light.json"), str(tmp / "t_heavy.json")],
+                              basis=str(basis), log=lines.append)
+    assert any(m.startswith("hypothesis heavy (2/2") and m.endswith("the reduced solver of the hypotheses before")
+               for m in lines), lines
+    for job, rec in zip(jobs, together):
+        alone = run_hypothesis(job, str(matrices), str(tmp / f"a_{job.name}.json"), basis=str(basis), log=lambda m: None)
+        theta = {p["parameter"]: p["value"] for p in rec["parameters"] if not p.get("fixed")}
+        theta_a = {p["parameter"]: p["value"] for p in alone["parameters"] if not p.get("fixed")}
+        worst = max(abs(theta[k] / theta_a[k] - 1) for k in theta_a if theta_a[k] != 0.0)
+        print(f"{job.name}: in one job against its own: chi2 {rec['chi2']:.9g} / {alone['chi2']:.9g}, "
+              f"parameters {worst:.1e} (relative)")
+        assert rec["hypothesis"] == job.name and not rec["own_model"]
+        assert rec["chi2"] == pytest.approx(alone["chi2"], rel=1e-5)
+        assert worst <= 1e-4
+        assert rec["aicc"] == pytest.approx(alone["aicc"], abs=0.01)
 
 
 def test_a_basis_of_another_model_is_not_taken(case, tmp_path):

@@ -7,17 +7,19 @@
 #   results/hypotheses/linked.json          the best hypothesis's linked fit per state, with the
 #                                           rigidity of a carriage on its rail under its joints
 # A hypothesis that changes the model itself (geometry, support kind, mesh) builds its own model in its own
-# job (rule hypothesis); those that change only coefficients of the run's model (materials, masses, forces,
-# effects, the contact law) are fitted together in one job (rule hypotheses_run_model): the model loaded
-# once, one set of terms, one reduced solver grown from fit to fit.
+# job (rule hypothesis).  With solver.method: reduced (the default, for a laptop) those that change only
+# coefficients of the run's model (materials, masses, forces, effects, the contact law) are fitted together
+# in one job (rule hypotheses_run_model): the model loaded once, one set of terms, one reduced solver grown
+# from fit to fit.  With full (a cluster, docs/scale-out.md) each is a job of its own.
 
 from jointid.config.hypotheses import check_hypotheses, cost_rank, needs_own_model
 from jointid.reconstruction.hypotheses import check_hypothesis_effects
 from jointid.stages import hypotheses as hyp_stage
 
 HYPOTHESES = check_hypotheses(config, check_hypothesis_effects)  # a bad hypothesis stops the run before any job
-OWN_MODEL = [n for n in HYPOTHESES if needs_own_model(config["hypotheses"][n], config)]
-RUN_MODEL = [n for n in HYPOTHESES if n not in OWN_MODEL]
+SHARED = [n for n in HYPOTHESES if config["solver"]["method"] == "reduced"
+          and not needs_own_model(config["hypotheses"][n], config)]  # fitted together (rule hypotheses_run_model)
+SEPARATE = [n for n in HYPOTHESES if n not in SHARED]  # a job each (rule hypothesis)
 
 
 def _hypotheses_cfg(names):
@@ -26,13 +28,18 @@ def _hypotheses_cfg(names):
     return cfg
 
 
+def _hypothesis_basis(wc):
+    """The shared basis (rules/basis.smk) for a hypothesis on the run's model; none for one that builds its own."""
+    return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
+
+
 def _hypothesis_priority(wildcards, input):
     """Longest job first among the hypotheses (:func:`jointid.config.hypotheses.cost_rank`), below the
     diagnosis's priority."""
     return PRIORITY_HYPOTHESES + cost_rank(config, wildcards.name)
 
 
-if RUN_MODEL:
+if SHARED:
 
     rule hypotheses_run_model:
         input:
@@ -40,9 +47,9 @@ if RUN_MODEL:
             dataset=_run_datasets(),
             basis=BASIS,
         output:
-            fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=RUN_MODEL),
+            fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=SHARED),
         params:
-            cfg=_hypotheses_cfg(RUN_MODEL),
+            cfg=_hypotheses_cfg(SHARED),
         log:
             f"{LOGS}/hypotheses/run_model.log",
         benchmark:
@@ -55,18 +62,19 @@ if RUN_MODEL:
         script:
             "../scripts/hypotheses_run_model.py"
 
-if OWN_MODEL:
+if SEPARATE:
 
     rule hypothesis:
         input:
             matrices=rules.mesh.output.matrices,
             dataset=_run_datasets,
+            basis=_hypothesis_basis,
         output:
             fit=f"{R}/hypotheses/{{name}}/fit.json",
         params:
             cfg=lambda wc: _hypotheses_cfg([wc.name]),
         wildcard_constraints:
-            name="|".join(OWN_MODEL),
+            name="|".join(SEPARATE),
         log:
             f"{LOGS}/hypotheses/{{name}}.log",
         benchmark:
