@@ -10,7 +10,9 @@
 # job (rule hypothesis).  With solver.method: reduced (the default, for a laptop) those that change only
 # coefficients of the run's model (materials, masses, forces, effects, the contact law) are fitted together
 # in one job (rule hypotheses_run_model): the model loaded once, one set of terms, one reduced solver grown
-# from fit to fit.  With full (a cluster, docs/scale-out.md) each is a job of its own.
+# from fit to fit, then ranked with the others (their jobs first) so that only the admissible ones get the
+# certificate's Sturm count and the next measurement's predictions.  With full (a cluster,
+# docs/scale-out.md) each is a job of its own, and each is certified.
 
 from jointid.config.hypotheses import check_hypotheses, cost_rank, needs_own_model
 from jointid.reconstruction.hypotheses import check_hypothesis_effects
@@ -46,6 +48,7 @@ if SHARED:
             matrices=rules.mesh.output.matrices,
             dataset=_run_datasets(),
             basis=BASIS,
+            others=expand(f"{R}/hypotheses/{{name}}/fit.json", name=SEPARATE),  # ranked with these: the certificates
         output:
             fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=SHARED),
         params:

@@ -6,4 +6,4 @@ from jointid.stages.runner import run_script
 
 run_script(snakemake, lambda cfg, inp, out: run_hypotheses(
     [HypothesisJob.from_config(cfg, name, check_hypothesis_effects) for name in cfg["hypotheses"]], inp.matrices,
-    list(out.fits), basis=inp.basis), provenance=True)
+    list(out.fits), basis=inp.basis, others=list(inp.others)), provenance=True)

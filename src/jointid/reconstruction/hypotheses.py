@@ -28,6 +28,7 @@ contact direction of a guide: ``k_feed`` is one constant for both states, the se
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -44,7 +45,7 @@ from jointid.errors import ConfigError
 from jointid.progress import Steps
 
 __all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "COEFFICIENT_KEYS", "LinkedLaw", "check_hypothesis_effects",
-           "linked_variant", "fit_hypothesis", "fit_with", "state_joints"]
+           "linked_variant", "fit_hypothesis", "fit_with", "record", "search", "Searched", "state_joints", "CERTIFIED", "NOT_CERTIFIED"]
 
 
 def check_hypothesis_effects(where: str, effects: dict | None) -> None:
@@ -102,7 +103,26 @@ def fit_hypothesis(system, settings: DiagnosisSettings, law: LinkedLaw, data: li
 
 def fit_with(diag: Diagnoser, law: LinkedLaw, log=print_log) -> dict:
     """:func:`fit_hypothesis` with a diagnoser of the hypothesis's system, settings and data (its reduced solver
-    possibly shared with other hypotheses on the same terms, :func:`jointid.diagnosis.terms.build_systems`)."""
+    possibly shared with other hypotheses on the same terms, :func:`jointid.diagnosis.terms.build_systems`):
+    :func:`search` and the certified :func:`record`."""
+    return record(diag, search(diag, law, log), certify=True)
+
+
+@dataclass
+class Searched:
+    """A hypothesis's fit before its certificate: the best preload class's fit, that class (None with one force
+    level), the profile over the classes and how many there were."""
+
+    fit: Fit
+    preload_N: float | None
+    profile: list
+    n_choices: int
+
+
+def search(diag: Diagnoser, law: LinkedLaw, log=print_log) -> Searched:
+    """The fit of a hypothesis under the linked law (``diag``: of its system, settings and data): the best
+    preload class by chi-square, each class continued from the one before.  Every solve is checked in the
+    full space (residuals); the Sturm count of the certificate is :func:`record`'s."""
     system, settings, data = diag.system, diag.settings, diag.data
     linked = _forces_differ(data)
     classes = law.preload_classes_N if linked else (law.preload_classes_N[0],)
@@ -123,9 +143,27 @@ def fit_with(diag: Diagnoser, law: LinkedLaw, log=print_log) -> dict:
         if best is None or fit.chi2 < best[0].chi2 - 1e-9:
             best = (fit, P)
     fit, P = best
-    fit = diag.certify(fit)  # checked against the full model
-    rec = fit_record(fit, data, P if linked else None, profile, n_choices=len(classes))
-    rec["predictions"] = measurement_predictions(diag, fit, data)  # for the next measurement (the ranking job)
+    return Searched(fit, P if linked else None, profile, len(classes))
+
+
+CERTIFIED = "residual check and Sturm count at the optimum"
+"""A record's ``certificate`` when it was asked again from its optimum with the certificate."""
+NOT_CERTIFIED = ("none: not admissible in this run's ranking, so no answer rests on it; every solve of its fit was "
+                 "checked in the full space (residuals), without the Sturm count")
+"""A record's ``certificate`` when it was not (:func:`jointid.stages.hypotheses.run_hypotheses`)."""
+
+
+def record(diag: Diagnoser, found: Searched, *, certify: bool) -> dict:
+    """The JSON-ready record of a searched hypothesis (:func:`fit_record`).  With ``certify`` the fit is first
+    asked again from its optimum with the certificate (residual check and Sturm count against the full model,
+    which may move it) and the record gets ``predictions`` for the next measurement (the ranking job);
+    without, the record says why not (:data:`NOT_CERTIFIED`: a hypothesis outside the admissible set needs its
+    fit, not a certificate) and has no predictions."""
+    fit = diag.certify(found.fit) if certify else found.fit
+    rec = fit_record(fit, diag.data, found.preload_N, found.profile, n_choices=found.n_choices)
+    rec["certified"], rec["certificate"] = certify, CERTIFIED if certify else NOT_CERTIFIED
+    if certify:
+        rec["predictions"] = measurement_predictions(diag, fit, diag.data)
     return rec
 
 

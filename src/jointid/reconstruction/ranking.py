@@ -130,7 +130,8 @@ def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], l
                "delta_qaicc": q[n] - best if ranked else float("nan"),
                "weight": float(w[names.index(n)]) if ranked else float("nan"),
                "chi2": rec["chi2"], "n_data": rec["n_data"], "n_params": rec["n_params"],
-               "c_hat": me.c_hat, "sigma_model_pct": 100 * me.sigma_model_rel, "listed_apart": reasons[n]}
+               "c_hat": me.c_hat, "sigma_model_pct": 100 * me.sigma_model_rel, "listed_apart": reasons[n],
+               "certified": bool(rec.get("certified", True))}  # Sturm-counted at its optimum (older records: all)
         for s in rec["states"]:
             row[f"max_abs_error_{s['state']}_pct"] = s["max_abs_error_pct"]
             row[f"unpaired_visible_{s['state']}"] = s["n_unpaired_visible"]

@@ -24,7 +24,7 @@ from jointid import io
 from jointid.diagnosis.fitting import print_log
 from jointid.diagnosis.fitting import Diagnoser
 from jointid.progress import Steps
-from jointid.reconstruction.hypotheses import fit_hypothesis, fit_with
+from jointid.reconstruction.hypotheses import fit_hypothesis, record, search
 from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
 from jointid.reconstruction.next_measurement import ProposalOptions, next_measurement_markdown, propose
 from jointid.diagnosis.terms import build_system, build_systems
@@ -75,31 +75,60 @@ def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, b
 
 
 def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str], *, basis: str | None = None,
-                   log=print_log) -> list[dict]:
+                   others: list[str] = (), log=print_log) -> list[dict]:
     """Fit the hypotheses of ``jobs``, which change only coefficients of the run's model
     (:func:`~jointid.config.hypotheses.needs_own_model` false), in one process: the model loaded once, one set
     of terms for all (:func:`jointid.diagnosis.terms.build_systems`) and one reduced solver, started from the
     shared ``basis`` and grown by each fit for the next.  Each record goes to its own file, as
     :func:`run_hypothesis` writes it; the values agree with separate jobs' to the solver's tolerance
-    (another basis), not to the last digit."""
+    (another basis), not to the last digit.
+
+    A certificate where an answer rests on it: the fits are ranked with the records of ``others`` (the
+    run's other hypotheses' ``fit.json``, each certified in its own job) as rule ``hypotheses`` ranks them,
+    and only the admissible ones (:func:`jointid.reconstruction.ranking.admissible`) get the certificate's
+    Sturm count and the predictions of the next measurement; the ranking is made again after each round,
+    until every admissible hypothesis is certified.  Every solve of every fit is checked in the full space
+    (residuals); a rejected hypothesis's record says that it was not Sturm-counted, and why."""
     limit_threads(1)
     model = load_model(matrices)
     if "solids" not in model.meta and model.meta.get("kind") != "mesh" and any(j.overrides_model for j in jobs):
         # a model file written before the solids were kept per part: each hypothesis as its own job would
         return [run_hypothesis(j, matrices, out, basis=basis, log=log) for j, out in zip(jobs, out_jsons)]
     systems = build_systems(model, [j.settings.model for j in jobs])
-    start, solver, recs = load_basis(basis, systems[0], log), None, []
+    start, solver = load_basis(basis, systems[0], log), None
     steps = Steps(len(jobs))
-    for job, system, out in zip(jobs, systems, out_jsons):
-        t0 = time.time()
+    diags, found, recs, t0 = {}, {}, {}, time.time()
+    for job, system in zip(jobs, systems):
         log(f"hypothesis {job.name} {steps.next()}: the run model"
             + (", the reduced solver of the hypotheses before" if solver is not None else ""))
         diag = Diagnoser(system, job.settings, _states(job, system, log), solver=solver,
                          start_basis=start if solver is None else None, log=log)
-        rec = fit_with(diag, job.law, log)
+        diags[job.name], found[job.name] = diag, search(diag, job.law, log)
         solver = diag.solver
-        recs.append(_write(job, rec, False, system, out, t0, log))
-    return recs
+        recs[job.name] = _named(job, record(diag, found[job.name], certify=False), system)
+    fixed = {}
+    for path in others:
+        rec = io.read_json(path)
+        fixed[rec["hypothesis"]] = rec
+    while True:  # certify the admissible ones; a certificate may move a fit, so rank again
+        rows, _, _ = rank_hypotheses({**fixed, **recs}, delta=ADMISSIBLE_DELTA_AICC)
+        todo = [r["hypothesis"] for r in rows if r.get("admissible") and r["hypothesis"] in recs
+                and not recs[r["hypothesis"]]["certified"]]
+        if not todo:
+            break
+        for name in todo:
+            job = next(j for j in jobs if j.name == name)
+            log(f"hypothesis {name}: admissible, certified")
+            recs[name] = _named(job, record(diags[name], found[name], certify=True), diags[name].system)
+    out = []
+    for job, path in zip(jobs, out_jsons):
+        rec = recs[job.name]
+        io.write_json(path, rec)
+        log(f"hypothesis {job.name}: chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f}"
+            + ("" if rec["certified"] else " (not admissible: no Sturm count)"))
+        out.append(rec)
+    log(f"hypotheses on the run model: {len(jobs)} in {time.time() - t0:.0f} s")
+    return out
 
 
 def _states(job: HypothesisJob, system, log) -> list:
@@ -113,11 +142,16 @@ def _states(job: HypothesisJob, system, log) -> list:
     return data
 
 
+def _named(job: HypothesisJob, rec: dict, system, own: bool = False) -> dict:
+    """The hypothesis's record with its name, description and model (no timing: the record is byte-identical
+    run to run)."""
+    rec.update({"hypothesis": job.name, "description": job.description, "own_model": own, "n_dofs": system.n_dofs})
+    return rec
+
+
 def _write(job: HypothesisJob, rec: dict, own: bool, system, out_json: str, t0: float, log) -> dict:
     """The hypothesis's record with its name, description and model, written to ``out_json``."""
-    rec.update({"hypothesis": job.name, "description": job.description, "own_model": own,
-                "n_dofs": system.n_dofs})  # no timing: the record is byte-identical run to run
-    io.write_json(out_json, rec)
+    io.write_json(out_json, _named(job, rec, system, own))
     log(f"hypothesis {job.name}: chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f} ({time.time() - t0:.0f} s)")
     return rec
 
@@ -222,6 +256,10 @@ def ranking_markdown(ranking: pd.DataFrame, spread: pd.DataFrame, records: dict,
         pre = "—" if rec.get("preload_N") is None else f"{rec['preload_N']:g}"
         lines.append(f"| {r['rank']} | {r['hypothesis']} | {r['delta_qaicc']:.1f} | {r['weight']:.2f} | "
                      f"{r['chi2']:.1f} | {errs} | {mis} | {beta:.3f} | {pre} |")
+    unchecked = [r["hypothesis"] for _, r in ranking.iterrows() if not r.get("certified", True)]
+    if unchecked:
+        lines += ["", "Not Sturm-counted (outside the admissible set, so no answer rests on them; every solve of "
+                  "their fits was checked in the full space by its residuals): " + ", ".join(unchecked) + "."]
     if apart:
         lines += ["", "Listed apart (a broken reading, not a competitor; no QAICc is given):", "",
                   "| hypothesis | max error per state (%) | reason |", "|---|---|---|"] + apart
