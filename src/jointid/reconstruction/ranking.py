@@ -95,6 +95,11 @@ def shape_chi2_total(rec: dict, me: ModelError) -> float:
     return float(rec["shape_chi2"]) / (me.shape.inflation if me.shape is not None else 1.0)
 
 
+TIE_QAICC = 1e-3
+"""QAICc differences below this order hypotheses by their place in the configuration, not by QAICc: the fits
+agree with each other only to the reduced solver's tolerance (chi-square about 1e-6 relative)."""
+
+
 def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], list[dict], ModelError]:
     """Rank fitted hypotheses (name -> :func:`fit_record` plus ``description``) by QAICc.
 
@@ -118,8 +123,10 @@ def rank_hypotheses(records: dict, *, delta: float = 4.0) -> tuple[list[dict], l
             chi2_m = rec["chi2"] / me.inflation if r is None else me.chi2_total(r, rec["residual_sigma_rel"])
             q[n] = qaicc(chi2_m + shape_chi2_total(rec, me), rec["n_data"] + int(rec.get("shape_dof") or 0),
                          rec["n_params"])
-    names = sorted(q, key=lambda n: (q[n], n))
-    best = q[names[0]] if names else float("nan")
+    # QAICc within TIE_QAICC of another is a tie (far below what the fits resolve): the one listed first wins
+    order = {n: i for i, n in enumerate(records)}
+    names = sorted(q, key=lambda n: (round(q[n] / TIE_QAICC), order[n]))
+    best = min(q.values()) if names else float("nan")
     w = akaike_weights([q[n] for n in names])
     rows = []
     for rank, n in enumerate(names + sorted(n for n in records if reasons[n]), start=1):
