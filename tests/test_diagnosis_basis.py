@@ -73,7 +73,8 @@ def test_a_hypothesis_from_the_shared_basis_fits_as_from_its_own(case):
 def test_hypotheses_in_one_job_fit_as_in_their_own(case):
     """Rule hypotheses_run_model: the coefficient-only hypotheses fitted in one process on one set of terms and
     one reduced solver, grown from fit to fit, give each the fit of its own job to the solver's tolerance
-    (the same bounds as the shared basis above); the second says it takes the solver of the first."""
+    (the same bounds as the shared basis above); the second says it takes the solver of the first.  Only the
+    admissible ones are certified (Sturm count) and carry the next measurement's predictions."""
     cfg, tmp, matrices, basis, _ = case
     jobs = [HypothesisJob.from_config(cfg, n, check_hypothesis_effects) for n in ("light", "heavy")]
     lines = []
@@ -81,6 +82,11 @@ def test_hypotheses_in_one_job_fit_as_in_their_own(case):
                               basis=str(basis), log=lines.append)
     assert any(m.startswith("hypothesis heavy (2/2") and m.endswith("the reduced solver of the hypotheses before")
                for m in lines), lines
+    from jointid.reconstruction.ranking import rank_hypotheses
+
+    rows, _, _ = rank_hypotheses({r["hypothesis"]: r for r in together})
+    assert {r["hypothesis"]: r["certified"] for r in rows} == {r["hypothesis"]: r["admissible"] for r in rows}
+    assert all(("predictions" in r) == r["certified"] for r in together)
     for job, rec in zip(jobs, together):
         alone = run_hypothesis(job, str(matrices), str(tmp / f"a_{job.name}.json"), basis=str(basis), log=lambda m: None)
         theta = {p["parameter"]: p["value"] for p in rec["parameters"] if not p.get("fixed")}
