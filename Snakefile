@@ -26,6 +26,7 @@ from jointid.config.options import DoeOptions
 from jointid.config.snakefile import mesh_inputs, mesh_keys, merged, modal_keys, paper_input, run_folders, sections, validated
 from jointid.reporting.provenance import pin_config_state
 from jointid.stages import doe, identify, modal, surface, verify
+from jointid.stages.tables import PAPER_TABLES
 
 configfile: "config.yaml"
 config = validated(config, ["config.yaml", *workflow.overwrite_configfiles])
@@ -455,7 +456,7 @@ rule tables:
     input:
         verify=expand(f"{R}/identify/{{state}}/verify.csv", state=STATES),
         unpaired=expand(f"{R}/identify/{{state}}/unpaired_visible.csv", state=STATES),
-        paper=paper_input(config, "data/paper/paper_tables.csv"),
+        paper=paper_input(config, PAPER_TABLES),
     output:
         power_off=f"{R}/tables/table2_power_off.csv",
         unpaired=f"{R}/tables/unpaired_visible.csv",

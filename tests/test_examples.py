@@ -12,38 +12,30 @@ without its solve:
 * the identified feed stiffness against the one-mass estimate inverted at the measured 344.3 Hz;
 * the hidden effect of a synthetic test named first by the diagnosis, its magnitude recovered.
 
-The four together take well under two minutes on the 2-core machine; each prints its time.
+The four together take well under two minutes on the 2-core machine; each prints its time.  The fifth,
+``05_tables.py`` (the whole method: Tables 2-3), runs in tests/test_api_method.py beside the workflow's
+coarse run, whose numbers it must equal.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import re
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import run_example as run_in_repo
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "docs" / "examples"
 TIMES: dict[str, float] = {}
 NUMBER = r"(-?[\d.]+(?:e[+-]?\d+)?)"
 
 
 def run_example(name: str) -> str:
-    """Run ``docs/examples/<name>`` from the repository root; its standard output."""
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, str(EXAMPLES / name)], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=300)
-    TIMES[name] = time.perf_counter() - t0
-    assert proc.returncode == 0, f"{name} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    print(f"{name}: {TIMES[name]:.1f} s")
-    return proc.stdout
+    """Run ``docs/examples/<name>`` from the repository root (:func:`conftest.run_example`); its standard output."""
+    out, TIMES[name] = run_in_repo(name)
+    return out
 
 
 @pytest.fixture(scope="module")

@@ -3,9 +3,10 @@
 Run from the repository root:  python docs/examples/03_identify.py
 
 `study.identify` is the workflow's FE polish: Gauss-Newton on the full FE model from a start (here
-the default, the geometric mean of the bounds).  It is a local search.  The workflow (`snakemake
--j2`) first searches the whole box on response surfaces from a DOE and then polishes, and it also
-extrapolates over mesh refinement; use it for the published numbers (docs/results.md).
+the default, the geometric mean of the bounds).  It is a local search.  The method (`snakemake -j2`,
+or `study.run_method()`: example 05_tables.py) first searches the whole box on response surfaces from a
+DOE and then polishes, and it also extrapolates over mesh refinement; use it for the published numbers
+(docs/results.md).
 """
 
 from pathlib import Path

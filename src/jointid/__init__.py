@@ -15,9 +15,11 @@ Study
     * ``.compare(dataset, theta, state)`` - measured vs model Hz, error %, MAC (pandas table);
     * ``.identify(dataset, state)`` - the joint parameters fitted to one state's modes (the
       workflow's FE polish, a local search) -> :class:`Identification`;
+    * ``.run_method()`` - the whole method on the configured states (DOE, response surfaces, multistart,
+      FE polish, verification), through the workflow's stage functions: Tables 2-3 -> :class:`MethodResult`;
     * ``.diagnose(dataset)`` - which physical effect the model lacks -> :class:`DiagnosisResult`;
     * ``.dataset(path)`` - a measured dataset folder or UFF file; ``.synthetic_dataset(truth, folder)``.
-ModalResult, Identification, DiagnosisResult
+ModalResult, Identification, MethodResult, DiagnosisResult
     The typed (frozen) results.
 load_dataset
     A measured dataset for a study.
@@ -40,25 +42,23 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+__all__ = ["DiagnosisResult", "Identification", "MethodResult", "ModalResult", "Study", "__version__", "load_dataset"]
 
-__all__ = ["DiagnosisResult", "Identification", "ModalResult", "Study", "__version__", "load_dataset"]
-
-_API = ("DiagnosisResult", "Identification", "ModalResult", "Study", "load_dataset")
+_API = ("DiagnosisResult", "Identification", "MethodResult", "ModalResult", "Study", "load_dataset")
 
 if TYPE_CHECKING:
-    from jointid.api import DiagnosisResult, Identification, ModalResult, Study, load_dataset  # noqa: F401
+    from jointid.api import DiagnosisResult, Identification, MethodResult, ModalResult, Study, load_dataset  # noqa: F401
 
 
 def __getattr__(name: str):
     """The API names, imported on first use (PEP 562): ``import jointid.<module>`` in a workflow job
     stays as light as before, and the package's modules do not import the API through it."""
-    if name in _API:
-        value = getattr(importlib.import_module("jointid.api"), name)
+    if name in _API or name == "__version__":
+        value = getattr(importlib.import_module("jointid.version" if name == "__version__" else "jointid.api"), name)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'jointid' has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_API})
+    return sorted({*globals(), *_API, "__version__"})

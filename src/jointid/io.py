@@ -192,12 +192,25 @@ def write_text(path, text: str) -> None:
         tmp.write_text(text)
 
 
+def csv_text(df, float_format: str = "%.10g") -> str:
+    """The text :func:`write_csv` writes of ``df``."""
+    return df.to_csv(index=False, float_format=float_format, lineterminator="\n")
+
+
 def write_csv(df, path, float_format: str = "%.10g") -> None:
     """CSV with a fixed float format so identical results give byte-identical files (rendered first,
     so that a full disk can say how much space the file needs)."""
-    data = df.to_csv(index=False, float_format=float_format, lineterminator="\n").encode("utf-8")
+    data = csv_text(df, float_format).encode("utf-8")
     with atomic_path(path, len(data)) as tmp:
         tmp.write_bytes(data)
+
+
+def through_csv(df):
+    """``df`` as :func:`read_csv` reads back the file :func:`write_csv` writes of it (floats at 10
+    significant digits): what the workflow's next stage gets, for a caller that keeps the table in memory."""
+    import io as _io
+
+    return read_csv(_io.StringIO(csv_text(df)))
 
 
 def _jsonable(obj):
@@ -214,10 +227,21 @@ def _jsonable(obj):
     return obj
 
 
+def json_text(obj) -> str:
+    """The text :func:`write_json` writes of ``obj`` (floats at 12 significant digits, keys sorted)."""
+    return json.dumps(_jsonable(obj), indent=2, sort_keys=True) + "\n"
+
+
 def write_json(path, obj) -> None:
-    text = json.dumps(_jsonable(obj), indent=2, sort_keys=True) + "\n"
+    text = json_text(obj)
     with atomic_path(path, len(text.encode())) as tmp:
         tmp.write_text(text)
+
+
+def through_json(obj):
+    """``obj`` as :func:`read_json` reads back the file :func:`write_json` writes of it: what the workflow's
+    next stage gets, for a caller that keeps the document in memory."""
+    return json.loads(json_text(obj))
 
 
 def read_json(path):

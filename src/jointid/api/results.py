@@ -14,7 +14,7 @@ import pandas as pd
 
 from jointid.correlate.pairing import PairedBy
 
-__all__ = ["DiagnosisResult", "Identification", "ModalResult"]
+__all__ = ["DiagnosisResult", "Identification", "MethodResult", "ModalResult"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,6 +167,64 @@ class Identification:
         """One row per measured mode: ``mode, measured_Hz, model_Hz, error_pct``."""
         return pd.DataFrame({"mode": np.arange(1, len(self.f_meas_Hz) + 1), "measured_Hz": self.f_meas_Hz,
                              "model_Hz": self.f_model_Hz, "error_pct": self.residual_pct})
+
+
+@dataclass(frozen=True, eq=False)
+class MethodResult:
+    """The paper's method run on every configured state (:meth:`Study.run_method`): what the workflow writes
+    to ``results/identify/<state>/`` and ``results/tables/``.
+
+    Attributes
+    ----------
+    identifications : dict of str -> jointid.identification.record.IdentificationRecord
+        Per state, its ``params.json``: the joint parameters (``.theta``, N/m^3) with their 95 % intervals
+        (``.parameters``), the surface optimum, the pairing, the FE polish, the mesh extrapolation, notes.
+    verified : dict of str -> DataFrame
+        Per state, its ``verify.csv``: one row per measured mode (``order, experimental_Hz, simulation_Hz,
+        relative_error_pct, ..., fe_mode, mac_to_tracked, description``), the full FE solve at the parameters.
+    unpaired : dict of str -> DataFrame
+        Per state, its ``unpaired_visible.csv``: model modes the test would clearly have seen that no measured
+        mode takes (``model_mode, freq_Hz, target_Hz, misfit_pct, visibility_rel, description``).
+    tables : dict of str -> DataFrame
+        Per state, its table of natural frequencies (Table 2: ``power_off``, Table 3: ``power_on``):
+        ``order, experimental_Hz, simulation_Hz, relative_error_pct, paper_simulation_Hz,
+        paper_relative_error_pct`` (the paper's columns empty on other data).
+    surface : dict
+        The response-surface model the states were identified on (``results/surface/.../model.json``).
+    """
+
+    identifications: dict[str, Any]
+    verified: dict[str, pd.DataFrame]
+    unpaired: dict[str, pd.DataFrame]
+    tables: dict[str, pd.DataFrame]
+    surface: dict
+
+    def theta(self, state: str) -> dict[str, float]:
+        """The identified joint parameters of ``state``, N/m^3."""
+        return dict(self.identifications[state].theta)
+
+    def max_abs_error_pct(self, state: str) -> float:
+        """The largest ``|relative_error_pct|`` of ``state``'s table."""
+        return float(self.tables[state]["relative_error_pct"].abs().max())
+
+    def write(self, folder) -> list[str]:
+        """Write the workflow's files of each state under ``folder``: ``identify/<state>/params.json``,
+        ``verify.csv`` and ``unpaired_visible.csv`` (as in ``results/``), and its table as ``tables/<state>.csv``
+        (the workflow's ``tables/table2_power_off.csv`` ...), in the workflow's formats; returns the paths."""
+        from pathlib import Path
+
+        from jointid import io
+
+        out = []
+        for state, rec in self.identifications.items():
+            folder_ = Path(folder) / "identify" / state
+            out += [str(folder_ / "params.json"), str(folder_ / "verify.csv"), str(folder_ / "unpaired_visible.csv"),
+                    str(Path(folder) / "tables" / f"{state}.csv")]
+            rec.write(out[-4])
+            io.write_csv(self.verified[state], out[-3])
+            io.write_csv(self.unpaired[state], out[-2])
+            io.write_csv(self.tables[state], out[-1])
+        return out
 
 
 @dataclass(frozen=True, eq=False)

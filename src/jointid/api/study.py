@@ -7,8 +7,10 @@ once per study and reused.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import contextmanager, redirect_stdout
 from pathlib import Path
 from typing import TYPE_CHECKING, Union
 
@@ -16,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 import jointid.api.measured as measured
-from jointid.api.results import DiagnosisResult, Identification, ModalResult
+from jointid.api.results import DiagnosisResult, Identification, MethodResult, ModalResult
 from jointid.config.study import StudySettings
 from jointid.errors import DataError
 
@@ -35,10 +37,33 @@ def _quiet(msg: str) -> None:
     """A log that drops every line."""
 
 
-class Study:
-    """A rig configuration and what the engineer does with it: modes, compare, identify, diagnose.
+class _Lines(io.TextIOBase):
+    """A text stream that hands each complete line written to it to ``log``."""
 
-    Build one with :meth:`from_config`.  Units are SI throughout: joint parameters in N/m^3
+    def __init__(self, log: Callable[[str], None]):
+        super().__init__()
+        self._log, self._part = log, ""
+
+    def write(self, text: str) -> int:
+        *lines, self._part = (self._part + text).split("\n")
+        for line in lines:
+            self._log(line)
+        return len(text)
+
+
+@contextmanager
+def _progress(log: Callable[[str], None]):
+    """The stages' progress lines (printed, as in the rules' logs) handed to ``log`` instead."""
+    with redirect_stdout(_Lines(log)):
+        yield
+
+
+class Study:
+    """A rig configuration and what the engineer does with it: modes, compare, identify, run the method,
+    diagnose.
+
+    Build one with :meth:`from_config` (YAML files or a mapping), :meth:`default` (the shipped defaults) or
+    ``Study(settings)`` (typed :class:`jointid.config.study.StudySettings`).  Units are SI throughout: joint parameters in N/m^3
     (``k_normal_N_per_m3`` ...), frequencies in Hz, coordinates in m.
 
     Examples
@@ -58,6 +83,7 @@ class Study:
         self._system = None
         self._solver = None
         self._identified: dict[str, Identification] = {}
+        self._found: dict[str, dict[str, float]] = {}  # run_method's parameters per state
 
     # ------------------------------------------------------------------ set-up
     @classmethod
@@ -120,7 +146,7 @@ class Study:
 
     def theta(self, state: str | None = None, theta: Mapping[str, float] | None = None) -> dict[str, float]:
         """Every joint parameter in N/m^3: the defaults (:meth:`parameters`), then what
-        :meth:`identify` found for ``state`` in this study, then ``theta`` on top.
+        :meth:`identify` (else :meth:`run_method`) found for ``state`` in this study, then ``theta`` on top.
 
         Raises
         ------
@@ -133,6 +159,8 @@ class Study:
         values = dict(zip(table["parameter"], table["default_N_per_m3"]))
         if state in self._identified:
             values.update(self._identified[state].theta)
+        elif state in self._found:
+            values.update(self._found[state])
         unknown = sorted(set(theta or {}) - set(values))
         if unknown:
             raise ConfigError(f"theta: {', '.join(unknown)} is not a joint parameter — use one of "
@@ -141,8 +169,9 @@ class Study:
         return {k: float(v) for k, v in values.items()}
 
     def model(self):
-        """The FE model of the rig (:class:`jointid.fe.fem.Model`), built once by
-        :func:`jointid.fe.model.build_model` (the workflow's rule ``mesh``) and cached.
+        """The FE model of the rig (:class:`jointid.fe.fem.Model`), built once by rule ``mesh``'s
+        :func:`jointid.stages.model.mesh_model` and held as its ``matrices.npz`` holds it
+        (:func:`jointid.fe.model.stored_model`), so that it solves as the workflow's does.
 
         Its stiffness and mass are affine in the joint parameters: ``K = K0 + sum c_t K_t``,
         ``M = M0 + sum c_t M_t`` over the terms of ``model.stiffness`` / ``model.mass`` (sparse,
@@ -150,9 +179,12 @@ class Study:
         measuring points.
         """
         if self._model is None:
-            from jointid.fe.model import build_model
+            from jointid.fe.model import stored_model
+            from jointid.stages.method import MethodOptions
+            from jointid.stages.model import mesh_model
 
-            self._model = build_model(self._settings.model)
+            with _progress(_quiet):
+                self._model = stored_model(mesh_model(MethodOptions.of(self._study).mesh))
         return self._model
 
     def points(self) -> pd.DataFrame:
@@ -252,10 +284,10 @@ class Study:
         This is the workflow's *FE polish* (:func:`jointid.identification.polish.polish_on_model`,
         called by rule ``identify``): Gauss-Newton on log10 of the parameters with exact modal
         sensitivities, each iterate solved by a reduced solver certified against the full model.
-        It is a local search from ``theta0``: the workflow first runs the DOE, the response
-        surfaces and a multistart on them (rules ``doe`` ... ``identify``, ``snakemake -j2``),
-        which this method leaves out.  Start it near the answer, or from the workflow's surface
-        optimum (``results/identify/<state>/params.json``, ``surface_optimum``).
+        It is a local search from ``theta0``: the method first runs the DOE, the response
+        surfaces and a multistart on them (rules ``doe`` ... ``identify``; :meth:`run_method`),
+        which this method leaves out.  Start it near the answer, or from the surface optimum of
+        :meth:`run_method` (``identifications[state].surface_optimum``).
 
         Parameters
         ----------
@@ -313,7 +345,41 @@ class Study:
                                          PairedBy.FREQUENCY if meas_shapes is None else PairedBy.MAC,
                                          joints.fixed_N_per_m3)
         self._identified[state] = result
+        self._found.pop(state, None)
         return result
+
+    def run_method(self, *, log: Callable[[str], None] | None = None) -> MethodResult:
+        """Run the paper's method on the configured states and datasets: DOE -> response surfaces (with
+        ``doe.zoom``, a second DOE around the first optima) -> multistart and FE polish -> FE verification ->
+        Tables 2-3, as ``snakemake -j2`` does up to ``results/tables/``.
+
+        It calls :func:`jointid.stages.method.run_method`: the stage functions of the rules, with the options
+        each rule gets, each handed what the rule's file would hand it.  With single-threaded BLAS (as the
+        workflow's jobs run) its numbers are the workflow's, to the last digit.  ``solver.method: rom`` is
+        the workflow's alone.
+
+        Parameters
+        ----------
+        log : callable, optional
+            Receives the stages' progress lines (default: silent).
+
+        Returns
+        -------
+        MethodResult
+            The states' identifications, verifications and tables.  The identified parameters are also
+            remembered per state: later :meth:`modes` and :meth:`compare` of that state start from them.
+        """
+        from jointid.stages.method import MethodOptions, run_method
+
+        with _progress(log or _quiet):
+            run = run_method(MethodOptions.of(self._study), self.model())
+        for state, rec in run.identifications.items():
+            self._found[state] = dict(rec.theta)
+            self._identified.pop(state, None)
+        return MethodResult(identifications=dict(run.identifications),
+                            verified={s: v.table for s, v in run.verified.items()},
+                            unpaired={s: v.unpaired for s, v in run.verified.items()},
+                            tables=dict(run.tables), surface=run.surface)
 
     def synthetic_dataset(self, truth: str | os.PathLike | Mapping, folder: str | os.PathLike) -> Dataset:
         """Write a synthetic measured dataset with hidden effects (:mod:`jointid.synthetic.generate`) to

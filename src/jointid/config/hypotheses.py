@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from jointid.config.load import load_config
 from jointid.config.options import given
-from jointid.config.schema import default as schema_default
+from jointid.config.schema import field_default
 from jointid.config.typed import ModelSpec, read_only
 from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.errors import ConfigError
@@ -41,11 +41,6 @@ EffectsCheck = Callable[[str, "Mapping | None"], None]
 """``check(where, effects)``: raises :class:`ConfigError` naming ``where`` for a bad ``effects`` section."""
 
 
-def _schema(key: str, convert=lambda v: v):
-    """A dataclass field whose default is the schema's default of ``key`` (converted)."""
-    return field(default_factory=lambda: convert(schema_default(key)))
-
-
 def _classes(values) -> tuple[float, ...]:
     """Preload classes (N) as floats; none: one class at 0 N."""
     return tuple(float(p) for p in values) or (0.0,)
@@ -55,9 +50,9 @@ def _classes(values) -> tuple[float, ...]:
 class LinkedLaw:
     """The linked two-state law of the ``linked`` config section (defaults: the schema's)."""
 
-    preload_classes_N: tuple = _schema("linked.preload_classes_N", _classes)
-    directions: tuple = _schema("linked.directions", tuple)
-    beta_start: float = _schema("linked.beta_start", float)
+    preload_classes_N: tuple = field_default("linked.preload_classes_N", _classes)
+    directions: tuple = field_default("linked.directions", tuple)
+    beta_start: float = field_default("linked.beta_start", float)
 
     @classmethod
     def from_config(cls, cfg: Mapping) -> LinkedLaw:
@@ -73,12 +68,12 @@ class ProposalOptions:
     """The assumed uncertainties of the candidate measurements and the draws (config ``next_measurement``;
     defaults: the schema's), and the admissible delta QAICc."""
 
-    weight_uncertainty_pct: float = _schema("next_measurement.weight_uncertainty_pct", float)
-    static_stiffness_uncertainty_pct: float = _schema("next_measurement.static_stiffness_uncertainty_pct", float)
-    shape_uncertainty_pct: float = _schema("next_measurement.shape_uncertainty_pct", float)
-    n_draws: int = _schema("next_measurement.n_draws", int)
-    seed: int = _schema("next_measurement.seed", int)
-    target: str = _schema("next_measurement.target", str)
+    weight_uncertainty_pct: float = field_default("next_measurement.weight_uncertainty_pct", float)
+    static_stiffness_uncertainty_pct: float = field_default("next_measurement.static_stiffness_uncertainty_pct", float)
+    shape_uncertainty_pct: float = field_default("next_measurement.shape_uncertainty_pct", float)
+    n_draws: int = field_default("next_measurement.n_draws", int)
+    seed: int = field_default("next_measurement.seed", int)
+    target: str = field_default("next_measurement.target", str)
     delta: float = 4.0
 
     @classmethod

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 from jointid.config.datasets import dataset_folder
 from jointid.config.hashing import ConfigStamp
+from jointid.config.schema import default as schema_default
 from jointid.config.schema import given
 from jointid.config.typed import Damping, Joints, ModelSpec, TestSetup, read_only
 
@@ -181,7 +182,8 @@ class HarmonicOptions:
         """The options of rule ``harmonic`` for ``state`` (its keys: :func:`jointid.stages.harmonic.config_keys`)."""
         h = cfg["harmonic"]
         section = h.get("damping") or {}
-        damping = dict(section or {"model": "modal", "damping_ratio": 0.03})
+        damping = dict(section or {"model": schema_default("harmonic.damping.model"),
+                                   "damping_ratio": schema_default("harmonic.damping.damping_ratio")})
         damping.pop("damping_ratio_range", None)  # the model's own fields; the range is Table 1's
         return cls(ModelSpec.from_config(cfg), tuple(float(b) for b in h["band_Hz"]), int(h["n_freq"]),
                    h["drive_point"], given(h, "direction", "harmonic.direction"),

@@ -15,7 +15,7 @@ import functools
 import math
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -103,10 +103,17 @@ def load_schema(path: str | os.PathLike | None = None) -> dict:
 def default(key: str) -> Any:
     """The schema's default of the dotted config key ``key`` (e.g. ``"solver.method"``): where the typed
     options (:mod:`jointid.config.typed`) need a default, they take it from here, so that it lives in the
-    schema alone.  Raises KeyError for a key without a default."""
+    schema alone.  A key whose default holds only under a condition (``if``/``then``, as
+    ``harmonic.damping.damping_ratio``'s for the modal damping model) takes that one.  Raises KeyError for a
+    key without a default."""
     node: Mapping | None = load_schema()
+    parent: Mapping | None = None
+    part = key
     for part in key.split("."):
-        node = subschema(node, part) if node is not None else None
+        parent, node = node, (subschema(node, part) if node is not None else None)
+    if node is None or "default" not in node:
+        then = (parent or {}).get("then")
+        node = then.get("properties", {}).get(part) if isinstance(then, Mapping) else None
     if node is None or "default" not in node:
         raise KeyError(f"schema.yaml gives no default for {key}")
     return copy.deepcopy(node["default"])
@@ -117,6 +124,14 @@ def given(section: Mapping | None, key: str, dotted: str) -> Any:
     ``dotted`` (a rule gets only the keys it hashes; the typed options fill the rest from here)."""
     section = section or {}
     return section[key] if key in section else default(dotted)
+
+
+def field_default(key: str, convert: Callable[[Any], Any] = lambda v: v):
+    """A dataclass field whose default is the schema's :func:`default` of ``key`` (``convert``-ed): the typed
+    options' defaults live in the schema alone."""
+    from dataclasses import field
+
+    return field(default_factory=lambda: convert(default(key)))
 
 
 def subschema(schema: Mapping, key: str) -> Mapping | None:

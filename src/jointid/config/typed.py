@@ -24,8 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from jointid.config.schema import default as schema_default
-from jointid.config.schema import given
+from jointid.config.schema import field_default, given
 from jointid.config.typed_mesh import MeshFileModel, read_only
 
 __all__ = ["Damping", "JointParameter", "Joints", "Material", "MeshOptions", "ModelSpec", "RigModel", "Settings",
@@ -101,16 +100,16 @@ class Joints:
 
 @dataclass(frozen=True)
 class MeshOptions:
-    """The rig's structured hexahedral mesh (``mesh``)."""
+    """The rig's structured hexahedral mesh (``mesh``; defaults: the schema's)."""
 
-    element: str = "hex2"
-    max_cell_size_m: float = 0.06
-    height_cell_fraction: float = 1.0
-    joint_cell_fraction: float = 1.0
-    refine: int = 1
-    edge_refine_levels: int = 0
-    extrapolate_edges: bool = False
-    edge_ratio: float | None = 0.45
+    element: str = field_default("mesh.element")
+    max_cell_size_m: float = field_default("mesh.max_cell_size_m")
+    height_cell_fraction: float = field_default("mesh.height_cell_fraction")
+    joint_cell_fraction: float = field_default("mesh.joint_cell_fraction")
+    refine: int = field_default("mesh.refine")
+    edge_refine_levels: int = field_default("mesh.edge_refine_levels")
+    extrapolate_edges: bool = field_default("mesh.extrapolate_edges")
+    edge_ratio: float | None = field_default("mesh.edge_ratio")
 
     @property
     def edge_extra_levels(self) -> tuple[int, ...]:
@@ -120,7 +119,7 @@ class MeshOptions:
 
     @classmethod
     def from_section(cls, section: Mapping) -> MeshOptions:
-        """The options of a ``mesh`` section; keys it does not give keep the defaults above."""
+        """The options of a ``mesh`` section; keys it does not give take the schema's defaults."""
         names = {f.name for f in dataclasses.fields(cls)}
         return cls(**{k: v for k, v in section.items() if k in names})
 
@@ -134,8 +133,8 @@ class SolverOptions:
     shift_Hz: float | None = None
     backend: str | None = None
     min_freq_Hz: float | None = None
-    method: str = dataclasses.field(default_factory=lambda: schema_default("solver.method"))
-    rom_tolerance: float = dataclasses.field(default_factory=lambda: schema_default("solver.rom_tolerance"))
+    method: str = field_default("solver.method")
+    rom_tolerance: float = field_default("solver.rom_tolerance")
 
     @classmethod
     def from_section(cls, section: Mapping) -> SolverOptions:
@@ -240,10 +239,9 @@ class TestSetup:
 
     __test__ = False  # not a pytest test class
 
-    drive_point: str = dataclasses.field(default_factory=lambda: schema_default("harmonic.drive_point"))
-    band_Hz: tuple[float, float] = dataclasses.field(default_factory=lambda: tuple(schema_default("harmonic.band_Hz")))
-    visible_threshold: float | None = dataclasses.field(
-        default_factory=lambda: schema_default("identify.visible_threshold"))
+    drive_point: str = field_default("harmonic.drive_point")
+    band_Hz: tuple[float, float] = field_default("harmonic.band_Hz", tuple)
+    visible_threshold: float | None = field_default("identify.visible_threshold")
 
     @classmethod
     def from_config(cls, cfg: Mapping) -> TestSetup:

@@ -29,8 +29,8 @@ dataset, and the effects (those of a variant are part of the variant)."""
 class ResponseSetup:
     """The drive-point response a fitted hypothesis reports (``harmonic``): its Table 1 at the drive point and
     direction over the band (Hz; ``n_freq`` frequencies) at one modal damping ratio, and the predicted static
-    stiffness over the hammer-tip patch (m).  ``damping_ratio``: ``harmonic.damping.damping_ratio``, 0.03 where
-    the configuration gives none (the schema has no default for it: the damping model need not be modal)."""
+    stiffness over the hammer-tip patch (m).  ``damping_ratio``: ``harmonic.damping.damping_ratio``, the schema's
+    default for the modal model where the configuration gives none (whatever the damping model)."""
 
     drive_point: str
     direction: str
@@ -46,7 +46,7 @@ class ResponseSetup:
         return cls(str(given(h, "drive_point", "harmonic.drive_point")), given(h, "direction", "harmonic.direction"),
                    tuple(given(h, "band_Hz", "harmonic.band_Hz")), int(given(h, "n_freq", "harmonic.n_freq")),
                    float(given(h, "patch_diameter_m", "harmonic.patch_diameter_m")),
-                   float((h.get("damping") or {}).get("damping_ratio", 0.03)))
+                   float(given(h.get("damping"), "damping_ratio", "harmonic.damping.damping_ratio")))
 
 
 @dataclass(frozen=True)

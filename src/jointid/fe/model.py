@@ -327,7 +327,17 @@ def rail_fixing_N_per_m3(rig: RigModel) -> float:
 # ---------------------------------------------------------------- cache
 def save_model(model: fem.Model, path: str | Path) -> None:
     """Write the model to one ``.npz`` file atomically (temporary file + rename)."""
-    path = Path(path)
+    write_npz_mappable(Path(path), _model_arrays(model))
+
+
+def stored_model(model: fem.Model) -> fem.Model:
+    """``model`` as :func:`load_model` reads back the file :func:`save_model` writes of it (CSR matrices, the
+    terms in name order, the description through JSON), without the file: the same numbers in every solve."""
+    return _model_of(_model_arrays(model))
+
+
+def _model_arrays(model: fem.Model) -> dict[str, np.ndarray]:
+    """The arrays of the model file (:func:`save_model`)."""
     arrays = {}
     for group in ("stiffness", "mass", "solids"):
         for name, A in getattr(model, group).items():
@@ -349,7 +359,7 @@ def save_model(model: fem.Model, path: str | Path) -> None:
         arrays[f"mesh/{k}"] = v
     meta = {k: v for k, v in model.meta.items() if k != "mesh"}
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    write_npz_mappable(path, arrays)
+    return arrays
 
 
 def load_model(path: str | Path) -> fem.Model:
@@ -374,6 +384,11 @@ def load_model(path: str | Path) -> fem.Model:
                if k not in z]
     if missing:
         raise ModelError(f"{path}: not a jointid model file (no {', '.join(missing)}) — {hint}")
+    return _model_of(z)
+
+
+def _model_of(z) -> fem.Model:
+    """The model of the arrays of a model file (:func:`_model_arrays`; a mapping of name -> array)."""
     groups: dict[str, dict[str, sp.csr_matrix]] = {"stiffness": {}, "mass": {}, "solids": {}}
     names = {(k.split("/")[0], k.split("/")[1]) for k in z if k.startswith(("stiffness/", "mass/", "solids/"))}
     for group, name in sorted(names):

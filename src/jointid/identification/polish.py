@@ -33,6 +33,7 @@ from jointid.fe.certificate import reduced_certificate
 from jointid.fe.describe import describe_modes
 from jointid.fe.extrapolate import FrequencyCorrection, edge_limit
 from jointid.fe.modal import release_heap, solve_model
+from jointid.fe.fem import Model
 from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
 from jointid.identification.rom import ROM, load_rom
@@ -222,26 +223,38 @@ def polish_optimum(spec: ModelSpec, names: list[str], matrices, theta0, fit: Pol
                    correction=None):
     """Gauss-Newton refinement of the surface optimum on the full FE model (or the ROM file ``rom``).
 
-    ``names``: the joint parameters (the surface model's), ``matrices`` the cached model file,
-    ``theta0`` the surface optimum (N/m^3); the rest as in :func:`polish_on_model`.
+    ``names``: the joint parameters (the surface model's), ``matrices`` the cached model file (or the
+    :class:`jointid.fe.fem.Model` itself), ``theta0`` the surface optimum (N/m^3); the rest as in
+    :func:`polish_on_model`.
     """
     model = load_rom(rom) if rom else _session_model(matrices)
     return polish_on_model(spec, model, names, theta0, fit, correction=correction)
 
 
 _SESSION: dict = {}
-"""The model file last polished on, its model and its reduced solver (:func:`_session_model`)."""
+"""The model file (or model) last polished on, its model and its reduced solver (:func:`_session_model`)."""
+
+
+def forget_session() -> None:
+    """Start the next polish afresh: a new reduced solver, as in a new process (the rule ``identify`` of each
+    state runs in its own)."""
+    _SESSION.clear()
+
+
+def _session_key(matrices) -> str:
+    """The session's key of a model file, or of a model object (:class:`jointid.fe.fem.Model`) by identity."""
+    return f"model@{id(matrices)}" if isinstance(matrices, Model) else str(matrices)
 
 
 def _session_model(matrices):
-    """The model of ``matrices``, the same object for every polish of this process on that file, so
-    that the polish on extrapolated frequencies reuses the reduced solver of the first polish (its
-    basis already spans the neighbourhood; every answer is still certified by its full-space
-    residual) instead of factorising and seeding a new one."""
-    key = str(matrices)
+    """The model of ``matrices`` (a model file, or the model itself), the same object for every polish of
+    this process on it, so that the polish on extrapolated frequencies reuses the reduced solver of the
+    first polish (its basis already spans the neighbourhood; every answer is still certified by its
+    full-space residual) instead of factorising and seeding a new one."""
+    key = _session_key(matrices)
     if _SESSION.get("path") != key:
         _SESSION.clear()
-        _SESSION.update(path=key, model=load_model(matrices))
+        _SESSION.update(path=key, model=matrices if isinstance(matrices, Model) else load_model(matrices))
     return _SESSION["model"]
 
 
@@ -261,7 +274,8 @@ def extrapolated_polish(spec: ModelSpec, state: str, names: list[str], matrices,
     ``EXTRAPOLATION_PASSES`` passes).  Returns ``(record for params.json, the last polish)``.
     """
     say = lambda m: _log(f"identify[{state}]: {m}")  # noqa: E731
-    models = [partial(load_model, matrices), *edge_models]  # peak memory: one level at a time
+    base = matrices if isinstance(matrices, Model) else partial(load_model, matrices)
+    models = [base, *edge_models]  # peak memory: one level at a time
     theta_mesh = dict(zip(names, map(float, polish["theta"])))
     passes, settled = [], settled_below(fit.sigma_rel)
     for k in range(EXTRAPOLATION_PASSES):
@@ -412,7 +426,7 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
 
 def certified_base(spec: ModelSpec, names: list[str], matrices, theta: np.ndarray):
     """Base mesh ``(freqs_Hz, shapes, log-Jacobian)`` at ``theta`` from this process's certified polish solver."""
-    if _SESSION.get("path") != str(matrices) or (rs := _SESSION.get("solver")) is None:
+    if _SESSION.get("path") != _session_key(matrices) or (rs := _SESSION.get("solver")) is None:
         return None  # no polish solver of this very model file in this process
     model = _SESSION["model"]
     sol = rs.solve(*base_coefficients(spec, model, dict(zip(names, map(float, theta)))), spec.solver.n_modes)

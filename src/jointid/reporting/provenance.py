@@ -196,7 +196,7 @@ def _version(dist: str) -> str:
         return metadata.version(dist)
     except metadata.PackageNotFoundError:
         if dist == "jointid":
-            from jointid import __version__
+            from jointid.version import __version__
 
             return __version__
         return "not installed"

@@ -81,16 +81,20 @@ def zoom_box(opts: DoeOptions, optima: dict[str, dict[str, float]]) -> tuple[np.
 
 def run_doe_zoom(opts: DoeOptions, scout_jsons: dict[str, str], out_csv: str, out_json: str) -> None:
     """Rule ``doe_zoom``: the same design in :func:`zoom_box` around the states' surface optima."""
-    names = opts.joints.names
-    optima = {s: io.read_json(p)["surface_optimum"] for s, p in scout_jsons.items()}
-    lo, hi = zoom_box(opts, optima)
-    sheet = doe_sheet(opts, lo, hi)
-    io.write_json(out_json, {"names": names, "lower": lo.tolist(), "upper": hi.tolist(),
-                             "half_width_decades": opts.zoom_half_width_decades,
-                             "first_stage_optima": optima})
+    sheet, box = zoom_sheet(opts, {s: io.read_json(p)["surface_optimum"] for s, p in scout_jsons.items()})
+    io.write_json(out_json, box)
     io.write_csv(sheet, out_csv)
-    log("doe zoom: " + ", ".join(f"{n} {a:.3g}..{b:.3g}" for n, a, b in zip(names, lo, hi))
-        + f"; {len(sheet)} points -> {out_csv}")
+    log(f"doe zoom: {len(sheet)} points -> {out_csv}")
+
+
+def zoom_sheet(opts: DoeOptions, optima: dict[str, dict[str, float]]):
+    """The zoomed DOE's sample sheet in :func:`zoom_box` around the states' surface optima (``optima``: state ->
+    parameter -> N/m^3) and its box's record (``box.json``): ``(sheet, box)``."""
+    names = opts.joints.names
+    lo, hi = zoom_box(opts, optima)
+    log("doe zoom: " + ", ".join(f"{n} {a:.3g}..{b:.3g}" for n, a, b in zip(names, lo, hi)))
+    return doe_sheet(opts, lo, hi), {"names": names, "lower": lo.tolist(), "upper": hi.tolist(),
+                                     "half_width_decades": opts.zoom_half_width_decades, "first_stage_optima": optima}
 
 
 def sheet_theta(sheet_csv: str, point: str, names: list[str]) -> dict[str, float]:

@@ -157,7 +157,7 @@ def pairing_notes(doc: dict, state: str, states: list[str], shared, info: dict, 
 
 
 def _shared_pairing(opts, doc, state, states, pts, lower, upper, weights, rule):
-    # many parameters: the inputs of the joint pairing that run_identify has read (surfaces, states, bounds, weights, rule)
+    # many parameters: the inputs of the joint pairing that identify has read (surfaces, states, bounds, weights, rule)
     """``(shared pairing, joint-pairing record, notes)`` of frequency-only states of equal mode counts
     (:func:`jointid.identification.updating.identify_states_jointly`); ``(None, None, [])`` otherwise."""
     from jointid.identification.updating import identify_states_jointly
@@ -305,9 +305,9 @@ def intervals(names, theta, ci_lo, ci_hi) -> dict:
 
 def _identification(state, doc, res, pairing, paired_by, joint_info, f_meas, sigma_pct, solution, polish, edge, rom,
                     per_carriage, msgs):
-    # many parameters: one per part of the record that run_identify computed (the surface fit, the pairing, the polish)
+    # many parameters: one per part of the record that identify computed (the surface fit, the pairing, the polish)
     """The :class:`jointid.identification.record.IdentificationRecord` of the fit, without the parts that
-    :func:`run_identify` adds (tie rule, observability, joint damping).  ``solution``: ``(theta, ci95_low,
+    :func:`identify` adds (tie rule, observability, joint damping).  ``solution``: ``(theta, ci95_low,
     ci95_high, frequencies fitted)``."""
     from jointid.identification.record import FePolish, IdentificationRecord, PolishedOn, SurfaceStage, floats
 
@@ -348,26 +348,41 @@ def run_identify(opts: IdentifyOptions, state: str, surface_json: str, points_cs
                  matrices: str | None = None, rom: str | None = None, states: list[str] | None = None,
                  summary_json: str | None = None) -> None:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
+    """Rules ``identify`` and ``scout``: :func:`identify` on the rule's files -> ``out_json`` (``params.json``).
+    ``summary_json``: the model summary of rule ``mesh`` (default: ``summary.json`` beside ``points_csv``), for
+    the per-carriage values."""
+    summary = summary_json or points_csv.replace("measuring_points.csv", "summary.json")
+    rec = identify(opts, state, io.read_json(surface_json), io.read_csv(points_csv),
+                   io.read_json(summary)["contact_area_per_carriage_m2"], matrices, rom=rom, states=states)
+    rec.write(out_json)
+
+
+def identify(opts: IdentifyOptions, state: str, doc: dict, pts, areas: dict, matrices=None, rom: str | None = None,
+             states: list[str] | None = None):
+    # many parameters: the stage's inputs (surfaces, points, areas, model) and its variants (ROM, states)
     """Identify one state's joint parameters: multistart on the surfaces, then the polish.
 
-    The polish (``identify.fe_polish``) runs on the full FE model (``matrices``), or on the verified
-    reduced-order model ``rom`` when one is given (``solver.method: rom``; the verify stage then
-    checks the result with a full solve).  With ``states`` (all states of the run) and frequencies
-    alone in every one of them, in equal numbers, ``identify.pairing: shared`` (the schema's default) pairs
-    the measured modes with the same tracked modes in every state (:func:`jointid.identification.updating.identify_states_jointly`)
-    and the polish follows those modes by shape; ``independent`` pairs each state by its
-    own frequencies and re-pairs at every polish iterate.  Either way the notes name competing pairings
-    and the other rule's choice.  With ``mesh.extrapolate_edges`` (the mesh with one and two more edge
-    levels, built in this job) the polish is repeated on mesh-extrapolated frequencies (:mod:`jointid.fe.extrapolate`)
-    until their factors settle (:func:`jointid.identification.polish.extrapolated_polish`).  ``summary_json``:
-    the model summary of rule ``mesh`` (default: ``summary.json`` beside ``points_csv``), for the per-carriage values.
+    ``doc``: the surface model (rule ``fit_surface``); ``pts``: the measuring points; ``areas``: the contact
+    area per carriage of each joint face (m^2, the model summary's ``contact_area_per_carriage_m2``), for the
+    per-carriage values.  The polish (``identify.fe_polish``) runs on the full FE model (``matrices``: the
+    model file, or the :class:`jointid.fe.fem.Model` itself; none: rule ``scout``, the surfaces alone), or on
+    the verified reduced-order model ``rom`` when one is given (``solver.method: rom``; the verify stage then
+    checks the result with a full solve).  With ``states`` (all states of the run) and frequencies alone in
+    every one, in equal numbers, ``identify.pairing: shared`` (the default) pairs the measured modes with the
+    same tracked modes in every state (:func:`jointid.identification.updating.identify_states_jointly`);
+    ``independent`` pairs each state by its own frequencies, re-paired at every polish iterate; the notes name
+    competing pairings.  With ``mesh.extrapolate_edges`` the polish is repeated on mesh-extrapolated frequencies
+    (:func:`jointid.identification.polish.extrapolated_polish`).  Each call starts a new polish session
+    (:func:`jointid.identification.polish.forget_session`), as a new process would.  Returns the
+    :class:`jointid.identification.record.IdentificationRecord` (``params.json``).
     """
     from dataclasses import replace
 
     from jointid.identification import joint_damping, updating  # scipy.optimize: not when the Snakefile imports us
+    from jointid.identification.polish import forget_session
     from jointid.identification.record import Observability, TieRule
 
-    doc, pts = io.read_json(surface_json), io.read_csv(points_csv)
+    forget_session()
     f_meas, shapes, sigma_pct = measured_modes(opts, state, pts)
     weights = noise_weights(opts, state, pts, sigma_pct, None if opts.weights is None else np.asarray(opts.weights, float))
     lower, upper = np.array(doc["lower"]), np.array(doc["upper"])
@@ -394,26 +409,23 @@ def run_identify(opts: IdentifyOptions, state: str, surface_json: str, points_cs
         msgs = [m for m in msgs if not any(m.startswith(f"{n} sits on its") for n in names)]
     theta, ci_lo, ci_hi = np.asarray(res.theta, float), res.ci_lower, res.ci_upper
     f_final, polish, edge, edges = res.f_model, None, None, opts.extrapolate_edges
-    if edges and not (matrices and opts.fe_polish):
+    if edges and not (matrices is not None and opts.fe_polish):
         msgs.append("mesh.extrapolate_edges needs identify.fe_polish: the frequencies fitted are those of the "
                     "base mesh")
-    if matrices and opts.fe_polish:
+    if matrices is not None and opts.fe_polish:
         fit = _polish_fit(opts, state, doc, pairing, (f_meas, shapes, sigma_pct), weights, fixed, vis_rule)
         theta, ci_lo, ci_hi, f_final, polish, edge = _polish_step(
             opts.model, state, doc["names"], fit, res.theta, matrices, rom, edges)
         msgs += _polish_notes(polish, shapes)
     if zoom:
         msgs += _zoom_notes(names, theta, lower, upper, polish, res)
-    summary = summary_json or points_csv.replace("measuring_points.csv", "summary.json")
-    per_carriage = _per_carriage(opts.model, names, theta, ci_lo, ci_hi,
-                                 io.read_json(summary)["contact_area_per_carriage_m2"])
+    per_carriage = _per_carriage(opts.model, names, theta, ci_lo, ci_hi, areas)
     damping = joint_damping.params_entry(opts.datasets[state], state, names, polish, f_meas, weights, edge, log)
     rec = replace(_identification(state, doc, res, pairing, _paired_by(shapes, fixed), joint_info, f_meas, sigma_pct,
                                   (theta, ci_lo, ci_hi, f_final), polish, edge, rom, per_carriage, msgs),
                   tie_rule=None if tie_rule is None else TieRule.from_json(tie_rule),  # None: no frequency-only choice
                   observability=None if vis_rule is None else Observability.of(vis_rule),
                   joint_damping=damping.get("joint_damping"))
-    rec.write(out_json)
     log(f"identify[{state}]: " + ", ".join(f"{n} = {t:.4g}" for n, t in zip(names, theta))
         + f"; max |error| {np.abs(rec.residual_pct).max():.2f} %")
     if tie_rule and len(tie_rule["tied"]) > 1:
@@ -423,3 +435,4 @@ def run_identify(opts: IdentifyOptions, state: str, surface_json: str, points_cs
                         f"{t['damping_ratio_needed']:.4f})" for t in tie_rule["tied"]))
     for m in msgs:
         log("warning: " + m)
+    return rec

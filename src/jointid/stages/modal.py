@@ -32,15 +32,20 @@ def run_modal(spec: ModelSpec, matrices: str, theta: dict[str, float], out_npz: 
     """
     from jointid.fe.model import load_model
 
-    model = load_model(matrices)
+    io.write_npz(out_npz, **point_modes(spec, load_model(matrices), theta, rom))
+
+
+def point_modes(spec: ModelSpec, model, theta: dict[str, float], rom: str | None = None) -> dict[str, np.ndarray]:
+    """The arrays of one DOE point's modal file (:func:`point_arrays`): a full solve of ``model``, or with
+    ``solver.method: rom`` the reduced-order model ``rom``."""
     if spec.solver.method == "rom":
         freqs, shapes, desc = _rom_point(spec, model, theta, rom)
     else:
         from jointid.identification.polish import solve_point
 
         freqs, shapes, desc, _ = solve_point(spec, model, theta)
-    _write_point(out_npz, freqs, shapes, desc, _labels(model), theta)
     log("modal: " + ", ".join(f"{f:.1f}" for f in freqs) + " Hz")
+    return point_arrays(freqs, shapes, desc, _labels(model), theta)
 
 
 def _labels(model) -> np.ndarray:
@@ -51,12 +56,11 @@ def _labels(model) -> np.ndarray:
     return np.array(dof_labels(pd.DataFrame(model.meta["points"])))
 
 
-def _write_point(out_npz: str, freqs, shapes, desc, labels, theta: dict[str, float], **extra) -> None:
-    """One DOE point's modal file (the arrays :func:`run_gather` reads, and ``extra``)."""
-    io.write_npz(out_npz, freqs_Hz=freqs, shapes=shapes, labels=labels,
-                 description=desc["description"].to_numpy().astype(str),
-                 strain_joints=desc["strain_joints"].to_numpy(),
-                 theta_names=np.array(list(theta)), theta=np.array(list(theta.values())), **extra)
+def point_arrays(freqs, shapes, desc, labels, theta: dict[str, float], **extra) -> dict[str, np.ndarray]:
+    """The arrays of one DOE point's modal file (those :func:`gathered` reads, and ``extra``)."""
+    return dict(freqs_Hz=freqs, shapes=shapes, labels=labels, description=desc["description"].to_numpy().astype(str),
+                strain_joints=desc["strain_joints"].to_numpy(), theta_names=np.array(list(theta)),
+                theta=np.array(list(theta.values())), **extra)
 
 
 def run_modal_points(spec: ModelSpec, matrices: str, sheet_csv: str, out_npzs: list[str]) -> None:
@@ -67,13 +71,8 @@ def run_modal_points(spec: ModelSpec, matrices: str, sheet_csv: str, out_npzs: l
     import os
     import time
 
-    import pandas as pd
-
     from jointid.fe.model import load_model
-    from jointid.identification.doe_modes import solve_points
-    from jointid.progress import Steps
 
-    names = spec.joints.names
     paths = {os.path.splitext(os.path.basename(p))[0]: p for p in out_npzs}
     sheet = io.read_csv(sheet_csv)
     if sorted(sheet["point"]) != sorted(paths):
@@ -81,17 +80,34 @@ def run_modal_points(spec: ModelSpec, matrices: str, sheet_csv: str, out_npzs: l
 
         raise DataError(f"modal: the outputs {', '.join(sorted(paths))} are not the points of {sheet_csv} "
                         f"({', '.join(sheet['point'])}) — rerun rule doe")
-    points = list(sheet["point"])
-    thetas = [{n: float(v) for n, v in zip(names, row)} for row in sheet[names].to_numpy(float)]
     t0 = time.time()
     model = load_model(matrices)
+    for point, arrays in doe_modes(spec, model, sheet):
+        io.write_npz(paths[point], **arrays)
+    log(f"modal: {len(paths)} points on one reduced basis ({model.n_dofs} DOFs) in {time.time() - t0:.1f} s")
+
+
+def doe_modes(spec: ModelSpec, model, sheet):
+    """The modal files' arrays (:func:`point_arrays`) of every point of a DOE sample sheet, point by point:
+    ``(point, arrays)``.  ``solver.method: reduced``: on one reduced basis certified point by point
+    (:mod:`jointid.identification.doe_modes`; the arrays hold the point's ``residual_error`` and
+    ``basis_size``); ``full``: a full solve each (:func:`point_modes`)."""
+    names = spec.joints.names
+    points = list(sheet["point"])
+    thetas = [{n: float(v) for n, v in zip(names, row)} for row in sheet[names].to_numpy(float)]
+    if spec.solver.method != "reduced":
+        for point, theta in zip(points, thetas):
+            yield point, point_modes(spec, model, theta)
+        return
+    from jointid.identification.doe_modes import solve_points
+    from jointid.progress import Steps
+
     labels, steps = _labels(model), Steps(len(points))
     for point, theta, res in zip(points, thetas, solve_points(spec, model, thetas, log=log)):
-        _write_point(paths[point], res.freqs_Hz, res.shapes, res.description, labels, theta,
-                     residual_error=np.float64(res.error), basis_size=np.int64(res.basis_size))
         log(f"modal {point} {steps.done()}: " + ", ".join(f"{f:.1f}" for f in res.freqs_Hz) +
             f" Hz (basis {res.basis_size} vectors, estimated eigenvalue error {res.error:.1e})")
-    log(f"modal: {len(points)} points on one reduced basis ({model.n_dofs} DOFs) in {time.time() - t0:.1f} s")
+        yield point, point_arrays(res.freqs_Hz, res.shapes, res.description, labels, theta,
+                                  residual_error=np.float64(res.error), basis_size=np.int64(res.basis_size))
 
 
 def _rom_point(spec: ModelSpec, model, theta: dict[str, float], rom: str | None):
@@ -173,20 +189,26 @@ def run_rom(spec: ModelSpec, matrices: str, sheet_csv: str, out_npz: str, out_js
 
 def run_gather(sheet_csv: str, npz_paths: list[str], out_csv: str, out_npz: str) -> None:
     """Rules ``gather_modal``/``gather_zoom``: per-point modal results -> one long table and one array file."""
+    table, arrays = gathered(io.read_csv(sheet_csv), [io.load_npz(p) for p in npz_paths])
+    io.write_csv(table, out_csv)
+    io.write_npz(out_npz, **arrays)
+    log(f"gather: {len(npz_paths)} points -> {out_csv}")
+
+
+def gathered(sheet, points: list[dict[str, np.ndarray]]):
+    """The DOE points' modes (their files' arrays, :func:`point_arrays`, in the sheet's order) in one long table
+    (``point, mode, freq_Hz, description, strain_joints``) and one set of arrays (``points, freqs_Hz, shapes,
+    labels, descriptions``): ``(table, arrays)``."""
     import pandas as pd
 
-    sheet = io.read_csv(sheet_csv)
     rows, freqs, shapes, descr = [], [], [], []
-    for point, path in zip(sheet["point"], npz_paths):
-        z = io.load_npz(path)
+    for point, z in zip(sheet["point"], points):
         freqs.append(z["freqs_Hz"])
         shapes.append(z["shapes"])
         descr.append(z["description"])
         for j, f in enumerate(z["freqs_Hz"]):
             rows.append({"point": point, "mode": j + 1, "freq_Hz": float(f),
                          "description": str(z["description"][j]), "strain_joints": float(z["strain_joints"][j])})
-    io.write_csv(pd.DataFrame(rows), out_csv)
-    io.write_npz(out_npz, points=sheet["point"].to_numpy().astype(str), freqs_Hz=np.array(freqs),
-                 shapes=np.array(shapes), labels=io.load_npz(npz_paths[0])["labels"],
-                 descriptions=np.array(descr))
-    log(f"gather: {len(npz_paths)} points -> {out_csv}")
+    arrays = dict(points=sheet["point"].to_numpy().astype(str), freqs_Hz=np.array(freqs), shapes=np.array(shapes),
+                  labels=points[0]["labels"], descriptions=np.array(descr))
+    return pd.DataFrame(rows), arrays

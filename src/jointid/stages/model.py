@@ -22,13 +22,11 @@ def run_mesh(spec: ModelSpec, matrices: str, points_csv: str, vtu: str | None = 
     """Build and cache the model matrices, the measuring-point table, the model summary
     (:func:`model_summary`; ``summary_json``, by default ``summary.json`` beside ``points_csv``) and a
     VTK file of the mesh (``spec``: the model's :class:`~jointid.config.typed.ModelSpec`)."""
-    import pandas as pd
+    from jointid.fe.model import save_model
 
-    from jointid.fe.model import edge_level_model, save_model
-
-    model = edge_level_model(spec, 0, progress=log)  # with its ordering
+    model = mesh_model(spec)
     save_model(model, matrices)
-    pts = pd.DataFrame(model.meta["points"])
+    pts = points_table(model)
     io.write_csv(pts, points_csv)
     io.write_json(summary_json or str(points_csv).replace("measuring_points.csv", "summary.json"),
                   model_summary(model))
@@ -37,6 +35,20 @@ def run_mesh(spec: ModelSpec, matrices: str, points_csv: str, vtu: str | None = 
 
         write_mesh_vtu(model, vtu)
     log(f"mesh: wrote {matrices} ({model.n_dofs} DOFs), {points_csv}")
+
+
+def mesh_model(spec: ModelSpec, progress=log):
+    """Rule ``mesh``'s model of ``spec`` (:class:`jointid.fe.fem.Model`), with its fill-reducing ordering."""
+    from jointid.fe.model import edge_level_model
+
+    return edge_level_model(spec, 0, progress=progress)
+
+
+def points_table(model):
+    """The measuring points of ``model`` (rule ``mesh``'s ``measuring_points.csv``: ``point, x_m, y_m, z_m`` ...)."""
+    import pandas as pd
+
+    return pd.DataFrame(model.meta["points"])
 
 
 def model_summary(model) -> dict:

@@ -20,23 +20,32 @@ CONFIG = ("joints", "surface", "solver.min_freq_Hz", "harmonic.band_Hz")
 def run_fit_surface(opts: SurfaceOptions, sheet_csv: str, arrays_npz: str, out_json: str, out_csv: str,
                     box_json: str | None = None) -> None:
     """Track the modes through one DOE and fit the surfaces (``box_json``: the zoomed DOE's box)."""
-    import pandas as pd
+    doc, diag = surfaces(opts, io.read_csv(sheet_csv), io.load_npz(arrays_npz),
+                         io.read_json(box_json) if box_json else None)
+    io.write_json(out_json, doc)
+    io.write_csv(diag, out_csv)
+    check_surfaces(opts, doc, diag)
 
+
+def surfaces(opts: SurfaceOptions, sheet, arrays: dict, box: dict | None = None):
+    """The response surfaces of one DOE (its sample sheet and the gathered modes' ``arrays``,
+    :func:`jointid.stages.modal.gathered`), over its box (``box``: the zoomed DOE's record, else the bounds of
+    ``joints.parameters``): ``(surface model, diagnostics table)``."""
     from jointid.identification.updating import fit_surfaces
 
-    sheet = io.read_csv(sheet_csv)
-    z = io.load_npz(arrays_npz)
-    descr = z["descriptions"]
     names = opts.joints.names
-    doc, diag = fit_surfaces(sheet, z["freqs_Hz"], z["shapes"], descr, names, opts.tracked_band_Hz, kind=opts.kind)
-    if box_json:  # the zoomed second DOE
-        box = io.read_json(box_json)
+    doc, diag = fit_surfaces(sheet, arrays["freqs_Hz"], arrays["shapes"], arrays["descriptions"], names,
+                             opts.tracked_band_Hz, kind=opts.kind)
+    if box:  # the zoomed second DOE
         doc["lower"], doc["upper"], doc["stage"] = list(box["lower"]), list(box["upper"]), "zoom"
     else:
         doc["lower"], doc["upper"] = opts.joints.lower_N_per_m3.tolist(), opts.joints.upper_N_per_m3.tolist()
         doc["stage"] = "global"
-    io.write_json(out_json, doc)
-    io.write_csv(diag, out_csv)
+    return doc, diag
+
+
+def check_surfaces(opts: SurfaceOptions, doc: dict, diag) -> None:
+    """Log the surfaces' worst verification error; warn where it exceeds ``surface.max_verification_error_pct``."""
     worst = diag["verify_max_error_pct"].max()
     log(f"surface: {len(doc['tracked_modes'])} tracked modes, worst verification error {worst:.3f} %")
     limit = opts.max_verification_error_pct

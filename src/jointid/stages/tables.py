@@ -12,6 +12,8 @@ from jointid.stages.runner import log
 if TYPE_CHECKING:
     from jointid.config.options import Table1Options
 
+PAPER_TABLES = "data/paper/paper_tables.csv"
+"""The paper's values of Tables 2-3 (rule ``tables``' input on the paper's data)."""
 PAPER_TABLES_COLUMNS = ("state", "order", "paper_simulation_Hz")
 PAPER_TABLE1_COLUMNS = ("state", "paper_dynamic_stiffness_N_per_mm", "paper_increase_pct")
 
@@ -42,27 +44,36 @@ def run_tables(verify_csvs: dict[str, str], paper_csv: str, outputs: dict[str, s
     """
     import pandas as pd
 
-    from jointid.reporting.tables import frequency_table, markdown_table
+    from jointid.reporting.tables import markdown_table
 
     paper = read_paper(paper_csv, PAPER_TABLES_COLUMNS)
     gathered = []
     for state, path in verify_csvs.items():
-        tab = frequency_table(io.read_csv(path), paper, state)
-        io.write_csv(tab, outputs[state])
         unpaired = io.read_csv(unpaired_csvs[state]) if unpaired_csvs else None
+        tab = state_table(state, io.read_csv(path), paper, unpaired)
+        io.write_csv(tab, outputs[state])
         if unpaired is not None:
             gathered.append(unpaired.assign(state=state))
         md = (markdown or {}).get(state) or outputs[state].replace(".csv", ".md")
         io.write_text(md, markdown_table(tab, state, unpaired))
-        worst = tab.relative_error_pct.abs().max()
-        misfit = "" if unpaired is None or not len(unpaired) else (
-            f"; {len(unpaired)} unpaired visible mode(s), misfit up to {unpaired.misfit_pct.abs().max():.2f} %")
-        log(f"table[{state}]: max |error| {worst:.2f} %"
-            + _paper_note(tab.paper_relative_error_pct.abs().max(), ".1f", " %") + misfit)
     if unpaired_out:
         frame = pd.concat(gathered, ignore_index=True) if gathered else pd.DataFrame()
         cols = ["state", "model_mode", "freq_Hz", "target_Hz", "misfit_pct", "visibility_rel", "description"]
         io.write_csv(frame.reindex(columns=cols), unpaired_out)
+
+
+def state_table(state: str, verified, paper, unpaired=None):
+    """One state's table of natural frequencies (Table 2 or 3, :func:`jointid.reporting.tables.frequency_table`)
+    of its ``verify.csv`` rows beside the paper's values; logs its largest error (and ``unpaired``'s misfits)."""
+    from jointid.reporting.tables import frequency_table
+
+    tab = frequency_table(verified, paper, state)
+    worst = tab.relative_error_pct.abs().max()
+    misfit = "" if unpaired is None or not len(unpaired) else (
+        f"; {len(unpaired)} unpaired visible mode(s), misfit up to {unpaired.misfit_pct.abs().max():.2f} %")
+    log(f"table[{state}]: max |error| {worst:.2f} %"
+        + _paper_note(tab.paper_relative_error_pct.abs().max(), ".1f", " %") + misfit)
+    return tab
 
 
 def run_table1(stiffness_jsons: list[str], paper_csv: str, out_csv: str, out_md: str, *,

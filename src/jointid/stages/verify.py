@@ -5,6 +5,7 @@ Imports of the numerical modules are inside the functions (see :mod:`jointid.sta
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -15,6 +16,8 @@ from jointid.stages.modal import SOLVE_KEYS
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from jointid.config.typed import ModelSpec
     from jointid.identification.record import IdentificationRecord
 
@@ -86,7 +89,7 @@ def _recorded_limit(rec: dict, theta: dict, names: list[str], freqs, shapes):
 
 
 def _extrapolated(spec, state, par, model, freqs, shapes, edge_matrices):
-    """The mesh-extrapolated modes at the identified parameters (see :func:`run_verify`; ``spec``: the model's
+    """The mesh-extrapolated modes at the identified parameters (see :func:`verify`; ``spec``: the model's
     :class:`~jointid.config.typed.ModelSpec`), or None without extrapolation."""
     from jointid.fe.model import load_model
     from jointid.identification.polish import edge_limit_at, model_sizes
@@ -104,33 +107,68 @@ def _extrapolated(spec, state, par, model, freqs, shapes, edge_matrices):
 
 
 def write_certificate(state: str, par: "IdentificationRecord", modes, out_json: str | None) -> dict:
+    """Write the :func:`certificate` of the full solve at the identified parameters to ``out_json``; returns it."""
+    rec = certificate(state, par, modes)
+    if out_json:
+        io.write_json(out_json, rec)
+    return rec
+
+
+def certificate(state: str, par: "IdentificationRecord", modes) -> dict:
     """Log the certificate of the full solve at the identified parameters (its residual and Sturm
-    count, :func:`jointid.fe.certificate.full_certificate`) and write it to ``out_json`` beside the
+    count, :func:`jointid.fe.certificate.full_certificate`) and return its record, beside the
     identification's (``params.json``: ``fe_polish.certificate``, the reduced solver's)."""
     from jointid.fe.certificate import full_certificate
 
     cert = full_certificate(modes)
     log(f"verify[{state}]: {cert.describe()}")
-    rec = {"state": state, "parameters": par.theta, "verify": cert.to_record(),
-           "identify": None if par.fe_polish is None else par.fe_polish.certificate}
-    if out_json:
-        io.write_json(out_json, rec)
-    return rec
+    return {"state": state, "parameters": par.theta, "verify": cert.to_record(),
+            "identify": None if par.fe_polish is None else par.fe_polish.certificate}
 
 
 def run_verify(spec: ModelSpec, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
                edge_matrices: list[str] | None = None, unpaired_csv: str | None = None,
                tied_csv: str | None = None, certificate_json: str | None = None) -> None:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
-    """Full FE re-solve at the identified parameters: the tables' simulated frequencies (``spec``: the model's
+    """Rule ``verify``: :func:`verify` on the rule's files -> ``out_csv`` (``verify.csv``), ``unpaired_csv``,
+    ``tied_csv`` and ``certificate_json``."""
+    from jointid.fe.model import load_model
+    from jointid.identification.record import IdentificationRecord
+
+    res = verify(spec, state, IdentificationRecord.read(params_json), io.read_json(surface_json),
+                 load_model(matrices), edge_matrices)
+    if certificate_json:
+        io.write_json(certificate_json, res.certificate)
+    io.write_csv(res.table, out_csv)
+    if unpaired_csv:
+        io.write_csv(res.unpaired, unpaired_csv)
+    if tied_csv:
+        io.write_csv(res.tied, tied_csv)
+
+
+@dataclass(frozen=True, eq=False)
+class Verified:
+    """What rule ``verify`` finds for one state (:func:`verify`): the tables' rows (``verify.csv``), the
+    unpaired visible model modes (``unpaired_visible.csv``), the tied pairings' FE partners
+    (``tied_pairings.csv``) and the full solve's certificate (``certificate.json``)."""
+
+    table: "pd.DataFrame"
+    unpaired: "pd.DataFrame"
+    tied: "pd.DataFrame"
+    certificate: dict
+
+
+def verify(spec: ModelSpec, state: str, par: "IdentificationRecord", doc: dict, model,
+           edge_matrices: list[str] | None = None) -> Verified:
+    """Full FE re-solve of ``model`` at the identified parameters ``par`` (``params.json``; ``doc``: the surface
+    model it was identified on): the tables' simulated frequencies (``spec``: the model's
     :class:`~jointid.config.typed.ModelSpec`).
 
-    ``unpaired_csv``: the model modes the test would clearly have seen that no measured mode is paired
+    ``unpaired``: the model modes the test would clearly have seen that no measured mode is paired
     with (:mod:`jointid.identification.visibility`; columns ``model_mode, freq_Hz,
     target_Hz, misfit_pct, visibility_rel, description``), the misfits of the tables.
-    ``tied_csv``: the FE partners of the measured modes in every pairing that fits exactly as well as
-    the chosen one (:func:`tied_pairings`).  ``certificate_json``: the full solve's certificate
-    (:func:`write_certificate`).
+    ``tied``: the FE partners of the measured modes in every pairing that fits exactly as well as
+    the chosen one (:func:`tied_pairings`).  ``certificate``: the full solve's (:func:`certificate`).
 
     With ``mesh.extrapolate_edges`` the simulated frequencies are the mesh-extrapolated ones at these
     parameters (:mod:`jointid.fe.extrapolate`): the base mesh's, scaled by the factors the
@@ -140,14 +178,10 @@ def run_verify(spec: ModelSpec, state: str, params_json: str, surface_json: str,
     """
     import pandas as pd
 
-    from jointid.fe.model import load_model
     from jointid.identification.polish import solve_point
-    from jointid.identification.record import IdentificationRecord
 
-    par, doc = IdentificationRecord.read(params_json), io.read_json(surface_json)
-    model = load_model(matrices)
     freqs, shapes, desc, modes = solve_point(spec, model, par.theta, certify=True)
-    write_certificate(state, par, modes, certificate_json)
+    cert = certificate(state, par, modes)
     f_meas = np.asarray(par.f_meas_Hz)
     correction = par.correction_record
     lim = _extrapolated(spec, state, par, model, freqs, shapes, edge_matrices)
@@ -172,23 +206,18 @@ def run_verify(spec: ModelSpec, state: str, params_json: str, surface_json: str,
         "fe_mode": index + 1, "mac_to_tracked": macs,
         "description": [desc["description"][i] if i >= 0 else "unpaired" for i in index],
         "strain_joints": [float(desc["strain_joints"][i]) if i >= 0 else np.nan for i in index]})
-    io.write_csv(rows, out_csv)
-    if unpaired_csv:
-        cols = ["model_mode", "freq_Hz", "target_Hz", "misfit_pct", "visibility_rel", "description"]
-        seen = ([] if rule is None else
-                misfit_table(rule, index, f_all, rule.visibility(shapes, f_all), f_meas, list(desc["description"])))
-        io.write_csv(pd.DataFrame(seen, columns=cols), unpaired_csv)
-        for m in seen:
-            log(f"verify[{state}]: unpaired but clearly visible: {m['freq_Hz']:.0f} Hz {m['description']} "
-                f"({m['misfit_pct']:+.1f} % from {m['target_Hz']:.0f} Hz, the nearest measured mode or band edge)")
-    if tied_csv:
-        tied = tied_pairings(par, doc, shapes)
-        io.write_csv(tied, tied_csv)
-        for a, grp in tied.groupby("alternative"):
-            moved = [f"measured mode {o} with FE mode {m if m > 0 else 'none'}" for o, m, c in
-                     zip(grp["order"], grp["fe_mode"], index + 1) if m != c]
-            log(f"verify[{state}]: an exactly tied pairing pairs " + ", ".join(moved)
-                + f" (the choice between them: {par.tie_rule.rule if par.tie_rule else 'not recorded'})")
+    cols = ["model_mode", "freq_Hz", "target_Hz", "misfit_pct", "visibility_rel", "description"]
+    seen = ([] if rule is None else
+            misfit_table(rule, index, f_all, rule.visibility(shapes, f_all), f_meas, list(desc["description"])))
+    for m in seen:
+        log(f"verify[{state}]: unpaired but clearly visible: {m['freq_Hz']:.0f} Hz {m['description']} "
+            f"({m['misfit_pct']:+.1f} % from {m['target_Hz']:.0f} Hz, the nearest measured mode or band edge)")
+    tied = tied_pairings(par, doc, shapes)
+    for a, grp in tied.groupby("alternative"):
+        moved = [f"measured mode {o} with FE mode {m if m > 0 else 'none'}" for o, m, c in
+                 zip(grp["order"], grp["fe_mode"], index + 1) if m != c]
+        log(f"verify[{state}]: an exactly tied pairing pairs " + ", ".join(moved)
+            + f" (the choice between them: {par.tie_rule.rule if par.tie_rule else 'not recorded'})")
     log(f"verify[{state}]: FE max |error| {np.nanmax(np.abs(rows.relative_error_pct)):.2f} %, "
         f"surface vs FE (base mesh) max {np.nanmax(np.abs(rows.surface_vs_fe_pct)):.2f} %")
     if lim is not None and par.fe_polish is not None:
@@ -198,3 +227,4 @@ def run_verify(spec: ModelSpec, state: str, params_json: str, surface_json: str,
                "its factors come from its previous optimum, to first order")
         log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
             f"{np.nanmax(np.abs(drift)):.2e} % ({why})")
+    return Verified(rows, pd.DataFrame(seen, columns=cols), tied, cert)
