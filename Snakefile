@@ -71,16 +71,18 @@ CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
 
-# Scheduling on few cores: the chain to Tables 1-3 (mesh -> DOE -> surfaces -> identify -> verify ->
-# harmonic -> tables) goes first whenever one of its jobs is ready, so the tables land as early as the
-# chain allows; the diagnosis (the longest job off that chain) and the mesh checks next; then the
-# hypotheses, longest first (rules/hypotheses.smk), so that the run ends on short jobs; the carriage
-# tests (priority 0) fill the core beside the hypotheses' ranking (one job after all of them) instead
-# of leaving it idle at the end.
+# Scheduling on few cores: the run is bound by its total work (both cores busy), so the two long poles go
+# first, side by side, and the short jobs fill in around them: the diagnosis and its basis (the longest
+# job), then the hypotheses (those with models of their own, then the one job of those on the run's
+# model, which ranks with them), and the chain to Tables 1-3 (mesh -> DOE -> surfaces -> identify ->
+# verify -> harmonic -> tables) in the gaps; the mesh checks after it and the carriage tests (priority 0)
+# last.  With the chain first (as before 2026-11-29) the hypotheses' one job ran alone at the end with a
+# core idle (benchmark c: 618-641 s against 456 s of 90ed90a).
 # Priorities only order ready jobs: the results are the same, and a run of one target is unaffected.
+PRIORITY_LONG = 30
+PRIORITY_HYPOTHESES = 25
 PRIORITY_TABLES = 20
-PRIORITY_DIAGNOSIS = 10
-PRIORITY_HYPOTHESES = 5
+PRIORITY_CHECKS = 10
 
 
 localrules: all, doe, gather_modal, tables, doe_zoom, gather_zoom

@@ -37,7 +37,7 @@ rule diagnosis_basis:
         f"{LOGS}/diagnosis_basis.log",
     benchmark:
         f"{BENCH}/diagnosis_basis.tsv"
-    priority: PRIORITY_DIAGNOSIS
+    priority: PRIORITY_LONG
     threads: 1
     resources:
         mem_mb=3000,

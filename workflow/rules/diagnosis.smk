@@ -61,7 +61,7 @@ if DIAG_DATASETS:
             f"{LOGS}/diagnosis/{{dataset}}.log",
         benchmark:
             f"{BENCH}/diagnosis/{{dataset}}.tsv"
-        priority: PRIORITY_DIAGNOSIS
+        priority: PRIORITY_LONG
         threads: 1
         resources:
             mem_mb=4500,

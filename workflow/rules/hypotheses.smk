@@ -37,7 +37,7 @@ def _hypothesis_basis(wc):
 
 def _hypothesis_priority(wildcards, input):
     """Longest job first among the hypotheses (:func:`jointid.config.hypotheses.cost_rank`), below the
-    diagnosis's priority."""
+    diagnosis's priority and above the chain's (see the Snakefile)."""
     return PRIORITY_HYPOTHESES + cost_rank(config, wildcards.name)
 
 
@@ -57,7 +57,7 @@ if SHARED:
             f"{LOGS}/hypotheses/run_model.log",
         benchmark:
             f"{BENCH}/hypotheses/run_model.tsv"
-        priority: PRIORITY_HYPOTHESES + 2
+        priority: PRIORITY_HYPOTHESES
         threads: 1
         resources:
             mem_mb=4500,

@@ -24,7 +24,7 @@ if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "
             f"{LOGS}/mesh_check/{{state}}.log",
         benchmark:
             f"{BENCH}/mesh_check/{{state}}.tsv"
-        priority: PRIORITY_DIAGNOSIS  # beside the hypotheses, not after them (see the Snakefile)
+        priority: PRIORITY_CHECKS  # after the chain it checks (see the Snakefile)
         threads: 1
         resources:
             mem_mb=16000,  # 15.5 GB measured with halve: [joint_zone] (7.2 GB with the default [thickness])
