@@ -237,8 +237,8 @@ def unpaired_visible(doc: dict, pairing, x, f_meas: np.ndarray, rule, damping=No
 
 def tie_record(rule_text: str, tied: list) -> dict:
     """``params.json``'s record of a choice among tied pairings: ``rule`` (in words, see
-    :func:`jointid.identification.ties.choose_tied`) and per tied pairing, in the order of the pairings (``tied``: ``(pairing,
-    unpaired visible records)``) its ``pairing``, whether it is ``resolvable`` (every unpaired visible
+    :func:`jointid.identification.ties.choose_tied`) and per tied pairing, in the order of the pairings
+    (``tied``: ``(pairing, unpaired visible records)``), its ``pairing``, whether it is ``resolvable`` (every unpaired visible
     mode hides in a measured peak; None without damping ratios), its ``unpaired_visible`` modes and
     ``damping_ratio_needed``: the least damping ratio, alike for every measured mode, under which all
     of them could hide (0 when there is none)."""
@@ -248,7 +248,7 @@ def tie_record(rule_text: str, tied: list) -> dict:
         rows.append({"pairing": [int(c) for c in pairing], "unpaired_visible": seen,
                      "resolvable": bool(all(m["hides"] for m in seen)) if known else None,
                      "damping_ratio_needed": max((m["offset_nearest_pct"] / 100 for m in seen), default=0.0)})
-    rows.sort(key=lambda r: r["pairing"])  # tied costs are equal to round-off: their order, by pairing, must not follow it
+    rows.sort(key=lambda r: r["pairing"])  # their costs are equal to round-off: the order must not follow them
     return {"rule": rule_text, "tied": rows}
 
 
