@@ -76,7 +76,7 @@ RUN_TIMEOUT_S = 2400 * float(os.environ.get("JOINTID_TEST_TIMEOUT_SCALE", "1"))
 # 2-core machine); they only order the work.
 SHARED_RUN_FILES = ("test_api_method.py", "test_determinism.py", "test_faults.py", "test_interrupt.py", "test_reruns.py", "test_report.py",
                     "test_workflow_e2e.py")
-GROUP_SECONDS = {"coarse_run": 670, "test_rom.py": 72, "test_diagnose.py": 70, "test_shape_residuals.py": 70,
+GROUP_SECONDS = {"coarse_run": 600, "test_rom.py": 72, "test_diagnose.py": 70, "test_shape_residuals.py": 70,
                  "test_ambiguity.py": 55, "test_cluster.py": 48, "test_model_error_cases.py": 45,
                  "test_hidden_effects.py": 45, "test_examples.py": 40, "test_damping_in_table1.py": 40,
                  "test_hypotheses.py": 30, "test_meshin_workflow.py": 106, "test_example_single_carriage.py": 200}
