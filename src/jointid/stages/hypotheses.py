@@ -21,8 +21,7 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.diagnosis.fitting import print_log
-from jointid.diagnosis.fitting import Diagnoser
+from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.progress import Steps
 from jointid.reconstruction.hypotheses import fit_hypothesis, record, search
 from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
@@ -97,6 +96,7 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     systems = build_systems(model, [j.settings.model for j in jobs])
     start, solver = load_basis(basis, systems[0], log), None
     steps = Steps(len(jobs))
+    by_name = {j.name: j for j in jobs}
     diags, found, recs, t0 = {}, {}, {}, time.time()
     for job, system in zip(jobs, systems):
         log(f"hypothesis {job.name} {steps.next()}: the run model"
@@ -117,9 +117,8 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
         if not todo:
             break
         for name in todo:
-            job = next(j for j in jobs if j.name == name)
             log(f"hypothesis {name}: admissible, certified")
-            recs[name] = _named(job, record(diags[name], found[name], certify=True), diags[name].system)
+            recs[name] = _named(by_name[name], record(diags[name], found[name], certify=True), diags[name].system)
     out = []
     for job, path in zip(jobs, out_jsons):
         rec = recs[job.name]
