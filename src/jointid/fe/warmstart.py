@@ -12,11 +12,10 @@ tolerance, a Sturm count at the reported optima), so a warm run agrees with a ru
 that tolerance (1e-6 relative in each eigenvalue), not bit for bit.  A run from clean has no file
 to start from, so it stays bit-reproducible; ``diagnosis.reuse_subspace: false`` makes every run so.
 
-The file keeps the product ``K0 V`` beside the basis, as the solver holds it (single precision): a
-run that adopts the basis takes it instead of forming it again (about 3 s on the default mesh, for a
-file half as large again: 240 MB instead of 160 MB for 342 vectors).  ``M0 V`` is formed again
-(about 1 s: the mass matrix has a third of the stiffness matrix's entries); keeping it too would add
-80 MB to ``results/``.  It also keeps what the
+The file keeps the basis, not its products with the model's matrices (``K0 V``, ``M0 V``): a run that
+adopts the basis forms them again (about 3 s for ``K0 V`` and 1 s for ``M0 V`` on the default mesh, 342
+vectors).  Kept in single precision as the solver holds them, they would add half the basis's size again
+(about 125 MB of ``results/`` for the paper's 533 vectors; ``results/`` is held to 500 MB, issue 54).  It also keeps what the
 run learnt at single points of the model: its Sturm counts (a count is the model's, at those
 coefficients, whatever the subspace), the points whose full-space check passed
 on the kept columns (still passed on the same columns: a run that asks them again checks nothing
@@ -94,12 +93,12 @@ class Kept:
         return out
 
 
-def save(path: str | Path, solver, system, fits: dict | None = None, products: tuple[str, ...] = ("KV",)) -> None:
+def save(path: str | Path, solver, system, fits: dict | None = None, products: tuple[str, ...] = ()) -> None:
     """Keep the first :data:`MAX_SAVED` columns of ``solver``'s basis with their reduced matrices, its
     Sturm counts, the records of the fits made (``fits``) and the model's fingerprint; written to a
     temporary file and renamed, so a reader never sees half a file.  ``products``: which of the
     solver's products with the basis to keep (``"KV"``: ``K0 V``, ``"MV"``: ``M0 V``; a reader forms
-    the others)."""
+    the others; default: none, see the module doc)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     r = min(solver.V.shape[1], MAX_SAVED)
