@@ -100,6 +100,14 @@ def test_the_shape_pair_candidate_agrees_with_the_diagnosis_pair_chi2():
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
 
 
+def test_a_shape_pair_prediction_near_a_node_reads_as_displacements_not_a_ratio():
+    """A DOF at a node of a mode: its ratio would run to ~1e5 (seen on the paper's data); the prediction gives
+    each DOF's displacement in units of the mode's RMS, as the shapes hold it."""
+    vals = {"a": np.array([[1.83, -0.40], [2e-5, 1.10]]), "b": np.array([[1.79, -0.52], [-3e-3, 0.98]])}
+    text = ShapePairCandidate("pair", "shape", "s", "-", 0.05, vals).predictions_text(["a", "b"])
+    assert text == "a [+1.83 +0.00, -0.40 +1.10]; b [+1.79 -0.00, -0.52 +0.98]"
+
+
 def _record(k_lat, mass, k_static, q, shapes=None):
     return {"parameters": [{"parameter": "k_normal_N_per_m3", "value": 1e12},
                            {"parameter": "k_lateral_N_per_m3", "value": k_lat},

@@ -23,7 +23,7 @@ import numpy as np
 
 from jointid.correlate.pairing import pair_by_shapes
 
-__all__ = ["ASSUMED_SHAPE_PCT", "accelerometer_rows", "pair_chi2"]
+__all__ = ["ASSUMED_SHAPE_PCT", "accelerometer_rows", "pair_chi2", "pair_text"]
 
 VISIBLE_RMS = 0.5
 """A mode counts at a DOF pair where its RMS over the pair is at least this fraction of its RMS over all
@@ -90,12 +90,13 @@ def accelerometer_rows(diag, fits: dict, names: list[str], shape_pct: float = AS
                                     f"at a shape noise of {shape_pct:g} % of each mode's RMS)",
                      "kind": "shape", "state": d.name, "em_force_N": d.info.em_force_N,
                      "expected_delta_chi2": float(score[i, j]), "points": [labels[lead], labels[ref]],
-                     "predictions": "; ".join(f"{n} {labels[lead]}/{labels[ref]} "
-                                              f"{_ratio(s, lead, ref)}" for n, s in zip(names, shapes))})
+                     "predictions": "; ".join(f"{n} {labels[lead]} {labels[ref]} {pair_text(s[lead], s[ref])}"
+                                              for n, s in zip(names, shapes))})
     return rows
 
 
-def _ratio(shapes: np.ndarray, i: int, j: int) -> str:
-    """The displacement ratios ``phi_i / phi_j`` of the modes, as text."""
-    vals = [shapes[i, k] / shapes[j, k] if shapes[j, k] != 0 else np.inf for k in range(shapes.shape[1])]
-    return "[" + ", ".join(f"{v:+.2f}" for v in vals) + "]"
+def pair_text(lead: np.ndarray, ref: np.ndarray) -> str:
+    """Per mode, the displacements at the two DOFs of a pair, each in units of the mode's RMS over all
+    measuring DOFs (the shapes' normalisation here): ``[+1.83 +0.02, ...]``.  Not their ratio: where one DOF
+    sits near a node of a mode the ratio runs to thousands and says nothing a reader can check."""
+    return "[" + ", ".join(f"{a:+.2f} {b:+.2f}" for a, b in zip(np.asarray(lead, float), np.asarray(ref, float))) + "]"

@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from jointid.config.hypotheses import ProposalOptions
-from jointid.diagnosis.shape_proposal import VISIBLE_RMS, pair_chi2
+from jointid.diagnosis.shape_proposal import VISIBLE_RMS, pair_chi2, pair_text
 from jointid.reconstruction.ranking import admissible, admissible_rows
 
 __all__ = ["ProposalOptions", "ScalarCandidate", "ShapePairCandidate", "expected_gain", "propose",
@@ -111,9 +111,8 @@ class ShapePairCandidate(_Candidate):
         return out
 
     def predictions_text(self, names: list[str]) -> str:
-        def ratio(b):
-            return "[" + ", ".join(f"{x / y:+.2f}" if y != 0 else "inf" for x, y in zip(b[0], b[1])) + "]"
-        return "; ".join(f"{n} {ratio(np.asarray(self.values[n]))}" for n in names)
+        """Per hypothesis the displacements at the pair's two DOFs, mode by mode (:func:`pair_text`)."""
+        return "; ".join(f"{n} {pair_text(*np.asarray(self.values[n], float))}" for n in names)
 
 
 def _ranges(keep: np.ndarray, values: dict) -> dict:
@@ -239,8 +238,7 @@ def _shape_candidates(records: dict, names: list[str], q, w, values: dict, targe
         lead = j if ref == i else i
         vals = {n: np.vstack([S[h][lead], S[h][ref]]) for h, n in enumerate(names)}
         out.append(ShapePairCandidate(f"{st['state']}: the shapes of the {len(modes)} measured modes at "
-                                      f"{labels[lead]} with a reference at {labels[ref]} (ratio {labels[lead]}/"
-                                      f"{labels[ref]})", "shape", st["state"], "-", eps, vals))
+                                      f"{labels[lead]} and {labels[ref]}", "shape", st["state"], "-", eps, vals))
     return out
 
 
@@ -296,11 +294,15 @@ def propose(records: dict, rows: list[dict], opts: ProposalOptions | None = None
     summary.update(target=target, before=spans[target])
     cands = _scalar_candidates(records, names, opts, sigma_model_rel)
     cands += _shape_candidates(records, names, q, w, values, target, opts, sigma_shape_rel)
+    if any(c.kind == "shape" for c in cands):
+        summary["caveats"].append(
+            "A DOF pair's predictions give, mode by mode, the displacement at its two DOFs in units of the "
+            "mode's RMS over all measuring DOFs (a value near 0: that DOF sits near a node of the mode).")
     if any(c.kind == "shape" for c in cands) and sigma_shape_rel == 0.0:
-        summary["caveats"] = [f"A DOF pair is judged at the stated shape noise alone: no shape is measured, so the "
-                              f"shapes' model error is unknown (the frequencies' is {100 * sigma_model_rel:.1f} % per "
-                              "mode). A larger shape noise (next_measurement.shape_uncertainty_pct) judges it more "
-                              "cautiously."]
+        summary["caveats"].append(f"A DOF pair is judged at the stated shape noise alone: no shape is measured, so "
+                                  f"the shapes' model error is unknown (the frequencies' is {100 * sigma_model_rel:.1f} "
+                                  "% per mode). A larger shape noise (next_measurement.shape_uncertainty_pct) judges "
+                                  "it more cautiously.")
     if any(any(p["states"][si].get("shapes_measured") for p in (records[n]["predictions"] for n in names))
            for si in range(len(records[names[0]]["predictions"]["states"]))):
         notes.append("a DOF pair in a state measured with shapes — its shapes are in the fits already")
