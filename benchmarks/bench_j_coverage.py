@@ -546,7 +546,7 @@ def run(quick: bool = False, blas_threads: int | None = 1, cases: int | None = N
         folder, synth_s = runner.dataset(c)
         td = time.perf_counter()
         try:
-            out = runner.diagnose(folder, DiagnosisSettings.from_config(options))
+            out = runner.diagnose(folder, options)
             row = score(c, out)
             keep = OUT / "coverage_runs" / _slug(label) / c["case"]  # the tables, for a later reading
             keep.mkdir(parents=True, exist_ok=True)
