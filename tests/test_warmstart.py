@@ -64,6 +64,8 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     # the kept products are the very bits the solver would form from the kept basis
     assert np.array_equal(same.basis.KV, formed[0]) and np.array_equal(same.basis.MV, formed[1])
     assert np.array_equal(same.solve(*point, 4, refine=False).freqs_Hz, ref.freqs_Hz)
+    assert same.n_factorizations == 0  # a rerun the kept basis answers never factorises (made when first asked)
+    assert np.array_equal(same.fac.solve(np.ones(29)), rs.fac.solve(np.ones(29))) and same.n_factorizations == 1
     from_bare = _solver(m, kept=bare)  # the products formed from the kept basis: the same bits
     assert np.array_equal(from_bare.basis.KV, formed[0]) and np.array_equal(from_bare.basis.MV, formed[1])
     # other reference masses: the basis is orthonormalised afresh, the answers stay certified

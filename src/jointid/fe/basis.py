@@ -91,6 +91,19 @@ class GrowingBasis:
 
 
 _ITEM = np.dtype(PRODUCT_DTYPE).itemsize
+PRODUCT_BLOCK = 64
+"""Columns per sparse product in :func:`stored_product`."""
+
+
+def stored_product(A, V: np.ndarray) -> np.ndarray:
+    """``A V`` as the basis stores it (:data:`PRODUCT_DTYPE`, Fortran order), formed in double precision
+    :data:`PRODUCT_BLOCK` columns at a time: the same bits as ``(A @ V).astype(PRODUCT_DTYPE)`` (each output
+    column is its own sum), without a double-precision copy of the whole product and its transposition
+    (on the default mesh, 448 vectors: about a fifth less time)."""
+    out = np.empty(V.shape, dtype=PRODUCT_DTYPE, order="F")
+    for j in range(0, V.shape[1], PRODUCT_BLOCK):
+        out[:, j: j + PRODUCT_BLOCK] = A @ np.ascontiguousarray(V[:, j: j + PRODUCT_BLOCK])
+    return out
 
 
 def _zeros(n: int, cap: int, dtype) -> np.ndarray:

@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from jointid.errors import ModelError
 from jointid.fe import certify
-from jointid.fe.basis import PRODUCT_DTYPE, GrowingBasis
+from jointid.fe.basis import PRODUCT_DTYPE, GrowingBasis, stored_product
 from jointid.fe.certify import Check
 from jointid.fe.modal import TWO_PI, factorize_pencil, shift_invert_lanczos
 from jointid.fe.pencil import FreePencil
@@ -110,11 +110,13 @@ class ReducedSolver:
         self.fallbacks: dict = {}  # point_key -> why a full solve answered there (certify.full_solve)
         self.log = None  # progress lines (certificates), e.g. print
         self.mc_ref = dict(mc)
-        self._refactor(kc, mc)
-        if basis is not None:
+        self.n_factorizations = 0
+        if basis is not None:  # factorised when first asked for (a rerun whose fits the kept basis answers never is)
+            self._fac, self._fac_at, self.M_ref = None, (kc, mc), self.M(mc)
             self.sturm_counts = {k: list(v) for k, v in getattr(basis, "sturm", {}).items()}
             self._start_from(basis)
             return
+        self._refactor(kc, mc)
         phi, f = self._lanczos(kc, mc, self.n_modes + 4)
         lam = (TWO_PI * f) ** 2
         self._append(phi)
@@ -140,7 +142,7 @@ class ReducedSolver:
             return
         # the kept products, else each cast to the basis's storage as formed
         kept_prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
-        prods = [p if p is not None and p.dtype == PRODUCT_DTYPE else (A @ V).astype(PRODUCT_DTYPE, order="F")
+        prods = [p if p is not None and p.dtype == PRODUCT_DTYPE else stored_product(A, V)
                  for p, A in zip(kept_prods, (self.K_terms["K0"], self.M_terms["M0"]))]
         self.basis.adopt(V, *prods)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
@@ -178,7 +180,7 @@ class ReducedSolver:
 
     def _refactor(self, kc, mc):
         self.release_factor()
-        self.n_factorizations = getattr(self, "n_factorizations", 0) + 1
+        self.n_factorizations += 1
         self._fac_at = (kc, mc)
         try:
             self._fac = factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend)
