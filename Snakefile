@@ -25,7 +25,8 @@ from jointid.config.datasets import dataset_folder
 from jointid.config.options import DoeOptions
 from jointid.config.snakefile import mesh_inputs, mesh_keys, merged, modal_keys, paper_input, run_folders, sections, validated
 from jointid.reporting.provenance import pin_config_state
-from jointid.stages import doe, identify, modal, surface, verify
+from jointid.config import rule_keys as keys  # the rules' config keys (light: no numerical module is loaded)
+from jointid.stages import doe
 from jointid.stages.tables import PAPER_TABLES
 
 configfile: "config.yaml"
@@ -38,13 +39,13 @@ POINTS = list(SHEET["point"])
 STATES = list(config["states"])
 R, LOGS, BENCH = run_folders(config)  # results/, logs/, benchmarks/out/ (+ /<run.name> for a named study)
 
-# the config parts each rule uses: the CONFIG keys (or config_keys()) of its stage module in
-# src/jointid/stages/, or of jointid.config.snakefile (mesh_keys, modal_keys: the mesh without
+# the config parts each rule uses: its keys in jointid.config.rule_keys (the same tuples as the CONFIG of its
+# stage module), or in jointid.config.snakefile (mesh_keys, modal_keys: the mesh without
 # mesh.extrapolate_edges; the DOE points solved without the ROM keys); the first DOE without doe.zoom; ...
 CFG_MESH = sections(config, *mesh_keys(config))
-CFG_DOE = sections(config, *doe.CONFIG)
-CFG_FIT_SURFACE = sections(config, *surface.CONFIG)
-CFG_VERIFY = sections(config, *verify.CONFIG)
+CFG_DOE = sections(config, *keys.DOE)
+CFG_FIT_SURFACE = sections(config, *keys.SURFACE)
+CFG_VERIFY = sections(config, *keys.VERIFY)
 # mesh.extrapolate_edges: identify (and, with mesh_check.edge_levels, the mesh check) also solves the mesh with one
 # and two more edge levels.  It builds them itself, each when its turn comes (about 12 and 16 s): as files they
 # took 863 MB of results/ on the default mesh, and a rebuild for one state's rerun reran the other state's chain.
@@ -53,7 +54,7 @@ CFG_VERIFY = sections(config, *verify.CONFIG)
 def cfg_identify(state):
     """rule identify: the shared sections, this state's settings and the other states' datasets (the
     measured modes of frequency-only states are paired alike in all states)."""
-    return sections(config, *identify.config_keys(state, STATES))
+    return sections(config, *keys.identify(state, STATES))
 
 
 def state_datasets(wc):
@@ -145,7 +146,7 @@ rule doe:
 # built and verified against full solves once; every modal job then evaluates it.  With method full
 # (the default) no job asks for it, and the modal rule's params leave out the ROM keys so that the
 # full path's jobs, params and results stay exactly those it had before the option existed.
-CFG_ROM = sections(config, *modal.CONFIG_ROM)
+CFG_ROM = sections(config, *keys.ROM)
 
 
 rule rom:
@@ -271,7 +272,7 @@ SURFACE_SHEET = f"{R}/doe/zoom/points.csv" if ZOOM else f"{R}/doe/points.csv"  #
 
 def cfg_scout(state):
     """rule scout: what the surface-only identification reads (not the FE solve, not the motor force)."""
-    return sections(config, *identify.scout_config_keys(STATES))
+    return sections(config, *keys.scout(STATES))
 
 
 rule scout:
@@ -303,7 +304,7 @@ rule doe_zoom:
         sheet=f"{R}/doe/zoom/points.csv",
         box=f"{R}/doe/zoom/box.json",
     params:
-        cfg=sections(config, *doe.CONFIG_ZOOM),
+        cfg=sections(config, *keys.DOE_ZOOM),
         states=STATES,
     log:
         f"{LOGS}/doe_zoom.log",

@@ -14,6 +14,7 @@ import yaml
 
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis import effects as E
+from jointid.diagnosis.terms import BONDED_N_PER_M3, StateInfo
 from jointid.diagnosis import terms as T
 from jointid.reporting.diagnosis_history import append_history
 from jointid.diagnosis.statistics import identifiability, score_test
@@ -218,7 +219,7 @@ def test_variant_coefficient_derivatives(coarse):
     var = Variant(system, DiagnosisSettings.from_config(cfg), [EffectSpec.candidate(E.EFFECTS["em_preload"])])
     x = var.x_start({"k_normal_N_per_m3": 8e11, "k_lateral_N_per_m3": 6e11, "k_feed_N_per_m3": 1e10})
     assert var.labels[-1] == "em_preload.beta" and x[-1] == 0.0
-    on = E.StateInfo("on", 1000.0)
+    on = StateInfo("on", 1000.0)
     kc, _ = var.coefficients(x, on)
     d = var.dcoefficients(x, on)
     w = system.carried_mass_kg * 9.81
@@ -226,13 +227,13 @@ def test_variant_coefficient_derivatives(coarse):
     assert d[-1][0]["K_top_y@1"] == pytest.approx(kc["K_top_y@1"] * math.log(ratio), rel=1e-6)
     assert d[0][0]["K_top_y@1"] == pytest.approx(kc["K_top_y@1"], rel=1e-6)  # d k / d ln k
     assert "K_flank_x@1" not in d[0][0]
-    off = var.dcoefficients(x, E.StateInfo("off", 0.0))
+    off = var.dcoefficients(x, StateInfo("off", 0.0))
     assert not off[-1][0]  # no motor force, no sensitivity to beta
     rail = Variant(system, DiagnosisSettings.from_config(cfg), [EffectSpec.candidate(E.EFFECTS["rail_fixing"])])
     xr = rail.x_start()
     dr = rail.dcoefficients(xr, on)[-1][0]["K_railfix"]
     p = E.EFFECTS["rail_fixing"].params[0]
-    assert dr == pytest.approx(-E.BONDED_N_PER_M3 ** 2 / p.nominal, rel=1e-4)
+    assert dr == pytest.approx(-BONDED_N_PER_M3 ** 2 / p.nominal, rel=1e-4)
 
 
 # ---------------------------------------------------------------- outputs and workflow wiring
@@ -329,7 +330,7 @@ def test_fewer_frequencies_than_parameters_cannot_be_diagnosed(coarse):
     from jointid.errors import DataError
 
     cfg, system = coarse
-    data = [StateData(s, E.StateInfo(s, f), np.array([344.3]), None, 0.01)
+    data = [StateData(s, StateInfo(s, f), np.array([344.3]), None, 0.01)
             for s, f in (("power_off", 0.0), ("power_on", 1000.0))]
     with pytest.raises(DataError, match="2 measured frequencies for 3 fitted parameters"):
         diagnose(system, DiagnosisSettings.from_config(cfg), data)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from jointid.diagnosis import effects as E
+from jointid.diagnosis.terms import BONDED_N_PER_M3, StateInfo
 from jointid.diagnosis import terms as T
 from jointid.config import load_config
 from jointid.response.emforce import carriage_loads_N
@@ -48,7 +49,7 @@ def test_bonded_foundation_reproduces_the_clamped_base(setup):
     cfg, model, system = setup
     assert system.support == "clamped" and len(system.fixed) == 0
     kc, mc = T.baseline_coefficients(system, ModelSpec.from_config(cfg), THETA)
-    assert kc["K_foundation"] == E.BONDED_N_PER_M3
+    assert kc["K_foundation"] == BONDED_N_PER_M3
     kc0, mc0 = base_coefficients(ModelSpec.from_config(cfg), model, THETA)
     a = solve_modes(model.K(kc0), model.M(mc0), 8, fixed=model.fixed).freqs_Hz
     b = solve_modes(system.K(kc), system.M(mc), 8, fixed=system.fixed).freqs_Hz
@@ -73,8 +74,8 @@ def test_em_preload_scales_each_carriage_by_its_pressure_ratio(setup):
     cfg, model, system = setup
     kc, mc = T.baseline_coefficients(system, ModelSpec.from_config(cfg), THETA)
     eff = E.EFFECTS["em_preload"]
-    off = E.StateInfo("off", 0.0)
-    on = E.StateInfo("on", 1000.0)
+    off = StateInfo("off", 0.0)
+    on = StateInfo("on", 1000.0)
     opts = dict(eff.options)
     k_off, _ = E.apply_effects(system, kc, mc, off, [(eff, {"beta": 0.4}, opts)])
     assert k_off == kc  # weight-only state is the calibrated baseline
@@ -104,15 +105,15 @@ def test_em_preload_scales_each_carriage_by_its_pressure_ratio(setup):
 def test_mass_compliance_and_feed_effects(setup):
     cfg, model, system = setup
     kc, mc = T.baseline_coefficients(system, ModelSpec.from_config(cfg), THETA)
-    s = E.StateInfo("s", 0.0)
+    s = StateInfo("s", 0.0)
     _, m2 = E.apply_effects(system, kc, mc, s, [(E.EFFECTS["added_mass_table"], {"mass_kg": 3.0}, {})])
     assert m2["M_table_top"] == 3.0 and m2["M_motor"] == mc["M_motor"]
     _, m3 = E.apply_effects(system, kc, mc, s, [(E.EFFECTS["added_mass_edge"], {"mass_kg": 1.5}, {})])
     assert m3["M_table_edge"] == 1.5
     k2, _ = E.apply_effects(system, kc, mc, s, [(E.EFFECTS["rail_fixing"], {"k_railfix_N_per_m3": 2e12}, {})])
-    assert k2["K_railfix"] == pytest.approx(1 / (1 / E.BONDED_N_PER_M3 + 1 / 2e12))
+    assert k2["K_railfix"] == pytest.approx(1 / (1 / BONDED_N_PER_M3 + 1 / 2e12))
     k3, _ = E.apply_effects(system, kc, mc, s, [(E.EFFECTS["base_support"], {"k_foundation_N_per_m3": 3e11}, {})])
-    assert k3["K_foundation"] == pytest.approx(1 / (1 / E.BONDED_N_PER_M3 + 1 / 3e11))
+    assert k3["K_foundation"] == pytest.approx(1 / (1 / BONDED_N_PER_M3 + 1 / 3e11))
     k4, _ = E.apply_effects(system, kc, mc, s, [(E.EFFECTS["feed_stiffness"], {"k_feed_extra_N_per_m3": 5e9}, {})])
     for c in range(4):
         assert k4[f"K_top_z@{c}"] == pytest.approx(kc[f"K_top_z@{c}"] + 5e9)
@@ -120,7 +121,7 @@ def test_mass_compliance_and_feed_effects(setup):
         assert k4[f"K_top_y@{c}"] == kc[f"K_top_y@{c}"]
     # a null value changes nothing
     for eff in E.EFFECTS.values():
-        k0, m0 = E.apply_effects(system, kc, mc, E.StateInfo("on", 1000.0), [(eff, eff.null_values(), eff.options)])
+        k0, m0 = E.apply_effects(system, kc, mc, StateInfo("on", 1000.0), [(eff, eff.null_values(), eff.options)])
         assert k0 == kc and m0 == mc
 
 

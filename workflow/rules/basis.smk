@@ -2,11 +2,11 @@
 # diagnosis and of every hypothesis on the run's model (each used to build the same one itself).
 #   results/model/diagnosis_basis.npz
 
-from jointid.stages import basis as basis_stage
+from jointid.config import rule_keys as keys
 
 
 def _basis_cfg():
-    cfg = sections(config, *basis_stage.CONFIG)
+    cfg = sections(config, *keys.BASIS)
     named = {(c or {}).get("dataset") for c in config["states"].values()} & set(config.get("datasets") or {})
     if named:  # a state measured in a registered dataset: its entry (and only those)
         cfg["datasets"] = {n: config["datasets"][n] for n in sorted(named)}

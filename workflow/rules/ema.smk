@@ -5,10 +5,10 @@
 # Only the named sources run: without ema.sources (the paper's data) nothing here is scheduled.
 
 from jointid.config.snakefile import ema_sources
-from jointid.stages import ema as ema_stage
+from jointid.config import rule_keys as keys
 
 EMA_SOURCES = ema_sources(config)
-CFG_EMA = sections(config, *ema_stage.CONFIG)
+CFG_EMA = sections(config, *keys.EMA)
 
 
 rule ema:

@@ -15,8 +15,8 @@
 # docs/scale-out.md) each is a job of its own, and each is certified.
 
 from jointid.config.hypotheses import check_hypotheses, cost_rank, needs_own_model
-from jointid.reconstruction.hypotheses import check_hypothesis_effects
-from jointid.stages import hypotheses as hyp_stage
+from jointid.diagnosis.effects import check_hypothesis_effects
+from jointid.config import rule_keys as keys
 
 HYPOTHESES = check_hypotheses(config, check_hypothesis_effects)  # a bad hypothesis stops the run before any job
 SHARED = [n for n in HYPOTHESES if config["solver"]["method"] == "reduced"
@@ -25,7 +25,7 @@ SEPARATE = [n for n in HYPOTHESES if n not in SHARED]  # a job each (rule hypoth
 
 
 def _hypotheses_cfg(names):
-    cfg = sections(config, *[k for k in hyp_stage.CONFIG if k != "hypotheses"])
+    cfg = sections(config, *[k for k in keys.HYPOTHESIS if k != "hypotheses"])
     cfg["hypotheses"] = {n: config["hypotheses"][n] for n in names}
     return cfg
 
@@ -103,7 +103,7 @@ if HYPOTHESES:
             ranges=f"{R}/hypotheses/reconstruction.csv",
             next=f"{R}/hypotheses/next_measurements.csv",
         params:
-            cfg=sections(config, *hyp_stage.RANKING_CONFIG),
+            cfg=sections(config, *keys.RANKING),
         log:
             f"{LOGS}/hypotheses/ranking.log",
         priority: PRIORITY_HYPOTHESES

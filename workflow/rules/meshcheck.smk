@@ -3,9 +3,9 @@
 #   results/mesh_check/{state}.json (parameters: value, refined value, change %, 95 % interval)
 #   results/mesh_check/{state}.csv  (every mode: default and refined frequency, change %, MAC)
 
-from jointid.stages import meshcheck as meshcheck_stage
+from jointid.config import rule_keys as keys
 
-CFG_MESH_CHECK = sections(config, *meshcheck_stage.CONFIG)
+CFG_MESH_CHECK = sections(config, *keys.MESH_CHECK)
 
 # a mesh file (model.kind mesh) is solved as it is: no refinement, so no mesh check (refine the file and compare)
 if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "rig") != "mesh":

@@ -10,7 +10,7 @@
 
 from jointid.config.datasets import dataset_folder as _dataset_folder
 from jointid.config.datasets import registered_datasets as _registered_datasets
-from jointid.stages import harmonic as harmonic_stage
+from jointid.config import rule_keys as keys
 from jointid.config.hypotheses import hypothesis_names as _hypothesis_names
 
 FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
@@ -18,7 +18,7 @@ FIGURES = ["frf", "errors", "parameters", "surface", "doe", "mode_shapes"]
 
 def cfg_harmonic(state):
     """rule harmonic: the shared sections and this state's settings only."""
-    return sections(config, *harmonic_stage.config_keys(state))
+    return sections(config, *keys.harmonic(state))
 
 
 CFG_TABLE1_CHAIN = merged(CFG_TABLES_CHAIN, *map(cfg_harmonic, STATES))

@@ -2,9 +2,9 @@
 # on its rail (jointid.response.carriage), the number to hold against a guide catalogue.
 #   results/identify/{state}/carriage_rigidity.json (per direction: springs, parts, assembly, interval)
 
-from jointid.stages import carriage as carriage_stage
+from jointid.config import rule_keys as keys
 
-CFG_RIGIDITY = sections(config, *carriage_stage.CONFIG)
+CFG_RIGIDITY = sections(config, *keys.CARRIAGE)
 
 
 rule carriage_rigidity:

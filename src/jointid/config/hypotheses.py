@@ -6,7 +6,7 @@ A hypothesis is config overrides plus fixed joint parameters and library effects
 ranking (:class:`RankingOptions`) are built from the configuration once, at the edge (the rule scripts);
 the fits (:mod:`jointid.reconstruction.hypotheses`) take them, not the dict.  The effects a hypothesis names
 are checked by the diagnosis's own parser: the caller hands its check in (``check_effects``,
-:func:`jointid.reconstruction.hypotheses.check_hypothesis_effects`).
+:func:`jointid.diagnosis.effects.check_hypothesis_effects`).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from jointid.config.load import load_config
+from jointid.config.rule_keys import ROM as CONFIG_ROM, ROM_KEYS
 from jointid.errors import ConfigError
 from jointid.yamlio import deep_merge
 
@@ -151,10 +152,6 @@ def mesh_keys(config: dict) -> tuple[str, ...]:
             *(f"mesh.{k}" for k in config["mesh"] if k not in ("extrapolate_edges", "edge_ratio")))
 
 
-ROM_KEYS = ("method", "rom_tolerance")
-"""``solver`` keys of the reduced-order model only."""
-CONFIG_ROM = ("materials", "rig", "model", "joints", "solver")
-"""Config keys of rule ``rom``."""
 
 
 def modal_keys(config: dict) -> tuple[str, ...]:

@@ -55,16 +55,20 @@ import difflib
 import math
 import warnings
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from jointid.diagnosis.terms import BONDED_N_PER_M3, StateInfo, System, term_component
 from jointid.errors import ConfigError, ModelError
 from jointid.response.emforce import carriage_loads_N
 
-__all__ = ["EFFECTS", "Effect", "Param", "Enabled", "enabled_effects", "apply_effects", "effect_table",
-           "pressure_ratio"]
+if TYPE_CHECKING:
+    from jointid.diagnosis.terms import StateInfo, System
+# jointid.diagnosis.terms (and with it the FE model, scipy and pandas) is imported where it is used: the
+# Snakefile checks every hypothesis's effects with this registry at each Snakemake call.
+
+__all__ = ["EFFECTS", "Effect", "Param", "Enabled", "enabled_effects", "check_hypothesis_effects", "apply_effects",
+           "effect_table", "pressure_ratio"]
 
 G = 9.81
 
@@ -105,6 +109,7 @@ class Param:
         """Finite-difference step in ``t`` for coefficient derivatives."""
         if self.kind == "compliance":
             # keep the series compliance t / nominal far below the bonded one near t = 0
+            from jointid.diagnosis.terms import BONDED_N_PER_M3  # noqa: PLC0415 (the registry loads light: see the top)
             return max(1e-6 * abs(t), 1e-4 * self.nominal / BONDED_N_PER_M3)
         return 1e-6 * max(abs(t), 1.0)
 
@@ -180,6 +185,7 @@ def _apply_em(system, kc, mc, state, values, opts):
     beta = values["beta"]
     if beta == 0.0 or state.em_force_N == 0.0:
         return
+    from jointid.diagnosis.terms import term_component  # noqa: PLC0415
     scale = pressure_ratio(system, state, opts) ** beta
     dirs = contact_directions(system, opts)
     for name in list(kc):
@@ -210,6 +216,7 @@ def _apply_mass(term):
 
 def _series(term, pname):
     def apply(system, kc, mc, state, values, opts):
+        from jointid.diagnosis.terms import BONDED_N_PER_M3  # noqa: PLC0415
         k = values[pname]
         if math.isinf(k):
             return
@@ -227,6 +234,7 @@ def _apply_feed(system, kc, mc, state, values, opts):
 
 def _feed_terms(system) -> list[str]:
     """Per-carriage layer terms in the feed direction (the rig's z, a mesh layer's feed component)."""
+    from jointid.diagnosis.terms import term_component  # noqa: PLC0415
     return [n for n in system.stiffness if "@" in n and term_component(n) in ("z", "feed")]
 
 
@@ -374,6 +382,18 @@ def enabled_effects(effects: dict | None) -> list[Enabled]:
     if problems:
         raise ConfigError(problems)
     return out
+
+
+def check_hypothesis_effects(where: str, effects: dict | None) -> None:
+    """Raise :class:`ConfigError` when the ``effects`` of a hypothesis (``where``: ``config.yaml:
+    hypotheses.<name>``) do not parse (:func:`jointid.diagnosis.effects.enabled_effects`), its lines naming the
+    hypothesis, not the run's effects section (the check :func:`jointid.config.hypotheses.hypothesis_config`
+    is handed)."""
+    try:
+        enabled_effects(effects)
+    except ConfigError as exc:  # name the hypothesis, not the run's effects section
+        raise ConfigError([str(line).replace("config.yaml: effects.", f"{where}.effects.")
+                           for line in exc.problems]) from None
 
 
 def apply_effects(system: System, kc: dict, mc: dict, state: StateInfo,

@@ -35,29 +35,16 @@ import numpy as np
 from jointid.config.hypotheses import COEFFICIENT_KEYS, HYPOTHESIS_KEYS, MODEL_SECTIONS, LinkedLaw  # noqa: F401
 from jointid.config.typed_diagnosis import DiagnosisSettings
 
-from jointid.diagnosis.effects import EFFECTS, enabled_effects, pressure_ratio
+from jointid.diagnosis.effects import EFFECTS, check_hypothesis_effects, enabled_effects, pressure_ratio  # noqa: F401
 from jointid.diagnosis.fitting import Diagnoser, Fit, print_log
 from jointid.reconstruction.predictions import measurement_predictions
 from jointid.diagnosis.results import block_error, frequency_rows, log_interval
 from jointid.diagnosis.criteria import aicc
 from jointid.diagnosis.variants import EffectSpec, StateData, Variant
-from jointid.errors import ConfigError
 from jointid.progress import Steps
 
 __all__ = ["HYPOTHESIS_KEYS", "MODEL_SECTIONS", "COEFFICIENT_KEYS", "LinkedLaw", "check_hypothesis_effects",
            "linked_variant", "fit_hypothesis", "fit_with", "record", "search", "Searched", "state_joints", "CERTIFIED", "NOT_CERTIFIED"]
-
-
-def check_hypothesis_effects(where: str, effects: dict | None) -> None:
-    """Raise :class:`ConfigError` when the ``effects`` of a hypothesis (``where``: ``config.yaml:
-    hypotheses.<name>``) do not parse (:func:`jointid.diagnosis.effects.enabled_effects`), its lines naming the
-    hypothesis, not the run's effects section (the check :func:`jointid.config.hypotheses.hypothesis_config`
-    is handed)."""
-    try:
-        enabled_effects(effects)
-    except ConfigError as exc:  # name the hypothesis, not the run's effects section
-        raise ConfigError([str(line).replace("config.yaml: effects.", f"{where}.effects.")
-                           for line in exc.problems]) from None
 
 
 def _effect_specs(effects: dict) -> list[EffectSpec]:

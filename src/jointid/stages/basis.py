@@ -17,6 +17,7 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING
 
+from jointid.config.rule_keys import BASIS as CONFIG  # noqa: F401  (rule diagnosis_basis's keys)
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.diagnosis.terms import build_system
@@ -28,10 +29,6 @@ from jointid.threads import limit_threads
 
 if TYPE_CHECKING:
     from jointid.config.typed_diagnosis import DiagnosisSettings
-
-CONFIG = ("materials", "rig", "model", "joints", "states", "measurements", "solver", "identify", "harmonic")
-"""Config sections of rule ``diagnosis_basis`` (plus ``datasets`` when a state names one).  Not ``effects``:
-the basis starts at the baseline, and enabling an effect (the loop of docs/effects.md) must not build it again."""
 
 
 def measured_states(settings: DiagnosisSettings, system) -> list:

@@ -6,12 +6,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from jointid import io
+from jointid.config.rule_keys import CARRIAGE as CONFIG  # noqa: F401  (rule carriage_rigidity's keys)
 
 if TYPE_CHECKING:
     from jointid.config.options import CarriageOptions
 
-CONFIG = ("materials", "rig", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "catalogue")
-"""Config keys of rule ``carriage_rigidity``."""
 
 
 def run_carriage_rigidity(opts: CarriageOptions, state: str, params_json: str, out_json: str, log=print) -> dict:

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from jointid import io
+from jointid.config.rule_keys import DOE as CONFIG, DOE_ZOOM as CONFIG_ZOOM  # noqa: F401  (rules doe, doe_zoom)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
@@ -18,10 +19,6 @@ if TYPE_CHECKING:
 
     from jointid.config.options import DoeOptions
 
-CONFIG = ("joints", "doe.design", "doe.n_center", "doe.n_samples", "doe.seed", "doe.n_verification")
-"""Config keys of rule ``doe`` (not ``doe.zoom``: that is the second DOE's only)."""
-CONFIG_ZOOM = ("joints", "doe")
-"""Config keys of rule ``doe_zoom``."""
 
 
 def doe_sheet(opts: DoeOptions, lower=None, upper=None) -> pd.DataFrame:

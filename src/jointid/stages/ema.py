@@ -12,14 +12,13 @@ from pathlib import Path
 
 from typing import TYPE_CHECKING
 
+from jointid.config.rule_keys import EMA as CONFIG  # noqa: F401  (rule ema's keys)
 from jointid.ema.run import run_ema
 from jointid.progress import stamp
 
 if TYPE_CHECKING:
     from jointid.ema.options import EmaOptions
 
-CONFIG = ("ema",)
-"""The config sections rule ema reads (its sources: :func:`jointid.config.snakefile.ema_sources`)."""
 
 
 def run_ema_stage(options: EmaOptions, source, out_dataset, out_poles) -> None:

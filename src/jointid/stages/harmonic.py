@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
+from jointid.config.rule_keys import harmonic as config_keys  # noqa: F401  (rule harmonic's keys)
 from jointid.geometry.points import dof_labels
 from jointid.data.uff_export import write_modes_uff
 from jointid.stages.frf_compare import write_frf_comparison
@@ -26,11 +27,6 @@ from jointid.response.ranges import band_minimum
 if TYPE_CHECKING:
     from jointid.config.options import HarmonicOptions
     from jointid.identification.record import IdentificationRecord
-
-
-def config_keys(state: str) -> tuple[str, ...]:
-    """Config keys of rule ``harmonic``: the shared sections and this state's settings only."""
-    return ("materials", "rig", "model", "joints", "solver", "harmonic", "measurements", "datasets", f"states.{state}")
 
 
 def frf_frame(res) -> pd.DataFrame:

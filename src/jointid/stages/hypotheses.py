@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
+from jointid.config.rule_keys import HYPOTHESIS as CONFIG, RANKING as RANKING_CONFIG  # noqa: F401  (the rules' keys)
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.progress import Steps
 from jointid.reconstruction.hypotheses import fit_hypothesis, record, search
@@ -35,9 +36,6 @@ from jointid.threads import limit_threads
 if TYPE_CHECKING:
     from jointid.config.hypotheses import HypothesisJob, RankingOptions
 
-CONFIG = ("materials", "rig", "model", "mesh", "joints", "states", "measurements", "datasets", "solver", "identify",
-          "harmonic", "effects", "linked", "hypotheses")
-"""Config sections a hypothesis reads (its own entry of ``hypotheses`` only, see the rule)."""
 ADMISSIBLE_DELTA_AICC = 4.0
 
 
@@ -155,9 +153,6 @@ def _write(job: HypothesisJob, rec: dict, own: bool, system, out_json: str, t0: 
     return rec
 
 
-RANKING_CONFIG = ("materials", "rig", "model", "joints", "mesh.element", "solver.backend", "carriage_rigidity", "hypotheses",
-                  "next_measurement")
-"""Config keys of rule ``hypotheses`` (the best hypothesis's joints in the catalogue-style block test)."""
 CREDIBLE_RATIO = (0.6, 1.5)
 """Lateral/normal rigidity ratio of a carriage on its rail that a guide catalogue makes credible."""
 

@@ -16,7 +16,7 @@ import numpy as np
 from typing import TYPE_CHECKING
 
 from jointid import io
-from jointid.stages.modal import SOLVE_KEYS
+from jointid.config.rule_keys import TIE_DAMPING_KEYS, identify as config_keys, scout as scout_config_keys  # noqa: F401
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
@@ -24,25 +24,6 @@ if TYPE_CHECKING:
     from jointid.config.typed import ModelSpec
 
 AMBIGUOUS_DCHI2 = 4.0  # pairings closer than this in summed chi-square are reported as alternatives
-TIE_DAMPING_KEYS = tuple(f"harmonic.damping.{k}" for k in ("model", "damping_ratio", "alpha_per_s", "beta_s"))
-"""The damping keys the resolvability rule among tied pairings reads (:func:`tie_damping`), not the range."""
-
-
-def config_keys(state: str, states: list[str]) -> tuple[str, ...]:
-    """Config keys of rule ``identify``: the shared sections, this state's settings and the other
-    states' datasets (the measured modes of frequency-only states are paired alike in all states)."""
-    return ("materials", "rig", "model", "joints", "identify", "mesh", *SOLVE_KEYS, "measurements",
-            "harmonic.band_Hz", "harmonic.drive_point", *TIE_DAMPING_KEYS, f"states.{state}",
-            *(f"states.{s}.dataset" for s in states))
-
-
-def scout_config_keys(states: list[str]) -> tuple[str, ...]:
-    """Config keys of rule ``scout``: what the surface-only identification reads (not the FE solve,
-    not the motor force)."""
-    return ("joints", "identify.n_starts", "identify.seed", "identify.frequency_uncertainty_pct",
-            "identify.weights", "identify.pairing", "identify.visible_threshold", "solver.min_freq_Hz",
-            "harmonic.band_Hz", "harmonic.drive_point", *TIE_DAMPING_KEYS, "measurements",
-            *(f"states.{s}.dataset" for s in states))
 
 
 def measured_modes(opts: IdentifyOptions, state: str, pts):

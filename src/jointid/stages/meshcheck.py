@@ -14,13 +14,11 @@ import numpy as np
 
 from jointid import io
 from jointid.errors import ModelError
-from jointid.stages.modal import SOLVE_KEYS
+from jointid.config.rule_keys import MESH_CHECK as CONFIG  # noqa: F401  (rule mesh_check's keys)
 
 if TYPE_CHECKING:
     from jointid.config.options import MeshCheckOptions
 
-CONFIG = ("materials", "rig", "model", "mesh", "mesh_check", "joints", "identify.weights", *SOLVE_KEYS)
-"""Config keys of rule ``mesh_check``."""
 
 
 def _default_mesh(spec, theta_d, names, theta, matrices, edge_models, say):

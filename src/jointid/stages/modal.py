@@ -13,14 +13,11 @@ import numpy as np
 from typing import TYPE_CHECKING
 
 from jointid import io
-from jointid.config.snakefile import CONFIG_ROM, ROM_KEYS  # noqa: F401  (rule rom's keys; modal's: modal_keys)
+from jointid.config.rule_keys import ROM as CONFIG_ROM, ROM_KEYS, SOLVE_KEYS  # noqa: F401  (rule rom's keys; modal's: modal_keys)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
     from jointid.config.typed import ModelSpec
-
-SOLVE_KEYS = ("solver.n_modes", "solver.shift_Hz", "solver.backend", "solver.min_freq_Hz")
-"""Config keys of a full FE solve (:func:`jointid.identification.polish.solve_point`) in the later stages."""
 
 
 def run_modal(spec: ModelSpec, matrices: str, theta: dict[str, float], out_npz: str, rom: str | None = None) -> None:

@@ -8,13 +8,12 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from jointid import io
+from jointid.config.rule_keys import SURFACE as CONFIG  # noqa: F401  (rules fit_surface, fit_zoom)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
     from jointid.config.options import SurfaceOptions
 
-CONFIG = ("joints", "surface", "solver.min_freq_Hz", "harmonic.band_Hz")
-"""Config keys of rules ``fit_surface`` and ``fit_zoom``."""
 
 
 def run_fit_surface(opts: SurfaceOptions, sheet_csv: str, arrays_npz: str, out_json: str, out_csv: str,

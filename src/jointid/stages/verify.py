@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from jointid import io
-from jointid.stages.modal import SOLVE_KEYS
+from jointid.config.rule_keys import VERIFY as CONFIG  # noqa: F401  (rule verify's keys)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
@@ -21,9 +21,6 @@ if TYPE_CHECKING:
     from jointid.config.typed import ModelSpec
     from jointid.identification.record import IdentificationRecord
 
-CONFIG = ("materials", "rig", "model", "joints", "mesh.extrapolate_edges", *SOLVE_KEYS)
-"""Config keys of rule ``verify`` (``mesh.extrapolate_edges``: its frequencies are scaled by the
-identification's mesh-extrapolation factors)."""
 
 
 def visibility_rule(par: "IdentificationRecord", labels: list[str]):
