@@ -72,14 +72,15 @@ RUN_TIMEOUT_S = 2400 * float(os.environ.get("JOINTID_TEST_TIMEOUT_SCALE", "1"))
 # file (its module fixtures, e.g. the hidden-effect cases' shared solver, are built once), and the
 # files of the shared coarse reference run (session fixtures ``coarse_run``/``resumed_run``, built
 # once per worker that uses them) as one group.  Groups are handed out in collection order, the
-# slowest first: seconds of the slowest groups in a fresh-clone CI run (make test beside make tables,
-# 2-core machine); they only order the work.
+# slowest first: seconds of the slowest groups in `make test` on an idle 2-core AMD EPYC (session 65; test (a)
+# of test_model_error_cases.py after it tests three effects); they only order the work.
 SHARED_RUN_FILES = ("test_api_method.py", "test_determinism.py", "test_faults.py", "test_interrupt.py", "test_reruns.py", "test_report.py",
                     "test_workflow_e2e.py")
-GROUP_SECONDS = {"coarse_run": 600, "test_rom.py": 72, "test_diagnose.py": 70, "test_shape_residuals.py": 70,
-                 "test_ambiguity.py": 55, "test_cluster.py": 48, "test_model_error_cases.py": 45,
-                 "test_hidden_effects.py": 45, "test_examples.py": 40, "test_damping_in_table1.py": 40,
-                 "test_hypotheses.py": 30, "test_meshin_workflow.py": 106, "test_example_single_carriage.py": 200}
+GROUP_SECONDS = {"coarse_run": 574, "test_model_error_cases.py": 40, "test_shape_residuals.py": 131, "test_diagnose.py": 76,
+                 "test_rom.py": 73, "test_diagnosis_basis.py": 66, "test_ema.py": 59, "test_example_hammer_test.py": 58,
+                 "test_mesh_error.py": 55, "test_ambiguity.py": 50, "test_cluster.py": 44, "test_examples.py": 41,
+                 "test_damping_in_table1.py": 33, "test_doe_modes.py": 33, "test_hidden_effects.py": 31,
+                 "test_meshin_workflow.py": 106, "test_example_single_carriage.py": 200}  # these two: make test-all
 
 
 def test_group(nodeid: str) -> str:
