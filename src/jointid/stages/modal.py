@@ -13,7 +13,6 @@ import numpy as np
 from typing import TYPE_CHECKING
 
 from jointid import io
-from jointid.config.rule_keys import ROM as CONFIG_ROM, ROM_KEYS, SOLVE_KEYS  # noqa: F401  (rule rom's keys; modal's: modal_keys)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
