@@ -146,7 +146,7 @@ def test_stage_writes_the_comparison_of_its_assembly(cfg, tmp_path, monkeypatch)
 
 
 def test_rule_depends_on_the_catalogue_section():
-    from jointid.stages.carriage import CONFIG
+    from jointid.config.rule_keys import CARRIAGE as CONFIG
 
     assert "catalogue" in CONFIG  # a changed catalogue reruns carriage_rigidity (and so the report)
 

@@ -102,7 +102,7 @@ class IdentifyOptions:
 
     @classmethod
     def from_config(cls, cfg: Mapping, states: list[str]) -> IdentifyOptions:
-        """The options of rule ``identify`` or ``scout`` (their config keys: :func:`jointid.stages.identify.config_keys`)
+        """The options of rule ``identify`` or ``scout`` (their config keys: :func:`jointid.config.rule_keys.identify`)
         for the states ``states`` (the state identified and those it is paired with)."""
         ic = cfg["identify"]
         return cls(ModelSpec.from_config(cfg), ic["n_starts"], ic["seed"], ic["frequency_uncertainty_pct"],
@@ -179,7 +179,7 @@ class HarmonicOptions:
 
     @classmethod
     def from_config(cls, cfg: Mapping, state: str) -> HarmonicOptions:
-        """The options of rule ``harmonic`` for ``state`` (its keys: :func:`jointid.stages.harmonic.config_keys`)."""
+        """The options of rule ``harmonic`` for ``state`` (its keys: :func:`jointid.config.rule_keys.harmonic`)."""
         h = cfg["harmonic"]
         section = h.get("damping") or {}
         damping = dict(section or {"model": schema_default("harmonic.damping.model"),

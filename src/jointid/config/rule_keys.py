@@ -2,8 +2,8 @@
 
 One place for every rule's keys, and nothing here imports more than the standard library: the
 Snakefile reads them at every Snakemake call (the loop of docs/effects.md included), so naming a
-rule's keys must not load the numerical code that runs it.  The stage modules use the same
-tuples (``jointid.stages.<stage>.CONFIG``).  Keys that depend on the configuration itself (the
+rule's keys must not load the numerical code that runs it.  The API's method
+(:mod:`jointid.stages.method`) reads the same tuples.  Keys that depend on the configuration itself (the
 modal rules', the mesh's) are in :mod:`jointid.config.snakefile`.
 """
 

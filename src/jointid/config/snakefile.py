@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from jointid.config.load import load_config
-from jointid.config.rule_keys import ROM as CONFIG_ROM, ROM_KEYS
+from jointid.config.rule_keys import ROM as CONFIG_ROM, ROM_KEYS  # modal_keys below
 from jointid.errors import ConfigError
 from jointid.yamlio import deep_merge
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING
 
-from jointid.config.rule_keys import BASIS as CONFIG  # noqa: F401  (rule diagnosis_basis's keys)
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.diagnosis.terms import build_system

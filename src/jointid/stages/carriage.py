@@ -6,7 +6,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from jointid import io
-from jointid.config.rule_keys import CARRIAGE as CONFIG  # noqa: F401  (rule carriage_rigidity's keys)
 
 if TYPE_CHECKING:
     from jointid.config.options import CarriageOptions

@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from jointid import io
-from jointid.config.rule_keys import DOE as CONFIG, DOE_ZOOM as CONFIG_ZOOM  # noqa: F401  (rules doe, doe_zoom)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:

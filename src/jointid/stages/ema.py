@@ -12,7 +12,6 @@ from pathlib import Path
 
 from typing import TYPE_CHECKING
 
-from jointid.config.rule_keys import EMA as CONFIG  # noqa: F401  (rule ema's keys)
 from jointid.ema.run import run_ema
 from jointid.progress import stamp
 

@@ -14,7 +14,6 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.config.rule_keys import harmonic as config_keys  # noqa: F401  (rule harmonic's keys)
 from jointid.geometry.points import dof_labels
 from jointid.data.uff_export import write_modes_uff
 from jointid.stages.frf_compare import write_frf_comparison

@@ -21,7 +21,6 @@ import numpy as np
 import pandas as pd
 
 from jointid import io
-from jointid.config.rule_keys import HYPOTHESIS as CONFIG, RANKING as RANKING_CONFIG  # noqa: F401  (the rules' keys)
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.progress import Steps
 from jointid.reconstruction.hypotheses import fit_hypothesis, record, search

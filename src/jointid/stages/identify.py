@@ -16,7 +16,6 @@ import numpy as np
 from typing import TYPE_CHECKING
 
 from jointid import io
-from jointid.config.rule_keys import TIE_DAMPING_KEYS, identify as config_keys, scout as scout_config_keys  # noqa: F401
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:

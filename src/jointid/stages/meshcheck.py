@@ -14,7 +14,6 @@ import numpy as np
 
 from jointid import io
 from jointid.errors import ModelError
-from jointid.config.rule_keys import MESH_CHECK as CONFIG  # noqa: F401  (rule mesh_check's keys)
 
 if TYPE_CHECKING:
     from jointid.config.options import MeshCheckOptions

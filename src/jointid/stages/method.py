@@ -21,6 +21,7 @@ from functools import partial
 from typing import TYPE_CHECKING
 
 from jointid import io
+from jointid.config import rule_keys as keys
 from jointid.stages import doe, identify, modal, surface, tables, verify
 from jointid.stages.model import mesh_model, model_summary, points_table
 
@@ -63,11 +64,11 @@ class MethodOptions:
         per_state = {s: partial(IdentifyOptions.from_config, states=[s, *states]) for s in states}
         return cls(states, settings.options(ModelSpec.from_config, mesh_keys),
                    settings.options(ModelSpec.from_config, modal_keys),
-                   settings.options(DoeOptions.from_config, doe.CONFIG_ZOOM),  # rule doe's keys and doe.zoom
-                   settings.options(SurfaceOptions.from_config, surface.CONFIG),
-                   {s: settings.options(per_state[s], identify.scout_config_keys(list(states))) for s in states},
-                   {s: settings.options(per_state[s], identify.config_keys(s, list(states))) for s in states},
-                   settings.options(ModelSpec.from_config, verify.CONFIG), settings.paper_input(tables.PAPER_TABLES))
+                   settings.options(DoeOptions.from_config, keys.DOE_ZOOM),  # rule doe's keys and doe.zoom
+                   settings.options(SurfaceOptions.from_config, keys.SURFACE),
+                   {s: settings.options(per_state[s], keys.scout(list(states))) for s in states},
+                   {s: settings.options(per_state[s], keys.identify(s, list(states))) for s in states},
+                   settings.options(ModelSpec.from_config, keys.VERIFY), settings.paper_input(tables.PAPER_TABLES))
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,7 +8,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from jointid import io
-from jointid.config.rule_keys import SURFACE as CONFIG  # noqa: F401  (rules fit_surface, fit_zoom)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:

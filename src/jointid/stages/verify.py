@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from jointid import io
-from jointid.config.rule_keys import VERIFY as CONFIG  # noqa: F401  (rule verify's keys)
 from jointid.stages.runner import log
 
 if TYPE_CHECKING:
