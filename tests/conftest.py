@@ -1,8 +1,8 @@
 """Shared helpers for the workflow tests: run Snakemake on a copy of the workflow in a temp folder.
 
 The workflow (Snakefile, config.yaml, workflow/, data/) is copied into a fresh folder and Snakemake
-runs there with ``--configfile config.yaml <repo>/tests/coarse_config.yaml`` (plus any extra config
-files a test adds), never in the repository's own ``results/``.  The Snakemake executable is the
+runs there with ``--configfile config.yaml <repo>/tests/coarse_config.yaml <repo>/tests/coarse_run.yaml``
+(plus any extra config files a test adds), never in the repository's own ``results/``.  The Snakemake executable is the
 one next to ``sys.executable`` (the test venv).
 
 Fixtures
@@ -48,6 +48,7 @@ import pytest  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 COARSE_CONFIG = REPO / "tests" / "coarse_config.yaml"
+COARSE_RUN = REPO / "tests" / "coarse_run.yaml"  # the workflow runs' lighter diagnosis (its comment says why)
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 WORKFLOW_ITEMS = ("Snakefile", "config.yaml", "workflow", "data")
 CORE_RULES = ("mesh", "doe", "modal", "gather_modal", "fit_surface", "scout", "doe_zoom", "modal_zoom",
@@ -192,8 +193,8 @@ def write_config(path: Path, text: str) -> Path:
 
 
 def snakemake_cmd(*args: str, configs=()) -> list[str]:
-    """``snakemake <args> --configfile config.yaml <coarse> <configs...>`` (configfile last)."""
-    return [str(SNAKEMAKE), *args, "--configfile", "config.yaml", str(COARSE_CONFIG),
+    """``snakemake <args> --configfile config.yaml <coarse> <coarse run> <configs...>`` (configfile last)."""
+    return [str(SNAKEMAKE), *args, "--configfile", "config.yaml", str(COARSE_CONFIG), str(COARSE_RUN),
             *[str(c) for c in configs]]
 
 

@@ -101,7 +101,8 @@ class Diagnoser:
             directions.append((dkc, dmc))
         m = max(len(d.f_meas) for d in self.data)
         self.solver = ReducedSolver(self.system, kc, mc, self.n_modes, directions, shift_Hz=self._shift,
-                                    backend=self._backend, tol=self._tol, n_seed=m + 2, basis=self.start_basis)
+                                    backend=self._backend, tol=self._tol, n_seed=m + 2, basis=self.start_basis,
+                                    prefactor=True)  # every diagnosis checks points in the full space
         kept, self.start_basis = self.start_basis, None  # taken over by the solver
         self.solver.log = self.log
         kept = " (started from a kept basis)" if kept is not None else ""

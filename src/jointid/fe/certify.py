@@ -49,6 +49,8 @@ class ReducedSolver(Protocol):
 
     def _refactor(self, kc: dict, mc: dict) -> None: ...
 
+    def settle(self) -> None: ...
+
     def _reset(self, phi: np.ndarray) -> None: ...
 
     def _lanczos(self, kc: dict, mc: dict, k: int) -> tuple: ...
@@ -212,6 +214,7 @@ def _sturm_count(rs: ReducedSolver, kc: dict, mc: dict, f: np.ndarray, n: int) -
         if f[n - 1] * (1.0 + 1e-6) < at < f[n] and count == n:
             return at, count, " (counted before at this point)"
     at = 0.5 * (f[n - 1] + f[n])
+    rs.settle()  # a factorisation under way records the pencil's ordering first
     count = count_pencil_modes_below(rs.pencil, kc, mc, at, rs.backend)
     if count is not None:
         rs.sturm_counts.setdefault(key, []).append((float(at), int(count)))

@@ -12,6 +12,7 @@ Sturm count.  Used by the diagnosis, the hypotheses and the identification's FE 
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -46,6 +47,16 @@ class Solution:
     error: float = float("nan")  # estimated relative eigenvalue error after refinement (nan: not refined)
 
 
+_THREADS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="jointid-reduced")
+
+
+def _background(fn, *args) -> Future:
+    """``fn(*args)`` in one of two background threads.  For calls that spend their time in compiled code
+    without Python's lock (a sparse product with the basis, a PARDISO factorisation), so that two of them,
+    or one and the caller's own work, use the machine's second core."""
+    return _THREADS.submit(fn, *args)
+
+
 def pad_to_basis(Y: np.ndarray, r: int) -> np.ndarray:
     """Reduced vectors of an earlier (smaller) basis expressed in the current one."""
     return Y if Y.shape[0] == r else np.vstack([Y, np.zeros((r - Y.shape[0], Y.shape[1]))])
@@ -74,11 +85,17 @@ class ReducedSolver:
     basis : jointid.fe.warmstart.Kept, optional
         A basis to start from instead of the reference modes and their responses (kept from an
         earlier run on the same model, :mod:`jointid.fe.warmstart`).
+    prefactor : bool
+        With ``basis``: factorise at the reference point in a background thread while the basis's
+        products are formed, for a caller that checks a point in the full space in any case (the
+        diagnosis certifies its answers).  Without it the factorisation waits until first asked for
+        (a rerun whose fits the kept basis answers never makes it).  Either way it is the same
+        factorisation, made once.
     """
 
     def __init__(self, system: AffineModel, kc: dict, mc: dict, n_modes: int, directions=(), *,
                  shift_Hz: float = -10.0, backend: str = "auto", tol: float = 1e-6, max_basis: int = 900,
-                 n_seed: int | None = None, basis=None):
+                 n_seed: int | None = None, basis=None, prefactor: bool = False):
         # many parameters: the reduced solver's options (shift, backend, tolerance, basis size, seed), keyword with defaults
         self.system = system
         self.n_modes = int(n_modes)
@@ -111,8 +128,11 @@ class ReducedSolver:
         self.log = None  # progress lines (certificates), e.g. print
         self.mc_ref = dict(mc)
         self.n_factorizations = 0
+        self._pending = None  # the reference point's factorisation under way in a background thread
         if basis is not None:  # factorised when first asked for (a rerun whose fits the kept basis answers never is)
             self._fac, self._fac_at, self.M_ref = None, (kc, mc), self.M(mc)
+            if prefactor:
+                self._pending = _background(factorize_pencil, self.pencil, kc, mc, self.sigma, self.backend)
             self.sturm_counts = {k: list(v) for k, v in getattr(basis, "sturm", {}).items()}
             self._start_from(basis)
             return
@@ -142,8 +162,10 @@ class ReducedSolver:
             return
         # the kept products, else each cast to the basis's storage as formed
         kept_prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
-        prods = [p if p is not None and p.dtype == PRODUCT_DTYPE else stored_product(A, V)
-                 for p, A in zip(kept_prods, (self.K_terms["K0"], self.M_terms["M0"]))]
+        todo = [(p is None or p.dtype != PRODUCT_DTYPE, A) for p, A in zip(kept_prods, (self.K_terms["K0"], self.M_terms["M0"]))]
+        first = _background(stored_product, todo[0][1], V) if todo[0][0] else kept_prods[0]
+        second = stored_product(todo[1][1], V) if todo[1][0] else kept_prods[1]  # here, beside the first
+        prods = [first.result() if isinstance(first, Future) else first, second]
         self.basis.adopt(V, *prods)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
@@ -169,11 +191,26 @@ class ReducedSolver:
         """The factorisation of ``K - sigma M`` at the last point factorised (made again there after
         :meth:`release_factor`)."""
         if self._fac is None:
-            self._refactor(*self._fac_at)
+            if self._pending is not None:
+                self._take_pending()
+            else:
+                self._refactor(*self._fac_at)
         return self._fac
+
+    def settle(self) -> None:
+        """Wait for a background factorisation (:attr:`prefactor`) to finish and keep it: before any other
+        factorisation of the pencil, whose fill-reducing ordering the first one records."""
+        if self._pending is not None:
+            self._take_pending()
+
+    def _take_pending(self) -> None:
+        pending, self._pending = self._pending, None
+        self.n_factorizations += 1
+        self._fac = self._factor_or_error(pending.result)
 
     def release_factor(self) -> None:
         """Free the factorisation while other work in the process needs the memory (the edge levels)."""
+        self.settle()
         if getattr(self, "_fac", None) is not None:
             self._fac.free()
             self._fac = None
@@ -182,14 +219,18 @@ class ReducedSolver:
         self.release_factor()
         self.n_factorizations += 1
         self._fac_at = (kc, mc)
+        self._fac = self._factor_or_error(lambda: factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend))
+        if self.M_ref is None:
+            self.M_ref = self.M(mc)
+
+    @staticmethod
+    def _factor_or_error(make):
         try:
-            self._fac = factorize_pencil(self.pencil, kc, mc, self.sigma, self.backend)
+            return make()
         except ModelError as exc:
             detail = getattr(exc, "detail", exc)
             raise ModelError(f"diagnosis: factorisation of K - sigma M failed ({detail}) — a stiffness "
                              "coefficient is zero or negative; check the joint parameters and effects") from None
-        if self.M_ref is None:
-            self.M_ref = self.M(mc)
 
     def _lanczos(self, kc, mc, k):
         """Exact modes at ``(kc, mc)`` with the current factorisation: mass-normalised vectors, Hz."""

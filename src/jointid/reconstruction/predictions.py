@@ -65,6 +65,7 @@ def static_stiffness(solver, kc: dict, mc: dict, P) -> np.ndarray:
     factorisation of ``K`` on the free DOFs of the reduced solver's pencil, one solve.  NaN where ``K`` is
     singular (a rigid-body mode)."""
     k = P.shape[0]
+    solver.settle()  # a factorisation under way records the pencil's ordering first
     try:
         fac = factorize_pencil(solver.pencil, kc, mc, 0.0, solver.backend)
     except Exception:  # noqa: BLE001 - a singular stiffness has no static compliance
