@@ -126,7 +126,11 @@ def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
     refit = first.ranking.set_index("effect").loc["em_preload"]
     assert refit["explains"] and memo.hits == 0
     lines = []
-    again = FitMemo(memo.records)
+    # the beta-P curve at the refit's optimum is recorded too; marked here, to see that it is read back
+    curves = [k for k, v in memo.records.items() if k.startswith("value:") and v and len(v[0]) == 4]
+    assert len(curves) == 1
+    again = FitMemo({k: [[P, b, (123.0).hex(), f] for P, b, _, f in v] if k in curves else v
+                     for k, v in memo.records.items()})
     cfg = {**rig["cfg"], "effects": {"em_preload": {}}}
     first.solver.log = lines.append  # the solver keeps its Sturm counts (a next run reads them from the kept file)
     second = diagnose(system, DiagnosisSettings.from_config(cfg), data, candidates=[], drift=False, memo=again, solver=first.solver,
@@ -135,6 +139,9 @@ def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
     assert np.allclose(row["chi2"], refit["fit_chi2"], rtol=1e-9)
     assert again.misses == 0 and again.hits >= 4  # two baseline calibrations, the starts, the certified optimum
     assert any("counted before at this point" in ln for ln in lines)
+    # the current model's beta-P curve: the record's (no evaluation), the same pairs
+    assert len(first.preload_curve) > 1 and (second.preload_curve["chi2"] == 123.0).all()
+    assert second.preload_curve.drop(columns="chi2").equals(first.preload_curve.drop(columns="chi2"))
 
 
 def test_near_tied_optima_are_taken_in_start_order_and_rounded_starts():

@@ -21,6 +21,7 @@ import pandas as pd
 from jointid.diagnosis.ambiguity import CHI2_1_95
 from jointid.diagnosis.effects import contact_directions, pressure_ratio
 from jointid.diagnosis.fitting import Diagnoser, Fit
+from jointid.diagnosis.memo import variant_signature
 from jointid.diagnosis.variants import EffectSpec, Variant
 
 __all__ = ["PRELOAD_GRID_N", "force_levels", "profile_preload", "profile_candidate", "preload_curve",
@@ -134,7 +135,24 @@ def stiffness_ratios(fit: Fit, data, beta_ci: tuple[float, float]) -> pd.DataFra
 
 def preload_curve(diag: Diagnoser, fit: Fit) -> pd.DataFrame:
     """The (beta, P) pairs that give the fitted stiffness ratio (geometric mean over the carriages)
-    of the most loaded state, with the chi-square each gives at the fitted joints (no refit)."""
+    of the most loaded state, with the chi-square each gives at the fitted joints (no refit).  With a
+    memo (``diagnosis.reuse_subspace``) a curve asked again at the same fit is read from it, exactly."""
+    key = None
+    if diag.memo is not None:
+        key = diag.memo.value_key(diag.context_digest(), "preload_curve", variant_signature(fit.variant),
+                                  np.asarray(fit.x, float), [np.asarray(i, np.int64) for i in fit.ev.index])
+        rec = diag.memo.get_value(key)
+        if rec is not None:
+            return pd.DataFrame([{"preload_N": float.fromhex(P), "beta": float.fromhex(b),
+                                  "chi2": float.fromhex(c), "fitted": bool(f)} for P, b, c, f in rec])
+    curve = _preload_curve(diag, fit)
+    if key is not None:
+        diag.memo.put_value(key, [[float(r.preload_N).hex(), float(r.beta).hex(), float(r.chi2).hex(), bool(r.fitted)]
+                                  for r in curve.itertuples()])
+    return curve
+
+
+def _preload_curve(diag: Diagnoser, fit: Fit) -> pd.DataFrame:
     k, j = _slot(fit.variant)
     spec = fit.variant.effects[k]
     beta = float(fit.x[j])
