@@ -126,11 +126,15 @@ def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
     refit = first.ranking.set_index("effect").loc["em_preload"]
     assert refit["explains"] and memo.hits == 0
     lines = []
-    # the beta-P curve at the refit's optimum is recorded too; marked here, to see that it is read back
-    curves = [k for k, v in memo.records.items() if k.startswith("value:") and v and len(v[0]) == 4]
-    assert len(curves) == 1
-    again = FitMemo({k: [[P, b, (123.0).hex(), f] for P, b, _, f in v] if k in curves else v
-                     for k, v in memo.records.items()})
+    # the beta-P curve at the refit's optimum and the modes' descriptions are recorded too; marked here,
+    # to see that they are read back
+    values = {k: v for k, v in memo.records.items() if k.startswith("value:")}
+    curves = [k for k, v in values.items() if v and isinstance(v[0], list)]
+    described = [k for k, v in values.items() if v and all(isinstance(t, str) for t in v)]
+    assert len(curves) == 1 and described
+    marked = {k: [[P, b, (123.0).hex(), f] for P, b, _, f in v] for k, v in values.items() if k in curves}
+    marked.update({k: ["marked"] * len(v) for k, v in values.items() if k in described})
+    again = FitMemo({**memo.records, **marked})
     cfg = {**rig["cfg"], "effects": {"em_preload": {}}}
     first.solver.log = lines.append  # the solver keeps its Sturm counts (a next run reads them from the kept file)
     second = diagnose(system, DiagnosisSettings.from_config(cfg), data, candidates=[], drift=False, memo=again, solver=first.solver,
@@ -139,6 +143,7 @@ def test_enabling_the_suggested_effect_finds_its_refit_already_made(tmp_path):
     assert np.allclose(row["chi2"], refit["fit_chi2"], rtol=1e-9)
     assert again.misses == 0 and again.hits >= 4  # two baseline calibrations, the starts, the certified optimum
     assert any("counted before at this point" in ln for ln in lines)
+    assert (second.compare.loc[second.compare.status == "paired", "description"] == "marked").all()
     # the current model's beta-P curve: the record's (no evaluation), the same pairs
     assert len(first.preload_curve) > 1 and (second.preload_curve["chi2"] == 123.0).all()
     assert second.preload_curve.drop(columns="chi2").equals(first.preload_curve.drop(columns="chi2"))
