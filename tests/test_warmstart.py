@@ -68,6 +68,15 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     assert np.array_equal(same.fac.solve(np.ones(29)), rs.fac.solve(np.ones(29))) and same.n_factorizations == 1
     from_bare = _solver(m, kept=bare)  # the products formed from the kept basis: the same bits
     assert np.array_equal(from_bare.basis.KV, formed[0]) and np.array_equal(from_bare.basis.MV, formed[1])
+    # factorised in a background thread while the products are formed (the diagnosis's solver): the same
+    # products, the same factorisation, made once, and the same certified answers
+    warmstart.save(tmp_path / "bare.npz", rs, m)
+    early = ReducedSolver(m, {"K_a": 1e5}, {}, 4, [({"K_a": 1.0}, {})], backend="scipy",
+                          basis=warmstart.load(tmp_path / "bare.npz", m, 29)[0], prefactor=True)
+    assert np.array_equal(early.basis.KV, formed[0]) and np.array_equal(early.basis.MV, formed[1])
+    assert np.array_equal(early.fac.solve(np.ones(29)), rs.fac.solve(np.ones(29))) and early.n_factorizations == 1
+    assert np.array_equal(early.solve(*point, 4).freqs_Hz, from_bare.solve(*point, 4).freqs_Hz)
+    assert early.n_factorizations == 1
     # other reference masses: the basis is orthonormalised afresh, the answers stay certified
     m2 = fem.Model(stiffness=m.stiffness, mass={"M0": m.mass["M0"], "M_b": m.mass["M0"]}, fixed=m.fixed,
                    probe=m.probe, doflocs=m.doflocs, dof_part=m.dof_part)
