@@ -152,16 +152,18 @@ def print_summary(summary: dict, capsys) -> None:
 
 
 # ------------------------------------------------------------------ workflow copies
-def coarse_config_dict() -> dict:
-    """The default ``config.yaml`` with the sections of ``tests/coarse_config.yaml`` merged over it
-    (one level deep, as Snakemake merges config files), as a plain dict — not yet validated."""
+def coarse_config_dict(*overlays: Path) -> dict:
+    """The default ``config.yaml`` with the sections of ``tests/coarse_config.yaml`` (then of each of
+    ``overlays``) merged over it (one level deep, as Snakemake merges config files), as a plain dict — not
+    yet validated.  ``coarse_config_dict(COARSE_RUN)`` is the configuration of the tests' Snakemake runs."""
     import yaml
 
     with open(REPO / "config.yaml") as fh:
         cfg = yaml.safe_load(fh)
-    with open(COARSE_CONFIG) as fh:
-        for k, v in yaml.safe_load(fh).items():
-            cfg[k] = {**cfg.get(k, {}), **v}
+    for path in (COARSE_CONFIG, *overlays):
+        with open(path) as fh:
+            for k, v in yaml.safe_load(fh).items():
+                cfg[k] = {**cfg.get(k, {}), **v}
     return cfg
 
 

@@ -15,7 +15,7 @@ from jointid.reporting.checks import check_table1
 from jointid.reporting.provenance import run_record
 from jointid.config import ConfigStamp, config_hash, load_config
 
-from conftest import REPO, STATES, clone_run, run_snakemake
+from conftest import COARSE_RUN, REPO, STATES, clone_run, coarse_config_dict, run_snakemake
 
 PAPER_T1 = REPO / "data" / "paper" / "paper_table1.csv"
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -222,9 +222,7 @@ def test_harmonic_table1_and_report_on_the_coarse_run(coarse_run, tmp_path):
                 "<b>Measured FRFs</b>"):
         assert key in page, key
     assert not re.search(r"""(src|href)=['"](?!data:|#)""", page), "the page must not link external files"
-    cfg = load_config(REPO / "config.yaml", overrides=__import__("yaml").safe_load(
-        (REPO / "tests" / "coarse_config.yaml").read_text()))
-    assert config_hash(cfg) in page
+    assert config_hash(load_config(coarse_config_dict(COARSE_RUN))) in page  # the run's configuration
     for key in ("Table 1", "Table 2", "Table 3", "104,547", f"{tab.dynamic_stiffness_N_per_mm.iloc[0]:,.0f}",
                 "numpy", "k_normal_N_per_m3"):
         assert key in page, key
