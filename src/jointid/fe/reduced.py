@@ -198,7 +198,7 @@ class ReducedSolver:
         return self._fac
 
     def settle(self) -> None:
-        """Wait for a background factorisation (:attr:`prefactor`) to finish and keep it: before any other
+        """Wait for the background factorisation (``prefactor``) to finish and keep it: before any other
         factorisation of the pencil, whose fill-reducing ordering the first one records."""
         if self._pending is not None:
             self._take_pending()
