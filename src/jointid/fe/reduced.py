@@ -162,10 +162,10 @@ class ReducedSolver:
             return
         # the kept products, else each cast to the basis's storage as formed
         kept_prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
-        todo = [(p is None or p.dtype != PRODUCT_DTYPE, A) for p, A in zip(kept_prods, (self.K_terms["K0"], self.M_terms["M0"]))]
-        first = _background(stored_product, todo[0][1], V) if todo[0][0] else kept_prods[0]
-        second = stored_product(todo[1][1], V) if todo[1][0] else kept_prods[1]  # here, beside the first
-        prods = [first.result() if isinstance(first, Future) else first, second]
+        KV, MV = (p if p is not None and p.dtype == PRODUCT_DTYPE else None for p in kept_prods)
+        KV = KV if KV is not None else _background(stored_product, self.K_terms["K0"], V)
+        MV = MV if MV is not None else stored_product(self.M_terms["M0"], V)  # here, beside K0's
+        prods = [KV.result() if isinstance(KV, Future) else KV, MV]
         self.basis.adopt(V, *prods)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
