@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from jointid.fe import basis, fem, warmstart
+from jointid.fe import basis, fem, reduced, warmstart
 from jointid.fe.reduced import ReducedSolver
 from jointid.config.typed_diagnosis import DiagnoseJob
 from conftest import truth_settings
@@ -53,10 +53,9 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     warmstart.save(tmp_path / "bare.npz", rs, m)
     bare = warmstart.load(tmp_path / "bare.npz", m, 29)[0]
     assert bare.KV is None and bare.MV is None  # by default formed again by the reader (results/ <= 500 MB)
-    warmstart.save(tmp_path / "s.npz", rs, m, products=("KV",))
+    warmstart.save(tmp_path / "s.npz", rs, m, products=("KV", "MV"))
     kept = warmstart.load(tmp_path / "s.npz", m, 29)[0]
-    assert kept.KV is not None and kept.KV.dtype == basis.PRODUCT_DTYPE
-    assert kept.MV is None
+    assert kept.KV is not None and kept.KV.dtype == basis.PRODUCT_DTYPE and kept.MV is not None
     formed = [(A @ kept.V).astype(basis.PRODUCT_DTYPE) for A in (rs.K_terms["K0"], rs.M_terms["M0"])]
     same = _solver(m, kept=kept)
     assert same.n_full_solves == 0 and np.array_equal(same.V, rs.V)
@@ -66,16 +65,29 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     assert np.array_equal(same.solve(*point, 4, refine=False).freqs_Hz, ref.freqs_Hz)
     assert same.n_factorizations == 0  # a rerun the kept basis answers never factorises (made when first asked)
     assert np.array_equal(same.fac.solve(np.ones(29)), rs.fac.solve(np.ones(29))) and same.n_factorizations == 1
-    from_bare = _solver(m, kept=bare)  # the products formed from the kept basis: the same bits
+    from_bare = _solver(m, kept=bare)  # the products deferred: the few checks of a rerun use the sparse terms
+    assert from_bare.basis.deferred and from_bare.basis.KV is None and from_bare.basis.product("K", np.eye(3)) is None
+    deferred = from_bare.solve(*point, 4, recheck=True)  # checked by the sparse terms
+    assert deferred.error <= from_bare.tol and np.allclose(deferred.freqs_Hz, ref.freqs_Hz, rtol=1e-12)
+    assert from_bare.basis.deferred  # one point checked: still deferred
+    from_bare.before_check(reduced.CHECKS_BEFORE_PRODUCTS)  # many points checked: formed, the same bits
+    assert not from_bare.basis.deferred
     assert np.array_equal(from_bare.basis.KV, formed[0]) and np.array_equal(from_bare.basis.MV, formed[1])
+    # the estimate of the same check by the cached single-precision products: equal to far inside the tolerance
+    cached = from_bare.solve(*point, 4, recheck=True)
+    assert abs(cached.error - deferred.error) <= 1e-3 * from_bare.tol
+    # the basis grows after the products were formed: the new columns append their own products
+    from_bare._append(np.random.default_rng(3).standard_normal((29, 2)))  # (what an enrichment step does)
+    grown_KV = (from_bare.K_terms["K0"] @ from_bare.V).astype(basis.PRODUCT_DTYPE)
+    assert from_bare.V.shape[1] > formed[0].shape[1] and np.array_equal(from_bare.basis.KV, grown_KV)
     # factorised in a background thread while the products are formed (the diagnosis's solver): the same
     # products, the same factorisation, made once, and the same certified answers
     warmstart.save(tmp_path / "bare.npz", rs, m)
     early = ReducedSolver(m, {"K_a": 1e5}, {}, 4, [({"K_a": 1.0}, {})], backend="scipy",
                           basis=warmstart.load(tmp_path / "bare.npz", m, 29)[0], prefactor=True)
-    assert np.array_equal(early.basis.KV, formed[0]) and np.array_equal(early.basis.MV, formed[1])
+    assert early.basis.deferred
     assert np.array_equal(early.fac.solve(np.ones(29)), rs.fac.solve(np.ones(29))) and early.n_factorizations == 1
-    assert np.array_equal(early.solve(*point, 4).freqs_Hz, from_bare.solve(*point, 4).freqs_Hz)
+    assert np.array_equal(early.solve(*point, 4).freqs_Hz, ref.freqs_Hz)
     assert early.n_factorizations == 1
     # other reference masses: the basis is orthonormalised afresh, the answers stay certified
     m2 = fem.Model(stiffness=m.stiffness, mass={"M0": m.mass["M0"], "M_b": m.mass["M0"]}, fixed=m.fixed,
@@ -118,8 +130,13 @@ def test_points_certified_on_the_kept_columns_are_not_checked_again(tmp_path):
     # a point the last run never checked is checked as always
     warm.solve({"K_a": 7e5}, {}, 4)
     assert warm.n_checks == checks + 1
-    # a certificate asks for a fresh check (recheck), whatever was kept
+    # a certificate at a point the last run checked on the kept columns takes that check (the same evidence)
+    assert warm.kept_check(*point, 4) == (kept.certified_at(0)[warm._point(*point, 4)])
     warm.verify(*point, 4)
+    assert warm.n_checks == checks + 1
+    # a certificate at a point the last run did not check is checked in the full space
+    assert warm.kept_check({"K_a": 9e5}, {}, 4) is None
+    warm.verify({"K_a": 9e5}, {}, 4)
     assert warm.n_checks == checks + 2
 
 

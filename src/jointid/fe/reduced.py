@@ -47,6 +47,11 @@ class Solution:
     error: float = float("nan")  # estimated relative eigenvalue error after refinement (nan: not refined)
 
 
+CHECKS_BEFORE_PRODUCTS = 32
+"""Points a solver started from a kept basis checks before it forms the basis's products with ``K0`` and
+``M0`` (:mod:`jointid.fe.basis`): each such check multiplies by the sparse terms instead, about 0.075 s
+more per point on the default mesh (448 vectors), where forming the two products costs about 3.3
+core-seconds, about 44 points' worth.  A rerun whose fits the kept basis answers checks a few points."""
 _THREADS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="jointid-reduced")
 
 
@@ -86,11 +91,12 @@ class ReducedSolver:
         A basis to start from instead of the reference modes and their responses (kept from an
         earlier run on the same model, :mod:`jointid.fe.warmstart`).
     prefactor : bool
-        With ``basis``: factorise at the reference point in a background thread while the basis's
-        products are formed, for a caller that checks a point in the full space in any case (the
-        diagnosis certifies its answers).  Without it the factorisation waits until first asked for
-        (a rerun whose fits the kept basis answers never makes it).  Either way it is the same
-        factorisation, made once.
+        With ``basis``: factorise at the reference point in a background thread while the fits begin,
+        for a caller that checks a point in the full space in any case (the diagnosis certifies its
+        answers).  Without it the factorisation waits until first asked for (a rerun whose fits the
+        kept basis answers never makes it).  Either way it is the same factorisation, made once.
+        A kept basis's products with ``K0`` and ``M0`` are formed after :data:`CHECKS_BEFORE_PRODUCTS`
+        checked points (:meth:`before_check`).
     """
 
     def __init__(self, system: AffineModel, kc: dict, mc: dict, n_modes: int, directions=(), *,
@@ -122,6 +128,7 @@ class ReducedSolver:
         self.M_ref = None
         self._refined: dict = {}  # refined solutions by (coefficients, basis), see solve
         self._certified: dict = {}  # (coefficients, n, generation) -> (basis size, error) of a passed check
+        self._kept_points: set = set()  # the keys of _certified that an earlier run's checks gave (kept basis)
         self.n_checks = self.n_checks_skipped = 0
         self.sturm_counts: dict = {}  # point_key -> [(frequency Hz, full-model modes below it)]
         self.fallbacks: dict = {}  # point_key -> why a full solve answered there (certify.full_solve)
@@ -129,6 +136,7 @@ class ReducedSolver:
         self.mc_ref = dict(mc)
         self.n_factorizations = 0
         self._pending = None  # the reference point's factorisation under way in a background thread
+        self._checked_without_products = 0  # points checked while a kept basis's products are deferred
         if basis is not None:  # factorised when first asked for (a rerun whose fits the kept basis answers never is)
             self._fac, self._fac_at, self.M_ref = None, (kc, mc), self.M(mc)
             if prefactor:
@@ -160,17 +168,32 @@ class ReducedSolver:
         if kept.mc_ref != self.mc_ref or set(kept.Kr) != set(self.K_terms) or set(kept.Mr) != set(self.M_terms):
             self._append(V)
             return
-        # the kept products, else each cast to the basis's storage as formed
+        # the kept products, else deferred until the checks are many (before_check)
         kept_prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
         KV, MV = (p if p is not None and p.dtype == PRODUCT_DTYPE else None for p in kept_prods)
-        KV = KV if KV is not None else _background(stored_product, self.K_terms["K0"], V)
-        MV = MV if MV is not None else stored_product(self.M_terms["M0"], V)  # here, beside K0's
-        prods = [KV.result() if isinstance(KV, Future) else KV, MV]
-        self.basis.adopt(V, *prods)
+        self.basis.adopt(V, KV, MV)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
-        self._certified.update(kept.certified_at(self.generation))
+        kept_checks = kept.certified_at(self.generation)
+        self._certified.update(kept_checks)
+        self._kept_points = set(kept_checks)
         self._regroup()
+
+    def before_check(self, n_points: int) -> None:
+        """Called by each full-space check of ``n_points`` points (:func:`jointid.fe.certify.check_points`):
+        a kept basis's deferred products ``K0 V`` and ``M0 V`` are formed once
+        :data:`CHECKS_BEFORE_PRODUCTS` points have been checked without them (``K0 V`` in a background
+        thread beside ``M0 V``).  The count, not the clock, decides: the same run forms them at the same check."""
+        if not self.basis.deferred:
+            return
+        self._checked_without_products += n_points
+        if self._checked_without_products > CHECKS_BEFORE_PRODUCTS:
+            V = self.V
+            KV = _background(stored_product, self.K_terms["K0"], V)
+            MV = stored_product(self.M_terms["M0"], V)
+            self.basis.form_products(KV.result(), MV)
+            self._say(f"the products of the {V.shape[1]} kept vectors with K0 and M0 formed after "
+                      f"{self._checked_without_products - n_points} points checked without them")
 
     @property
     def V(self) -> np.ndarray:
@@ -398,6 +421,13 @@ class ReducedSolver:
             self._refined[self._key(kc, mc, n)] = sol
             self._certify(kc, mc, n, self.basis.r, worst)
         return sol
+
+    def kept_check(self, kc: dict, mc: dict, n: int) -> tuple[int, float] | None:
+        """``(basis size, estimated error)`` of the check an earlier run passed at this very point on
+        the kept columns (:mod:`jointid.fe.warmstart`), while the basis still contains them; else None."""
+        key = self._point(kc, mc, n)
+        hit = self._certified.get(key) if key in self._kept_points else None
+        return hit if hit is not None and hit[0] <= self.basis.r else None
 
     def _certify(self, kc: dict, mc: dict, n: int, r: int, worst: float) -> None:
         if len(self._certified) > 4096:

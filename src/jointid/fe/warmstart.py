@@ -12,14 +12,16 @@ tolerance, a Sturm count at the reported optima), so a warm run agrees with a ru
 that tolerance (1e-6 relative in each eigenvalue), not bit for bit.  A run from clean has no file
 to start from, so it stays bit-reproducible; ``diagnosis.reuse_subspace: false`` makes every run so.
 
-The file keeps the basis, not its products with the model's matrices (``K0 V``, ``M0 V``): a run that
-adopts the basis forms them again (about 3 s for ``K0 V`` and 1 s for ``M0 V`` on the default mesh, 342
-vectors).  Kept in single precision as the solver holds them, they would add half the basis's size again
-(about 125 MB of ``results/`` for the paper's 533 vectors; ``results/`` is held to 500 MB, issue 54).  It also keeps what the
+The file keeps the basis, not its products with the model's matrices (``K0 V``, ``M0 V``). Kept in
+single precision as the solver holds them, they would add half the basis's size again (about 105 MB
+of ``results/`` for the paper's 448 vectors; ``results/`` is held to 500 MB, issue 54).  A run that
+adopts the basis defers them: its first checks multiply by the sparse terms, and it forms the
+products (about 2.4 s for ``K0 V`` and 0.9 s for ``M0 V`` on the default mesh) only when its checks
+become many (:data:`jointid.fe.reduced.CHECKS_BEFORE_PRODUCTS`).  It also keeps what the
 run learnt at single points of the model: its Sturm counts (a count is the model's, at those
 coefficients, whatever the subspace), the points whose full-space check passed
-on the kept columns (still passed on the same columns: a run that asks them again checks nothing
-there unless it re-certifies an optimum) and the records of its fits
+on the kept columns (still passed on the same columns: a run that asks them again, or certifies an
+optimum there, checks nothing there) and the records of its fits
 (:class:`jointid.diagnosis.memo.FitMemo`: a fit asked again with exactly the same inputs starts at
 its recorded optimum and is checked there, unless a kept check already passed there).
 """
