@@ -86,6 +86,8 @@ def test_a_fit_asked_again_is_evaluated_at_its_recorded_optimum(tmp_path):
     assert np.array_equal(f2.x, f1.x) and np.isclose(f2.chi2, f1.chi2, rtol=1e-6)
     assert [list(i) for i in f2.ev.index] == [list(i) for i in f1.ev.index]
     assert second.solver.n_checks < searched  # one evaluation at the optimum, no search
+    # a rerun with records defers its basis's products with K0 and M0 (few checks follow); a first run does not
+    assert second.solver._defer_products and not first.solver._defer_products
     # another start is another question: searched, and recorded
     f3 = second.fit(base, base.x_start() + 0.1)
     assert second.memo.misses == 1 and len(second.memo.records) == 2 and np.isfinite(f3.chi2)

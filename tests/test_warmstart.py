@@ -24,8 +24,8 @@ def _model(scale=1.0):
                      dof_part=np.zeros(n // 3, dtype=int))
 
 
-def _solver(model, mc=None, kept=None):
-    return ReducedSolver(model, {"K_a": 1e5}, mc or {}, 4, [({"K_a": 1.0}, {})], backend="scipy", basis=kept)
+def _solver(model, mc=None, kept=None, **kw):
+    return ReducedSolver(model, {"K_a": 1e5}, mc or {}, 4, [({"K_a": 1.0}, {})], backend="scipy", basis=kept, **kw)
 
 
 def test_kept_basis_is_read_back_for_its_model_only(tmp_path):
@@ -65,7 +65,9 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     assert np.array_equal(same.solve(*point, 4, refine=False).freqs_Hz, ref.freqs_Hz)
     assert same.n_factorizations == 0  # a rerun the kept basis answers never factorises (made when first asked)
     assert np.array_equal(same.fac.solve(np.ones(29)), rs.fac.solve(np.ones(29))) and same.n_factorizations == 1
-    from_bare = _solver(m, kept=bare)  # the products deferred: the few checks of a rerun use the sparse terms
+    now = _solver(m, kept=warmstart.load(tmp_path / "bare.npz", m, 29)[0])  # formed when the solver starts
+    assert np.array_equal(now.basis.KV, formed[0]) and np.array_equal(now.basis.MV, formed[1])
+    from_bare = _solver(m, kept=bare, defer_products=True)  # deferred: the few checks of a rerun use the sparse terms
     assert from_bare.basis.deferred and from_bare.basis.KV is None and from_bare.basis.product("K", np.eye(3)) is None
     deferred = from_bare.solve(*point, 4, recheck=True)  # checked by the sparse terms
     assert deferred.error <= from_bare.tol and np.allclose(deferred.freqs_Hz, ref.freqs_Hz, rtol=1e-12)
@@ -85,7 +87,7 @@ def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     warmstart.save(tmp_path / "bare.npz", rs, m)
     early = ReducedSolver(m, {"K_a": 1e5}, {}, 4, [({"K_a": 1.0}, {})], backend="scipy",
                           basis=warmstart.load(tmp_path / "bare.npz", m, 29)[0], prefactor=True)
-    assert early.basis.deferred
+    assert np.array_equal(early.basis.KV, formed[0]) and np.array_equal(early.basis.MV, formed[1])
     assert np.array_equal(early.fac.solve(np.ones(29)), rs.fac.solve(np.ones(29))) and early.n_factorizations == 1
     assert np.array_equal(early.solve(*point, 4).freqs_Hz, ref.freqs_Hz)
     assert early.n_factorizations == 1

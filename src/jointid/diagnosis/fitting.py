@@ -102,7 +102,9 @@ class Diagnoser:
         m = max(len(d.f_meas) for d in self.data)
         self.solver = ReducedSolver(self.system, kc, mc, self.n_modes, directions, shift_Hz=self._shift,
                                     backend=self._backend, tol=self._tol, n_seed=m + 2, basis=self.start_basis,
-                                    prefactor=True)  # every diagnosis checks points in the full space
+                                    prefactor=True,  # every diagnosis checks points in the full space
+                                    # a rerun with records of its fits checks few points (fe.reduced.CHECKS_BEFORE_PRODUCTS)
+                                    defer_products=self.memo is not None and bool(self.memo.records))
         kept, self.start_basis = self.start_basis, None  # taken over by the solver
         self.solver.log = self.log
         kept = " (started from a kept basis)" if kept is not None else ""

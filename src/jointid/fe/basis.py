@@ -5,8 +5,9 @@ already stored.  ``K0 V`` and ``M0 V`` are kept beside ``V`` while the two produ
 :data:`BASE_PRODUCT_BYTES`: a full-space residual ``K(c) V y - lambda M(m) V y`` then needs neither
 an assembly nor a product with the whole stiffness (the other terms touch few rows).
 
-A basis taken over from an earlier run (:meth:`GrowingBasis.adopt` without products) has them
-*deferred*: the few checks of a rerun multiply by the sparse terms instead (about 0.15 s more per
+A basis taken over from an earlier run may have them *deferred* (:meth:`GrowingBasis.adopt` without
+products; the diagnosis's rerun, :class:`jointid.fe.reduced.ReducedSolver` ``defer_products``): the
+few checks of a rerun multiply by the sparse terms instead (about 0.15 s more per
 check of two states on the default mesh, against about 3.3 core-seconds to form both products of
 448 vectors), and the solver forms them when its checks become many
 (:data:`jointid.fe.reduced.CHECKS_BEFORE_PRODUCTS`).

@@ -48,7 +48,7 @@ class Solution:
 
 
 CHECKS_BEFORE_PRODUCTS = 32
-"""Points a solver started from a kept basis checks before it forms the basis's products with ``K0`` and
+"""Points a solver started from a kept basis with ``defer_products`` checks before it forms the basis's products with ``K0`` and
 ``M0`` (:mod:`jointid.fe.basis`): each such check multiplies by the sparse terms instead, about 0.075 s
 more per point on the default mesh (448 vectors), where forming the two products costs about 3.3
 core-seconds, about 44 points' worth.  A rerun whose fits the kept basis answers checks a few points."""
@@ -95,13 +95,15 @@ class ReducedSolver:
         for a caller that checks a point in the full space in any case (the diagnosis certifies its
         answers).  Without it the factorisation waits until first asked for (a rerun whose fits the
         kept basis answers never makes it).  Either way it is the same factorisation, made once.
-        A kept basis's products with ``K0`` and ``M0`` are formed after :data:`CHECKS_BEFORE_PRODUCTS`
-        checked points (:meth:`before_check`).
+    defer_products : bool
+        With ``basis``: form the basis's products with ``K0`` and ``M0`` only after
+        :data:`CHECKS_BEFORE_PRODUCTS` checked points (:meth:`before_check`), for a rerun whose records
+        answer most of its questions (the diagnosis's loop); else when the solver starts.
     """
 
     def __init__(self, system: AffineModel, kc: dict, mc: dict, n_modes: int, directions=(), *,
                  shift_Hz: float = -10.0, backend: str = "auto", tol: float = 1e-6, max_basis: int = 900,
-                 n_seed: int | None = None, basis=None, prefactor: bool = False):
+                 n_seed: int | None = None, basis=None, prefactor: bool = False, defer_products: bool = False):
         # many parameters: the reduced solver's options (shift, backend, tolerance, basis size, seed), keyword with defaults
         self.system = system
         self.n_modes = int(n_modes)
@@ -137,6 +139,7 @@ class ReducedSolver:
         self.n_factorizations = 0
         self._pending = None  # the reference point's factorisation under way in a background thread
         self._checked_without_products = 0  # points checked while a kept basis's products are deferred
+        self._defer_products = defer_products
         if basis is not None:  # factorised when first asked for (a rerun whose fits the kept basis answers never is)
             self._fac, self._fac_at, self.M_ref = None, (kc, mc), self.M(mc)
             if prefactor:
@@ -168,9 +171,11 @@ class ReducedSolver:
         if kept.mc_ref != self.mc_ref or set(kept.Kr) != set(self.K_terms) or set(kept.Mr) != set(self.M_terms):
             self._append(V)
             return
-        # the kept products, else deferred until the checks are many (before_check)
+        # the kept products, else formed now, or deferred until the checks are many (before_check)
         kept_prods, kept.KV, kept.MV = (kept.KV, kept.MV), None, None
         KV, MV = (p if p is not None and p.dtype == PRODUCT_DTYPE else None for p in kept_prods)
+        if (KV is None or MV is None) and not self._defer_products:
+            KV, MV = self._products_with(V)
         self.basis.adopt(V, KV, MV)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
@@ -188,12 +193,15 @@ class ReducedSolver:
             return
         self._checked_without_products += n_points
         if self._checked_without_products > CHECKS_BEFORE_PRODUCTS:
-            V = self.V
-            KV = _background(stored_product, self.K_terms["K0"], V)
-            MV = stored_product(self.M_terms["M0"], V)
-            self.basis.form_products(KV.result(), MV)
-            self._say(f"the products of the {V.shape[1]} kept vectors with K0 and M0 formed after "
+            self.basis.form_products(*self._products_with(self.V))
+            self._say(f"the products of the {self.V.shape[1]} kept vectors with K0 and M0 formed after "
                       f"{self._checked_without_products - n_points} points checked without them")
+
+    def _products_with(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``K0 V`` and ``M0 V`` as the basis stores them: ``K0 V`` in a background thread beside ``M0 V``."""
+        KV = _background(stored_product, self.K_terms["K0"], V)
+        MV = stored_product(self.M_terms["M0"], V)  # here, beside K0's
+        return KV.result(), MV
 
     @property
     def V(self) -> np.ndarray:

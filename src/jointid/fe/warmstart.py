@@ -15,9 +15,10 @@ to start from, so it stays bit-reproducible; ``diagnosis.reuse_subspace: false``
 The file keeps the basis, not its products with the model's matrices (``K0 V``, ``M0 V``). Kept in
 single precision as the solver holds them, they would add half the basis's size again (about 105 MB
 of ``results/`` for the paper's 448 vectors; ``results/`` is held to 500 MB, issue 54).  A run that
-adopts the basis defers them: its first checks multiply by the sparse terms, and it forms the
-products (about 2.4 s for ``K0 V`` and 0.9 s for ``M0 V`` on the default mesh) only when its checks
-become many (:data:`jointid.fe.reduced.CHECKS_BEFORE_PRODUCTS`).  It also keeps what the
+adopts the basis forms them again (about 2.4 s for ``K0 V`` and 0.9 s for ``M0 V`` on the default
+mesh), or, a diagnosis rerun with records of its fits, defers them: its first checks multiply by the
+sparse terms, and it forms the products only when its checks become many
+(:data:`jointid.fe.reduced.CHECKS_BEFORE_PRODUCTS`).  It also keeps what the
 run learnt at single points of the model: its Sturm counts (a count is the model's, at those
 coefficients, whatever the subspace), the points whose full-space check passed
 on the kept columns (still passed on the same columns: a run that asks them again, or certifies an
