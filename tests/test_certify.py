@@ -136,3 +136,22 @@ def test_single_precision_base_products_leave_the_error_estimate_unchanged(model
         exact = (TWO_PI * _exact_Hz(model, *pt, N_MODES)) ** 2
         true = (single.lam[:N_MODES] - exact) / exact
         assert np.all(single.err >= 0.5 * true - 1e-12) and np.all(single.err <= 5.0 * true + 1e-11)
+
+
+def test_ritz_pairs_asked_again_on_the_same_basis_come_from_the_memo(monkeypatch):
+    rs = ReducedSolver(_chain(), *REF, N_MODES, [({"K_ground": 1.0}, {}), ({}, {"M_point": 1.0})], backend="scipy")
+    calls = []
+    eigh = sla.eigh
+    monkeypatch.setattr(sla, "eigh", lambda *a, **k: calls.append(1) or eigh(*a, **k))
+    lam, Y = rs._ritz(*NEAR, N_MODES)
+    Y[:] = 0.0  # a caller's change of its copy reaches nobody else
+    lam2, Y2 = rs._ritz(*NEAR, N_MODES)
+    assert len(calls) == 1 and np.array_equal(lam2, lam) and np.abs(Y2).max() > 0
+    rs._ritz(*NEAR, N_MODES + 1)  # another mode count: another question
+    assert len(calls) == 2
+    fresh = eigh(rs._grouped(NEAR[0], rs.Kr, "K0"), rs._grouped(NEAR[1], rs.Mr, "M0"), check_finite=False,
+                 subset_by_index=[0, N_MODES - 1], driver="gvx")
+    assert np.array_equal(fresh[0], lam2) and np.array_equal(fresh[1], Y2)  # the same bits as a fresh solve
+    rs._append(np.random.default_rng(0).standard_normal((N - 1, 1)))  # the basis grew: asked afresh
+    rs._ritz(*NEAR, N_MODES)
+    assert len(calls) == 3

@@ -55,6 +55,7 @@ import difflib
 import math
 import warnings
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
@@ -154,12 +155,12 @@ class Effect:
         return {p.name: p.null for p in self.params}
 
 
-def _carriage_loads(system: System, state: StateInfo, opts: dict, force: float) -> np.ndarray:
-    m = opts.get("carried_mass_kg") or system.carried_mass_kg
+def _carriage_loads(xz: np.ndarray, m: float, force: float, fx_m: float, fz_m: float) -> np.ndarray:
+    """Normal load of each carriage at ``xz`` (m) under the weight of ``m`` kg and ``force`` N (its
+    lever arms ``fx_m``, ``fz_m``)."""
     w = force + m * G
-    lx = force * opts.get("force_x_m", 0.0) / w if w > 0 else 0.0
-    lz = force * opts.get("force_z_m", 0.0) / w if w > 0 else 0.0
-    xz = system.carriage_xz_m
+    lx = force * fx_m / w if w > 0 else 0.0
+    lz = force * fz_m / w if w > 0 else 0.0
     if len(xz) < 3 or np.linalg.matrix_rank(np.column_stack([np.ones(len(xz)), xz])) < 3:
         # one carriage, or carriages on one line: the plane of settlement is not determined by
         # them; the load is shared equally (exact for one carriage, and for a load between two)
@@ -169,11 +170,23 @@ def _carriage_loads(system: System, state: StateInfo, opts: dict, force: float) 
         return carriage_loads_N(force, m, xz[:, 0], xz[:, 1], load_x_m=lx, load_z_m=lz)
 
 
+@lru_cache(maxsize=256)
+def _loaded_and_weight(xz: tuple, m: float, force: float, pre: float, fx_m: float, fz_m: float) -> tuple:
+    """Carriage loads (N) with ``force`` and with the weight alone, each plus the preload ``pre``:
+    the same numbers at every fit of a state, so computed once (a fit asks thousands of times)."""
+    xz_m = np.array(xz, dtype=float).reshape(-1, 2)
+    f = _carriage_loads(xz_m, m, force, fx_m, fz_m) + pre
+    f0 = _carriage_loads(xz_m, m, 0.0, fx_m, fz_m) + pre
+    f.flags.writeable = f0.flags.writeable = False
+    return f, f0
+
+
 def pressure_ratio(system: System, state: StateInfo, opts: dict) -> np.ndarray:
     """Contact-pressure ratio of each carriage, loaded state over weight only, ``(n_carriages,)``."""
-    pre = float(opts.get("preload_N", 0.0))
-    f = _carriage_loads(system, state, opts, float(state.em_force_N)) + pre
-    f0 = _carriage_loads(system, state, opts, 0.0) + pre
+    m = opts.get("carried_mass_kg") or system.carried_mass_kg
+    xz = tuple(np.asarray(system.carriage_xz_m, dtype=float).ravel().tolist())
+    f, f0 = _loaded_and_weight(xz, float(m), float(state.em_force_N), float(opts.get("preload_N", 0.0)),
+                               float(opts.get("force_x_m", 0.0)), float(opts.get("force_z_m", 0.0)))
     if np.any(f <= 0) or np.any(f0 <= 0):
         raise ModelError(f"effects.em_preload: a carriage lifts off in state {state.name} (loads "
                          f"{np.round(f, 1).tolist()} N) — the law k = alpha p^beta needs contact; "

@@ -47,6 +47,8 @@ class Solution:
     error: float = float("nan")  # estimated relative eigenvalue error after refinement (nan: not refined)
 
 
+RITZ_MEMO = 128
+"""Most points whose Ritz pairs a solver keeps (:meth:`ReducedSolver._ritz`; about 50 kB each at 448 vectors)."""
 CHECKS_BEFORE_PRODUCTS = 32
 """Points a solver started from a kept basis with ``defer_products`` checks before it forms the basis's products with ``K0`` and
 ``M0`` (:mod:`jointid.fe.basis`): each such check multiplies by the sparse terms instead, about 0.075 s
@@ -129,6 +131,7 @@ class ReducedSolver:
         self.Mr = {k: np.zeros((0, 0)) for k in self.M_terms}
         self.M_ref = None
         self._refined: dict = {}  # refined solutions by (coefficients, basis), see solve
+        self._ritz_memo: dict = {}  # Ritz pairs by (coefficients, n, basis), see _ritz
         self._certified: dict = {}  # (coefficients, n, generation) -> (basis size, error) of a passed check
         self._kept_points: set = set()  # the keys of _certified that an earlier run's checks gave (kept basis)
         self.n_checks = self.n_checks_skipped = 0
@@ -349,10 +352,19 @@ class ReducedSolver:
 
     # ------------------------------------------------------------ solve
     def _ritz(self, kc, mc, n=None):
-        Kr, Mr = self._grouped(kc, self.Kr, "K0"), self._grouped(mc, self.Mr, "M0")
-        n = min(n or self.n_modes, Kr.shape[0])
-        lam, Y = sla.eigh(Kr, Mr, check_finite=False, subset_by_index=[0, n - 1], driver="gvx")
-        return lam, Y
+        """The lowest ``n`` Ritz pairs at ``(kc, mc)`` on the current basis; a point asked again on the
+        same basis (a fit's optimum evaluated, then certified, then described) is answered from
+        :attr:`_ritz_memo` (copies: the same bits, no second dense eigen-solve)."""
+        key = self._key(kc, mc, n or self.n_modes)
+        hit = self._ritz_memo.get(key)
+        if hit is None:
+            Kr, Mr = self._grouped(kc, self.Kr, "K0"), self._grouped(mc, self.Mr, "M0")
+            m = min(n or self.n_modes, Kr.shape[0])
+            hit = sla.eigh(Kr, Mr, check_finite=False, subset_by_index=[0, m - 1], driver="gvx")
+            if len(self._ritz_memo) >= RITZ_MEMO:
+                self._ritz_memo.pop(next(iter(self._ritz_memo)))
+            self._ritz_memo[key] = hit
+        return hit[0].copy(), hit[1].copy()
 
     def _apply(self, coeffs: dict, Y: np.ndarray, group: str, base_product: np.ndarray | None = None) -> np.ndarray:
         """``A(coeffs) V Y`` for the stiffness (``group`` "K") or mass ("M") on the free DOFs: the
