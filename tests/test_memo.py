@@ -162,3 +162,32 @@ def test_near_tied_optima_are_taken_in_start_order_and_rounded_starts():
     assert best_fit([SimpleNamespace(chi2=float("nan")), c]) is c
     assert rounded_start(0.2978484991548744) == 0.298 and rounded_start(0.2978502) == 0.298
     assert rounded_start(1.2345e-5) == 1.23e-5
+
+
+def test_a_value_remembered_is_computed_once_and_read_back_exactly():
+    """Diagnoser.remembered: the one path by which the mesh errors, the beta-P curves and the modes'
+    descriptions are recorded and read back."""
+    from jointid.diagnosis.fitting import Diagnoser
+
+    lines, calls = [], []
+
+    def diagnoser(memo):
+        d = Diagnoser.__new__(Diagnoser)  # only what remembered reads
+        d.memo, d.log, d.context_digest = memo, lines.append, lambda: "context"
+        return d
+
+    value = [0.1, 1 / 3]
+    compute = lambda: calls.append(1) or list(value)  # noqa: E731
+    encode, decode = (lambda v: [x.hex() for x in v]), (lambda r: [float.fromhex(x) for x in r])
+    first = diagnoser(FitMemo())
+    assert first.remembered("v", (1, np.array([2.0])), compute, encode, decode, said="read") == value
+    assert len(calls) == 1 and lines == []
+    again = diagnoser(FitMemo(first.memo.records))  # as read back from the kept file
+    assert again.remembered("v", (1, np.array([2.0])), compute, encode, decode, said="read") == value
+    assert len(calls) == 1 and lines == ["read"]  # exactly, not computed again
+    again.remembered("v", (1, np.array([3.0])), compute, encode, decode)  # other parts: another value
+    assert len(calls) == 2
+    n = len(again.memo.records)
+    assert again.remembered("w", (), lambda: None, encode, decode) is None and len(again.memo.records) == n
+    assert diagnoser(None).remembered("v", (1, np.array([2.0])), compute, encode, decode) == value
+    assert len(calls) == 3  # without a memo: computed

@@ -83,6 +83,24 @@ class Diagnoser:
         as they are now."""
         return self.memo.context(self.settings, self.data, self.n_modes, self._tol, self.mac_threshold)
 
+    def remembered(self, name: str, parts: tuple, compute, encode, decode, *, said: str | None = None):
+        """``compute()``, or the value recorded for ``(name, *parts)`` in this diagnoser's context by an
+        earlier run (:meth:`FitMemo.value_key`; ``decode`` turns the record back into the value, ``said``
+        is logged then).  A value computed is recorded as ``encode(value)`` (JSON-ready, exact); None is
+        not recorded.  Without a memo: ``compute()``."""
+        if self.memo is None:
+            return compute()
+        key = self.memo.value_key(self.context_digest(), name, *parts)
+        rec = self.memo.get_value(key)
+        if rec is not None:
+            if said:
+                self.log(said)
+            return decode(rec)
+        value = compute()
+        if value is not None:
+            self.memo.put_value(key, encode(value))
+        return value
+
     def reset_context(self) -> None:
         """Forget the memo's context digest: the states changed (a new mesh correction), so a fit recorded
         before is not the same fit."""

@@ -39,23 +39,19 @@ def _estimate_at(diag, variant, x, log) -> MeshErrors:
     """The mesh errors of every state at ``x`` of ``variant``, from the memo when it holds them.  The states
     must not carry a correction (their modes are solved here as the run's mesh gives them)."""
     halve = diag.settings.mesh_error_halve or DEFAULT_HALVE
-    key = rec = None
-    if diag.memo is not None:  # asked before at the same point of the same model and data: recorded
-        key = diag.memo.value_key(diag.context_digest(), "mesh_errors", variant.name, np.asarray(x, float),
-                                  list(halve) + ["per_solid"])  # "per_solid": recorded with it
-        rec = diag.memo.get_value(key)
-    if rec is not None:
-        log("diagnosis: the mesh error as recorded by an earlier run at the same point")
-        return MeshErrors.from_json(rec)
-    sols = diag.solve_states(variant, x)
-    index = [p.model_index for p in diag.pair(sols)]
-    diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
-    errors = estimate_mesh_errors(diag.settings.model, diag.system, diag.data, sols, index,
-                                  halve, n_modes=diag.n_modes, lift=diag.lift,
-                                  solid=[solid_share(diag.solver, s) for s in sols], log=log)
-    if key is not None:
-        diag.memo.put_value(key, errors.to_json())
-    return errors
+
+    def estimate() -> MeshErrors:
+        sols = diag.solve_states(variant, x)
+        index = [p.model_index for p in diag.pair(sols)]
+        diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
+        return estimate_mesh_errors(diag.settings.model, diag.system, diag.data, sols, index,
+                                    halve, n_modes=diag.n_modes, lift=diag.lift,
+                                    solid=[solid_share(diag.solver, s) for s in sols], log=log)
+
+    # asked before at the same point of the same model and data: recorded ("per_solid": recorded with it)
+    return diag.remembered("mesh_errors", (variant.name, np.asarray(x, float), list(halve) + ["per_solid"]),
+                           estimate, MeshErrors.to_json, MeshErrors.from_json,
+                           said="diagnosis: the mesh error as recorded by an earlier run at the same point")
 
 
 SOFTENING = 2.0

@@ -137,19 +137,17 @@ def preload_curve(diag: Diagnoser, fit: Fit) -> pd.DataFrame:
     """The (beta, P) pairs that give the fitted stiffness ratio (geometric mean over the carriages)
     of the most loaded state, with the chi-square each gives at the fitted joints (no refit).  With a
     memo (``diagnosis.reuse_subspace``) a curve asked again at the same fit is read from it, exactly."""
-    key = None
-    if diag.memo is not None:
-        key = diag.memo.value_key(diag.context_digest(), "preload_curve", variant_signature(fit.variant),
-                                  np.asarray(fit.x, float), [np.asarray(i, np.int64) for i in fit.ev.index])
-        rec = diag.memo.get_value(key)
-        if rec is not None:
-            return pd.DataFrame([{"preload_N": float.fromhex(P), "beta": float.fromhex(b),
-                                  "chi2": float.fromhex(c), "fitted": bool(f)} for P, b, c, f in rec])
-    curve = _preload_curve(diag, fit)
-    if key is not None:
-        diag.memo.put_value(key, [[float(r.preload_N).hex(), float(r.beta).hex(), float(r.chi2).hex(), bool(r.fitted)]
-                                  for r in curve.itertuples()])
-    return curve
+    parts = (variant_signature(fit.variant), np.asarray(fit.x, float), [np.asarray(i, np.int64) for i in fit.ev.index])
+    return diag.remembered("preload_curve", parts, lambda: _preload_curve(diag, fit), _curve_record, _curve_from_record)
+
+
+def _curve_record(curve: pd.DataFrame) -> list:
+    return [[float(r.preload_N).hex(), float(r.beta).hex(), float(r.chi2).hex(), bool(r.fitted)] for r in curve.itertuples()]
+
+
+def _curve_from_record(rec: list) -> pd.DataFrame:
+    return pd.DataFrame([{"preload_N": float.fromhex(P), "beta": float.fromhex(b), "chi2": float.fromhex(c),
+                          "fitted": bool(f)} for P, b, c, f in rec])
 
 
 def _preload_curve(diag: Diagnoser, fit: Fit) -> pd.DataFrame:

@@ -83,17 +83,9 @@ def parameter_table(fits: dict) -> pd.DataFrame:
 def mode_descriptions(diag: Diagnoser, sol: Solution) -> list[str] | None:
     """Plain-language description of each mode of ``sol`` (``jointid.fe.describe``).  With a memo
     (``diagnosis.reuse_subspace``) the descriptions at a point described before are read from it."""
-    key = None
-    if diag.memo is not None:
-        key = diag.memo.value_key(diag.context_digest(), "mode_descriptions", diag.solver.point_key(sol.kc, sol.mc),
-                                  len(sol.freqs_Hz))
-        rec = diag.memo.get_value(key)
-        if rec is not None:
-            return list(rec)
-    desc = _describe(diag, sol)
-    if key is not None and desc is not None:
-        diag.memo.put_value(key, [str(d) for d in desc])
-    return desc
+    parts = (diag.solver.point_key(sol.kc, sol.mc), len(sol.freqs_Hz))
+    return diag.remembered("mode_descriptions", parts, lambda: _describe(diag, sol),
+                           lambda desc: [str(d) for d in desc], list)
 
 
 def _describe(diag: Diagnoser, sol: Solution) -> list[str] | None:
