@@ -115,3 +115,25 @@ def test_cached_model_ordering_serves_any_parameter_point(tmp_path):
     x = fac.solve(b)
     fac.free()
     assert np.linalg.norm((Kf - shift_sigma(-10.0) * Mf) @ x - b) < 1e-10 * np.linalg.norm(b)
+
+
+def test_the_layout_is_made_once_when_first_needed_and_changes_no_product(model):
+    import threading
+
+    p = FreePencil(model)
+    assert not p._laid_out  # restricting the terms is all a new pencil does
+    X = np.random.default_rng(0).standard_normal((N - 2, 3))
+    before = p.K_terms["K0"] @ X
+    threads = [threading.Thread(target=p.layout) for _ in range(4)]  # a factorisation thread and the caller
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert p._laid_out
+    aligned = p.K_terms["K0"]
+    assert aligned.nnz == p.pattern.nnz > model.stiffness["K0"][2:, 2:].nnz  # K0 on the union pattern
+    assert np.array_equal(aligned @ X, before)  # its explicit zeros change no product
+    p.layout()
+    assert p.K_terms["K0"] is aligned  # made once
+    fresh = FreePencil(model)
+    assert np.array_equal(fresh.K(KC).toarray(), p.K(KC).toarray())  # the first assembly lays it out

@@ -128,6 +128,7 @@ def _base_products(rs: ReducedSolver, Ys: list[np.ndarray], group: str) -> list[
 def _sparse_base_products(rs: ReducedSolver, Ys: list[np.ndarray]) -> tuple[list, list]:
     """``K0 V Y`` and ``M0 V Y`` of every point by the sparse terms, ``V Y`` formed once for both (the
     products with the basis not cached, or deferred: :mod:`jointid.fe.basis`)."""
+    rs.pencil.layout()  # K0 aligned with the pencil's pattern, as everywhere
     phis = [rs.V @ Y for Y in Ys]
     return [rs.K_terms["K0"] @ phi for phi in phis], [rs.M_terms["M0"] @ phi for phi in phis]
 

@@ -12,6 +12,8 @@ ordering can be reused: :attr:`FreePencil.ordering`).
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -47,6 +49,24 @@ class FreePencil:
             A.sum_duplicates()
             A.sort_indices()
         release_model_pages(system)  # the terms are copied: the model file's pages are not needed
+        self.ordering = getattr(system, "ordering", None)  # cached with the model, if it was
+        self._lock = threading.Lock()
+        self._laid_out = False
+
+    def layout(self) -> None:
+        """Place the terms on the union of their patterns (once; thread-safe): what every assembly needs
+        (:meth:`K`, :meth:`shifted_upper`).  ``K_terms["K0"]`` is then the same matrix aligned with that
+        pattern.  Made when first needed, so that a caller may have it made in a background thread
+        (:class:`jointid.fe.reduced.ReducedSolver` ``prefactor``); a caller that multiplies by
+        ``K_terms["K0"]`` asks for it first, so that it always multiplies by the aligned matrix."""
+        if self._laid_out:
+            return
+        with self._lock:
+            if not self._laid_out:
+                self._lay_out()
+                self._laid_out = True
+
+    def _lay_out(self) -> None:
         self.pattern = _union_pattern([*self.K_terms.values(), *self.M_terms.values()])
         # K0 (nearly the whole pattern) is kept aligned with the pattern, and is the stiffness term
         # K0 itself (no second copy): assembling is one copy plus a scatter of the few entries of
@@ -70,13 +90,13 @@ class FreePencil:
         indptr = np.zeros(P.shape[0] + 1, dtype=P.indptr.dtype)
         np.cumsum(counts, out=indptr[1:])
         self._upper_indices, self._upper_indptr = P.indices[upper], indptr
-        self.ordering = getattr(system, "ordering", None)  # cached with the model, if it was
 
     @property
     def n_free(self) -> int:
         return len(self.free)
 
     def _data(self, group: str, coeffs: dict[str, float], scale: float = 1.0, out=None) -> np.ndarray:
+        self.layout()
         terms = self.K_terms if group == "K" else self.M_terms
         base = "K0" if group == "K" else "M0"
         unknown = set(coeffs) - set(terms)

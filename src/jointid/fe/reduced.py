@@ -202,6 +202,7 @@ class ReducedSolver:
 
     def _products_with(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``K0 V`` and ``M0 V`` as the basis stores them: ``K0 V`` in a background thread beside ``M0 V``."""
+        self.pencil.layout()  # K0 aligned with the pencil's pattern (made by a factorisation under way, or here)
         KV = _background(stored_product, self.K_terms["K0"], V)
         MV = stored_product(self.M_terms["M0"], V)  # here, beside K0's
         return KV.result(), MV
@@ -273,6 +274,7 @@ class ReducedSolver:
 
     def _append(self, W: np.ndarray) -> int:
         """M_ref-orthonormalise ``W`` against the basis, drop dependent columns, project the terms."""
+        self.pencil.layout()
         M = self.M_ref
         W = np.ascontiguousarray(W, dtype=float)  # C order (see below); the caller's array is not changed
         norms0 = np.sqrt(np.einsum("ij,ij->j", W, M @ W))
@@ -370,6 +372,7 @@ class ReducedSolver:
         """``A(coeffs) V Y`` for the stiffness (``group`` "K") or mass ("M") on the free DOFs: the
         base term from its cached product with the basis (``base_product``: that product with ``Y``,
         when already formed), every other term on the rows it touches."""
+        self.pencil.layout()
         terms, base = (self.K_terms, "K0") if group == "K" else (self.M_terms, "M0")
         V = self.V
         c0 = 1.0 + coeffs.get(base, 0.0)
