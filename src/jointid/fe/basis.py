@@ -7,7 +7,7 @@ an assembly nor a product with the whole stiffness (the other terms touch few ro
 
 A basis taken over from an earlier run may have them *deferred* (:meth:`GrowingBasis.adopt` without
 products; the diagnosis's rerun, :class:`jointid.fe.reduced.ReducedSolver` ``defer_products``): the
-few checks of a rerun multiply by the sparse terms instead (about 0.15 s more per
+few checks of a rerun multiply by the sparse terms instead (about 0.08 s more per
 check of two states on the default mesh, against about 3.3 core-seconds to form both products of
 448 vectors), and the solver forms them when its checks become many
 (:data:`jointid.fe.reduced.CHECKS_BEFORE_PRODUCTS`).

@@ -51,9 +51,9 @@ RITZ_MEMO = 128
 """Most points whose Ritz pairs a solver keeps (:meth:`ReducedSolver._ritz`; about 50 kB each at 448 vectors)."""
 CHECKS_BEFORE_PRODUCTS = 32
 """Points a solver started from a kept basis with ``defer_products`` checks before it forms the basis's products with ``K0`` and
-``M0`` (:mod:`jointid.fe.basis`): each such check multiplies by the sparse terms instead, about 0.075 s
-more per point on the default mesh (448 vectors), where forming the two products costs about 3.3
-core-seconds, about 44 points' worth.  A rerun whose fits the kept basis answers checks a few points."""
+``M0`` (:mod:`jointid.fe.basis`): each such check multiplies by the sparse terms instead, about 0.04 s
+more per point on the default mesh (448 vectors; a check of two states 0.22 s against 0.14 s), where
+forming the two products costs about 3.3 core-seconds, about 80 points' worth.  A rerun whose fits the kept basis answers checks a few points."""
 _THREADS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="jointid-reduced")
 
 
