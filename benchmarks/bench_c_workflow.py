@@ -38,7 +38,7 @@ def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, r
     if compare:
         _compare(res, out, quick, blas_threads, keep, compare)
     res.add("peak memory, all processes together (sampled /proc: sum of PSS)", fmt_mb(out["peak_tree_MB"]),
-            "<= 4 GB", ok and out["peak_tree_MB"] <= 4096)
+            "<= 4 GiB", ok and out["peak_tree_MB"] <= 4096)
     res.add("  the same as a sum of RSS (shared pages counted once per process)", fmt_mb(out["peak_tree_rss_MB"]))
     res.add("peak RSS of the largest single process (time -v)", fmt_mb(out["max_single_MB"]),
             "" if quick else "<= 3 GiB", None if quick else out["max_single_MB"] <= 3072)

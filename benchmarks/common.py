@@ -234,7 +234,8 @@ def fmt_s(t: float) -> str:
 
 
 def fmt_mb(mb: float) -> str:
-    return f"{mb / 1024:.2f} GB" if mb >= 1024 else f"{mb:.0f} MB"
+    """``mb`` MiB (sizes here are counted in 1024s: GNU time's kbytes are KiB) as MiB or GiB."""
+    return f"{mb / 1024:.2f} GiB" if mb >= 1024 else f"{mb:.0f} MiB"
 
 
 WORKFLOW_FILES = ("Snakefile", "config.yaml", "workflow", "data")
