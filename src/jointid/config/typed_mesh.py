@@ -8,6 +8,7 @@ joint layers (:class:`JointLayer`), the supports (:class:`Support`) and the adde
 
 from __future__ import annotations
 
+import copyreg
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -23,6 +24,19 @@ def read_only(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return tuple(read_only(v) for v in value)
     return value
+
+
+def _read_only_mapping(items: dict) -> MappingProxyType:
+    return MappingProxyType(items)
+
+
+def _reduce_read_only(proxy: MappingProxyType):
+    return _read_only_mapping, (dict(proxy),)
+
+
+# the typed objects go to a child process whole (jointid.diagnosis.refined): a read-only mapping pickles as
+# a read-only mapping of the same items
+copyreg.pickle(MappingProxyType, _reduce_read_only)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,45 @@
+"""jointid.isolate: a step computed in a child process gives the caller's answer, its errors, and says when
+the child was killed."""
+
+from __future__ import annotations
+
+import math
+import os
+import pickle
+from types import MappingProxyType
+
+import numpy as np
+import pytest
+
+from jointid import isolate
+from jointid.config.load import load_config
+from jointid.config.typed_mesh import read_only
+from jointid.errors import ConfigError, ModelError
+
+
+def test_the_childs_answer_is_the_callers():
+    assert isolate.call(math.factorial, 20) == 2432902008176640000  # exact: 20!
+    a = np.random.default_rng(3).standard_normal((40, 40))
+    a = a + a.T
+    got = isolate.call(np.linalg.eigvalsh, a)
+    assert np.array_equal(got, np.linalg.eigvalsh(a))  # the same code on the same bits: the same bits
+    assert isolate.call(np.full, 3, fill_value=2.5).tolist() == [2.5, 2.5, 2.5]  # keyword arguments pass too
+
+
+def test_an_error_in_the_child_is_raised_in_the_caller():
+    with pytest.raises(ValueError, match="math domain error"):
+        isolate.call(math.sqrt, -1.0)
+    with pytest.raises(ConfigError, match="x.yaml: file not found"):  # the project's errors keep their type
+        isolate.call(load_config, "/nonexistent/x.yaml")
+
+
+def test_a_child_killed_by_a_signal_is_one_clear_error():
+    with pytest.raises(ModelError, match=r"the test step: its process was killed by signal 6"):
+        isolate.call(os.abort, what="the test step")
+
+
+def test_read_only_mappings_of_the_typed_config_pickle():
+    m = read_only({"a": {"b": 1.0}})  # what the typed objects hold (pickled by a rule of jointid.config.typed_mesh)
+    back = pickle.loads(pickle.dumps(m))
+    assert isinstance(back, MappingProxyType) and isinstance(back["a"], MappingProxyType)
+    assert back["a"]["b"] == 1.0
