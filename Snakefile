@@ -34,8 +34,8 @@ config = validated(config, ["config.yaml", *workflow.overwrite_configfiles])
 # provenance: the config files count as loaded now (an edit during the run changes none of its values)
 pin_config_state(["config.yaml", *workflow.overwrite_configfiles])
 DOE = DoeOptions.from_config(config)  # the config as typed options at the edge (jointid.config.options)
-SHEET = doe.doe_sheet(DOE)
-POINTS = list(SHEET["point"])
+SHEET = {row["point"]: row for row in doe.doe_rows(DOE)}  # point -> its row of the sample sheet
+POINTS = list(SHEET)
 STATES = list(config["states"])
 R, LOGS, BENCH = run_folders(config)  # results/, logs/, benchmarks/out/ (+ /<run.name> for a named study)
 
@@ -204,7 +204,7 @@ else:
             modes=f"{R}/modal/points/{{point}}.npz",
         params:
             cfg=CFG_MODAL_RULE,
-            theta=lambda wc: {n: float(SHEET.set_index("point").loc[wc.point, n]) for n in config["joints"]["parameters"]},
+            theta=lambda wc: {n: float(SHEET[wc.point][n]) for n in config["joints"]["parameters"]},
         log:
             f"{LOGS}/modal/{{point}}.log",
         benchmark:

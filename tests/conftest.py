@@ -30,6 +30,11 @@ import os
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+# the dataset checks' cache (jointid.data.checked) of this test session, not the user's
+if "JOINTID_CACHE_DIR" not in os.environ:
+    import tempfile
+
+    os.environ["JOINTID_CACHE_DIR"] = tempfile.mkdtemp(prefix="jointid-test-cache-")
 
 import fnmatch  # noqa: E402
 import hashlib  # noqa: E402

@@ -101,13 +101,11 @@ def _check_named_paths(c: Checks, named: Mapping, here: str) -> None:
                   "the dataset's modes.csv and conditions.yaml")
 
 
-def _validate_contents(c: Checks, by_state: dict[str, str], named: Mapping, states: Mapping) -> None:
+def _validate_contents(c: Checks, by_state: dict[str, str], named: Mapping, states: Mapping, checked) -> None:
     """Every dataset folder the run reads, validated in full before any job
-    (:func:`jointid.data.dataset.validate_dataset`: units, columns, separators, conditions.yaml),
-    each problem under the config key that names the folder.  Measuring-point names are checked
-    later, by the stage reading the dataset with the model's points."""
-    from jointid.data.dataset import validate_dataset  # heavy (pandas): only when folders are checked
-
+    (:func:`jointid.data.dataset.validate_dataset`: units, columns, separators, conditions.yaml; ``checked(path)``
+    gives its answer, :func:`jointid.data.checked.folder_checks`), each problem under the config key that names
+    the folder.  Measuring-point names are checked later, by the stage reading the dataset with the model's points."""
     keys: dict[str, str] = {}
     for dname, ds in named.items():
         if isinstance(ds, Mapping) and isinstance(ds.get("path"), str):
@@ -118,7 +116,7 @@ def _validate_contents(c: Checks, by_state: dict[str, str], named: Mapping, stat
     for path, key in keys.items():
         if not Path(path).is_dir():
             continue  # reported by the folder checks
-        for line in validate_dataset(path):
+        for line in checked(path)[1]:
             c.add(key, f"the dataset has a problem: {line}")
 
 
@@ -178,9 +176,11 @@ def check_dataset_folders(c: Checks) -> None:
     A state reads ``states.<s>.dataset`` (a name in ``datasets``, else a folder), else
     ``measurements.dataset``; every ``datasets.<n>.path`` is read by the diagnosis.  Folders are
     relative to the working directory (as in the workflow).  Only the state names of each
-    ``modes.csv`` are read here; the full validation of a dataset stays with the stage reading it.
+    ``modes.csv`` are read here; the full validation of a dataset stays with the stage reading it.  Both
+    answers of a folder are remembered by its content (:mod:`jointid.data.checked`: a Snakemake start does
+    not import pandas to read unchanged folders again).
     """
-    from jointid.data.dataset import modes_per_state  # heavy (pandas, ~0.4 s): only when folders are checked
+    from jointid.data.checked import folder_checks
 
     sections = states_and_datasets(c)
     if sections is None:
@@ -191,12 +191,15 @@ def check_dataset_folders(c: Checks) -> None:
     by_state = _state_folders(c, states, named, here)
 
     # states without modes in their dataset (a cheap look at modes.csv's state column)
-    measured: dict[str, dict[str, int] | None] = {}
+    answers: dict[str, tuple] = {}
+
+    def checked(path: str) -> tuple:
+        if path not in answers:
+            answers[path] = folder_checks(path)
+        return answers[path]
 
     def states_in(path: str) -> dict[str, int] | None:
-        if path not in measured:
-            measured[path] = modes_per_state(path) if Path(path).is_dir() else None
-        return measured[path]
+        return checked(path)[0] if Path(path).is_dir() else None
 
     for sname, path in by_state.items():
         found = states_in(path)
@@ -207,7 +210,7 @@ def check_dataset_folders(c: Checks) -> None:
                   f"{', '.join(found) or 'none'}){hint} — measure it there, or set states.{sname}.dataset to a "
                   "dataset that holds it")
     check_mode_counts(c, {s: states_in(p).get(s) for s, p in by_state.items() if states_in(p)})
-    _validate_contents(c, by_state, named, states)
+    _validate_contents(c, by_state, named, states, checked)
     for dname, ds in named.items():
         if not isinstance(ds, Mapping) or not isinstance(ds.get("path"), str) or not isinstance(ds.get("states"), list):
             continue

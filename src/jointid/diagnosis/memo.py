@@ -27,10 +27,10 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
+
+from jointid.version import code_digest
 
 MAX_RECORDS = 4000
 """Most records kept (the newest)."""
@@ -38,17 +38,6 @@ START_RESOLUTION = 1e-9
 """Starts closer than this in every component (log parameters, effect test variables) are one start:
 a start computed from certified answers (a score-test estimate) differs from run to run in its last
 digits, as the answers do (the solver tolerance is 1e-6)."""
-
-
-@lru_cache(maxsize=1)
-def code_digest() -> str:
-    """Digest of the package's Python sources (a changed code base remembers nothing)."""
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        h.update(str(path.relative_to(root)).encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()
 
 
 def _feed(h, obj) -> None:

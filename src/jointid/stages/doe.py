@@ -1,7 +1,7 @@
 """Rules ``doe`` and ``doe_zoom``: the DOE sample sheets (one row per FE solve).
 
 Imports of the numerical modules are inside the functions (see :mod:`jointid.stages.model`); the
-Snakefile calls :func:`doe_sheet` at parse time for the point names.
+Snakefile calls :func:`doe_rows` at parse time for the point names.
 """
 
 from __future__ import annotations
@@ -29,6 +29,12 @@ def doe_sheet(opts: DoeOptions, lower=None, upper=None) -> pd.DataFrame:
     """
     import pandas as pd
 
+    return pd.DataFrame(doe_rows(opts, lower, upper))
+
+
+def doe_rows(opts: DoeOptions, lower=None, upper=None) -> list[dict]:
+    """The rows of :func:`doe_sheet` as dicts, without pandas (the Snakefile reads the point names and a point's
+    parameters at parse time: importing pandas there cost each Snakemake start about 0.4 s)."""
     from jointid.identification.doe import design, to_physical, verification_points
 
     names = opts.joints.names
@@ -45,7 +51,7 @@ def doe_sheet(opts: DoeOptions, lower=None, upper=None) -> pd.DataFrame:
             row.update({f"x_{n}": float(block[i, j]) for j, n in enumerate(names)})
             row.update({n: float(theta[i, j]) for j, n in enumerate(names)})
             rows.append(row)
-    return pd.DataFrame(rows)
+    return rows
 
 
 def run_doe(opts: DoeOptions, out_csv: str) -> None:

@@ -1,0 +1,92 @@
+"""A dataset folder's checks, remembered by its content.
+
+Every Snakemake start validates the configuration, and with it every dataset folder the run reads
+(:func:`jointid.config.datasets.check_dataset_folders`): the states in each ``modes.csv`` and the whole
+folder's validation (:func:`jointid.data.dataset.validate_dataset`).  That took about 0.75 s of each start,
+most of it importing pandas, on folders that rarely change.  The answers are a function of the folder's
+files and of this package's code alone, so they are kept in a small file keyed by both
+(:func:`folder_key`: the name and bytes of every file in the folder, and :func:`jointid.version.code_digest`):
+a folder whose files or checking code changed is read and validated again.
+
+The file is ``$JOINTID_CACHE_DIR/dataset-checks.json`` (default ``$XDG_CACHE_HOME/jointid``, else
+``~/.cache/jointid``).  It is only a shortcut: a cache that cannot be read or written is ignored, and the
+checks then run as before.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+__all__ = ["folder_checks", "folder_key", "cache_file"]
+
+MAX_ENTRIES = 64
+"""Most folders remembered (the newest)."""
+
+
+def cache_file() -> Path:
+    """Where the checks are kept (module doc)."""
+    base = os.environ.get("JOINTID_CACHE_DIR")
+    if not base:
+        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        base = os.path.join(xdg, "jointid")
+    return Path(base) / "dataset-checks.json"
+
+
+def folder_key(folder) -> str:
+    """Digest of the checking code and of the name and bytes of every file directly in ``folder``."""
+    from jointid.version import code_digest
+
+    h = hashlib.sha256(code_digest().encode())
+    for path in sorted(Path(folder).iterdir()):
+        if path.is_file():
+            h.update(path.name.encode() + b"\0")
+            h.update(hashlib.sha256(path.read_bytes()).digest())
+    return h.hexdigest()
+
+
+def folder_checks(folder) -> tuple[dict[str, int] | None, list[str]]:
+    """``(modes per state, problems)`` of the dataset folder ``folder``
+    (:func:`jointid.data.dataset.modes_per_state`, :func:`jointid.data.dataset.validate_dataset`), from the
+    cache when the folder and the code are unchanged since they were last computed."""
+    try:
+        key = folder_key(folder)
+    except OSError:  # unreadable: the checks say what is wrong
+        key = None
+    kept = _read() if key else {}
+    hit = kept.get(key) if key else None
+    if isinstance(hit, dict) and isinstance(hit.get("problems"), list):
+        states = hit.get("states")
+        return (None if states is None else {str(k): int(v) for k, v in states}), [str(p) for p in hit["problems"]]
+    from jointid.data.dataset import modes_per_state, validate_dataset  # pandas: only when the folder is new
+
+    states, problems = modes_per_state(folder), validate_dataset(folder)
+    if key:
+        kept.pop(key, None)
+        kept[key] = {"states": None if states is None else list(states.items()), "problems": list(problems)}
+        _write(dict(list(kept.items())[-MAX_ENTRIES:]))
+    return states, problems
+
+
+def _read() -> dict:
+    try:
+        data = json.loads(cache_file().read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _write(data: dict) -> None:
+    path = cache_file()
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.part")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_text(json.dumps(data))
+        os.replace(tmp, path)  # whole, or not at all: a concurrent start reads the old or the new file
+    except OSError:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
