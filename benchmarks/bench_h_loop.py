@@ -23,7 +23,7 @@ from pathlib import Path
 from .common import PYTHON, Result, copy_project, worker_env
 
 EFFECT = "em_preload"
-REQUIRED_S, TARGET_S = 60.0, 20.0
+REQUIRED_S = 15.0  # issue 54: the loop at most 15 s (issue 50 asked 60 s, target 20 s: met)
 
 
 def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, effect: str = EFFECT) -> Result:
@@ -39,13 +39,13 @@ def run(quick: bool = False, blas_threads: int | None = 1, keep: bool = False, e
     wall = second["wall_s"]
     res.add(f"enable {effect}, rerun {target}{' (coarse config)' if quick else ''}",
             f"{wall:.1f} s" + ("" if ok else f" (FAILED, exit {second['exit']})"),
-            f"<= {REQUIRED_S:.0f} s (target {TARGET_S:.0f} s)", ok and wall <= REQUIRED_S)
+            f"<= {REQUIRED_S:.0f} s", ok and wall <= REQUIRED_S)
     rule_s = _rule_seconds(tmp / "benchmarks" / "out" / "diagnosis" / "paper.tsv")
     res.add("  of which the diagnosis rule (its benchmark file)", f"{rule_s:.1f} s")
     qok = quick_run["exit"] == 0
     res.add("the quick half: same config, rerun results/diagnosis/paper/current/ladder.csv",
             f"{quick_run['wall_s']:.1f} s" + ("" if qok else f" (FAILED, exit {quick_run['exit']})"),
-            f"<= {REQUIRED_S:.0f} s (target {TARGET_S:.0f} s)", qok and quick_run["wall_s"] <= REQUIRED_S)
+            f"<= {REQUIRED_S:.0f} s", qok and quick_run["wall_s"] <= REQUIRED_S)
     res.add("first build of the same target from clean (mesh + diagnosis)", f"{first['wall_s']:.1f} s")
     rows = _history(tmp / "results" / "history.csv")
     if len(rows) >= 2:

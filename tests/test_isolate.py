@@ -43,3 +43,32 @@ def test_read_only_mappings_of_the_typed_config_pickle():
     back = pickle.loads(pickle.dumps(m))
     assert isinstance(back, MappingProxyType) and isinstance(back["a"], MappingProxyType)
     assert back["a"]["b"] == 1.0
+
+
+def test_a_worker_started_ahead_makes_its_call_and_ends_cleanly():
+    with isolate.Worker("fractions", what="the test step") as worker:  # imports fractions while we go on
+        worker.submit(math.comb, 30, 15)
+        assert worker.result() == 155117520  # C(30, 15)
+    with isolate.Worker("fractions") as idle:  # never asked: ended on close, without an answer or an error
+        pass
+    assert idle._proc.returncode == 0
+
+
+def test_the_page_figures_drawn_by_a_worker_are_the_pages_own():
+    import pandas as pd
+
+    from jointid.reporting.diagnosis_figures import PRELOAD, FigureData, figures
+
+    paired = pd.DataFrame({"status": ["paired"] * 3, "state": ["s1", "s1", "s2"], "freq_meas_Hz": [100.0, 200.0, 150.0],
+                           "error_pct": [1.0, -2.0, 0.5]})
+    data = FigureData(
+        ladder=pd.DataFrame({"state": ["s1", "s1"], "variant": ["baseline", "+a"], "max_abs_error_pct": [5.0, 1.0],
+                             "rms_error_pct": [3.0, 0.5]}),
+        compare=paired, current=paired,
+        ranking=pd.DataFrame({"effect": ["a", "b"], "explained_fraction": [0.8, 0.1], "explains": [True, False]}),
+        point_residuals=pd.DataFrame({"point": ["T01", "T02"], "rms_residual": [0.1, 0.2]}),
+        mac={"s1": np.eye(2)})
+    with isolate.Worker(*PRELOAD, env={"MPLBACKEND": "Agg"}) as worker:
+        worker.submit(figures, data)
+        drawn = worker.result()
+    assert drawn == figures(data) and set(drawn) == {"ladder", "errors", "ranking", "points", "mac_s1"}

@@ -1,10 +1,17 @@
-"""A memory-heavy step in a process of its own: ``call(func, *args)``.
+"""A step in a process of its own: ``call(func, *args)``, or a :class:`Worker` started ahead of it.
 
-The function runs in a fresh Python (``python -m jointid.isolate IN OUT``) on its pickled arguments, and
-its pickled answer comes back.  When the child exits, all of its memory is returned to the system, so the
-caller's largest process is not the sum of its own data and the step's.  Used where a step needs much more
-memory than the job holds otherwise (the refined meshes of the diagnosis's mesh error,
-:mod:`jointid.diagnosis.mesh_error`).  The child limits its linear-algebra libraries to one thread, as
+The function runs in a fresh Python (``python -m jointid.isolate [MODULE...]``) on its pickled arguments,
+and its pickled answer comes back.  Two uses:
+
+* **memory**: when the child exits, all of its memory is returned to the system, so the caller's largest
+  process is not the sum of its own data and the step's (the refined meshes of the diagnosis's mesh error,
+  :mod:`jointid.diagnosis.mesh_error`: :func:`call`);
+* **the second core**: a :class:`Worker` started at the beginning of a job imports what its step needs
+  while the job computes, and makes the step while the job goes on (the diagnosis page's figures,
+  :func:`jointid.stages.diagnosis.run_diagnosis`).  Where the job has the machine to itself (the loop of
+  docs/effects.md) that time is off its wall time; where every core is busy it costs one process start.
+
+The child limits its linear-algebra libraries to one thread, as
 every job of the workflow does (:func:`jointid.threads.limit_threads`), and runs the same code on the same
 inputs, so its answer is the one the caller would have computed.
 
@@ -23,34 +30,88 @@ import sys
 import tempfile
 import traceback
 
-__all__ = ["call"]
+__all__ = ["Worker", "call"]
+
+
+class Worker:
+    """A child process started ahead of its step (module doc).  It imports the modules ``preload`` while the
+    caller works on, computes the one call :meth:`submit` hands it while the caller goes on, and
+    :meth:`result` returns the answer.  ``what`` names the step in an error.  Use it as a context manager
+    (or call :meth:`close`): a child not asked is ended."""
+
+    def __init__(self, *preload: str, what: str = "the step", env: dict | None = None):
+        self.what = what
+        self._tmp = tempfile.TemporaryDirectory(prefix="jointid-isolate-")
+        self._inp = os.path.join(self._tmp.name, "in.pkl")
+        self._out = os.path.join(self._tmp.name, "out.pkl")
+        full = dict(os.environ)
+        here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the folder holding jointid
+        full["PYTHONPATH"] = os.pathsep.join(filter(None, (here, full.get("PYTHONPATH"))))
+        full.update(env or {})
+        self._proc = subprocess.Popen([sys.executable, "-m", "jointid.isolate", *preload],
+                                      stdin=subprocess.PIPE, env=full)
+        self._sent = False
+
+    def submit(self, func, *args, **kwargs) -> None:
+        """Hand the child ``func(*args, **kwargs)`` (``func``: a module-level function) and return at once."""
+        with open(self._inp, "wb") as fh:
+            pickle.dump((func.__module__, func.__qualname__, args, kwargs), fh, protocol=pickle.HIGHEST_PROTOCOL)
+        try:
+            self._proc.stdin.write(f"{self._inp}\n{self._out}\n".encode())
+            self._proc.stdin.close()
+        except OSError:  # the child has ended: result() says how
+            pass
+        self._sent = True
+
+    def result(self):
+        """The answer of the submitted call (waits for it); the child's exception is raised again here."""
+        from jointid.errors import ModelError
+
+        rc = self._proc.wait()
+        try:
+            if rc < 0:
+                raise ModelError(f"{self.what}: its process was killed by signal {-rc}"
+                                 + (" (out of memory?)" if -rc == 9 else "") + ": run again with more free memory")
+            if not os.path.exists(self._out):
+                raise ModelError(f"{self.what}: its process ended with exit code {rc} and no answer (its output is above)")
+            with open(self._out, "rb") as fh:
+                ok, value = pickle.load(fh)
+        finally:
+            self.close()
+        if ok:
+            return value
+        if isinstance(value, BaseException):
+            raise value
+        raise ModelError(f"{self.what} failed in its process:\n{value}")
+
+    def close(self) -> None:
+        """End the child if it still runs, and remove its files."""
+        if self._proc.poll() is None:
+            if not self._sent:
+                try:
+                    self._proc.stdin.close()  # end of input: the child exits without a call
+                except OSError:
+                    pass
+            try:
+                self._proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait()
+        self._tmp.cleanup()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
 
 def call(func, *args, what: str = "the step", **kwargs):
     """``func(*args, **kwargs)`` computed in a child process (module doc).  ``func`` must be a module-level
     function; ``what`` names the step in an error."""
-    from jointid.errors import ModelError
-
-    with tempfile.TemporaryDirectory(prefix="jointid-isolate-") as tmp:
-        inp, out = os.path.join(tmp, "in.pkl"), os.path.join(tmp, "out.pkl")
-        with open(inp, "wb") as fh:
-            pickle.dump((func.__module__, func.__qualname__, args, kwargs), fh, protocol=pickle.HIGHEST_PROTOCOL)
-        env = dict(os.environ)
-        here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the folder holding jointid
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, (here, env.get("PYTHONPATH"))))
-        rc = subprocess.run([sys.executable, "-m", "jointid.isolate", inp, out], env=env).returncode
-        if rc < 0:
-            raise ModelError(f"{what}: its process was killed by signal {-rc}"
-                              + (" (out of memory?)" if -rc == 9 else "") + ": run again with more free memory")
-        if not os.path.exists(out):
-            raise ModelError(f"{what}: its process ended with exit code {rc} and no answer (its output is above)")
-        with open(out, "rb") as fh:
-            ok, value = pickle.load(fh)
-    if ok:
-        return value
-    if isinstance(value, BaseException):
-        raise value
-    raise ModelError(f"{what} failed in its process:\n{value}")
+    with Worker(what=what) as worker:
+        worker.submit(func, *args, **kwargs)
+        return worker.result()
 
 
 def _main(inp: str, out: str) -> int:
@@ -76,5 +137,16 @@ def _main(inp: str, out: str) -> int:
     return 0
 
 
+def _serve(preload: list[str]) -> int:
+    """``python -m jointid.isolate MODULE...``: import the modules, then read the input and output paths of
+    one call from stdin (none: exit) and make it."""
+    for module in preload:
+        importlib.import_module(module)
+    lines = sys.stdin.read().split("\n")
+    if len(lines) < 2 or not lines[0]:
+        return 0
+    return _main(lines[0], lines[1])
+
+
 if __name__ == "__main__":
-    sys.exit(_main(sys.argv[1], sys.argv[2]))
+    sys.exit(_serve(sys.argv[1:]))

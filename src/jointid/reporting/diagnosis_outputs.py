@@ -13,12 +13,13 @@ from jointid.diagnosis.loop import Diagnosis
 from jointid.reporting.diagnosis_page import html_page
 
 
-def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict) -> None:
+def write_outputs(res: Diagnosis, out_dir, dataset: str, run: dict, figs: dict | None = None) -> None:
     """Write ranking.csv, ladder.csv, compare.csv, current.csv, parameters.csv, drift.csv,
     shape_residuals.csv, point_residuals.csv, mac_<state>.csv, combinations.csv, next_measurements.csv,
-    preload_curve.csv, verdict.json and index.html."""
+    preload_curve.csv, verdict.json and index.html (``figs``: the page's figures when made already,
+    :func:`jointid.reporting.diagnosis_page.html_page`)."""
     out = Path(out_dir)
-    page = html_page(res, dataset, run)  # figures first: a failure there leaves no partial set behind
+    page = html_page(res, dataset, run, figs)  # figures first: a failure there leaves no partial set behind
     io.write_csv(res.ranking, out / "ranking.csv")
     io.write_csv(res.ladder, out / "ladder.csv")
     io.write_csv(res.compare, out / "compare.csv")

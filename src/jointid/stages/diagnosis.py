@@ -7,17 +7,20 @@ Called by ``workflow/scripts/diagnose.py`` (rule ``diagnose``) and by the comman
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from typing import TYPE_CHECKING
 
-from jointid import io
+from jointid import io, isolate
 from jointid.data.dataset import read_dataset
 from jointid.diagnosis.fitting import print_log
 from jointid.reporting.diagnosis_history import append_history, history_row
 from jointid.diagnosis.loop import Diagnosis, diagnose
 from jointid.diagnosis.memo import FitMemo
+from jointid.errors import ModelError
 from jointid.reporting.diagnosis_outputs import write_outputs
+from jointid.reporting.diagnosis_figures import PRELOAD, FigureData, figures
 from jointid.diagnosis.terms import build_system
 from jointid.diagnosis.variants import dataset_states
 from jointid.fe import warmstart
@@ -65,6 +68,34 @@ def _keep(job: DiagnoseJob, system, subspace: str | None, res: Diagnosis, memo: 
         warmstart.save(subspace, res.solver, system, memo.records if memo is not None else None)
 
 
+@contextmanager
+def _figure_worker(log):
+    """The page's figures in a process of their own (:class:`jointid.isolate.Worker`): started now, it imports
+    matplotlib while the diagnosis runs, and draws while the kept subspace is written; None where no process
+    can be started (the figures are then drawn here)."""
+    try:
+        worker = isolate.Worker(*PRELOAD, what="the diagnosis page's figures", env={"MPLBACKEND": "Agg"})
+    except OSError as exc:
+        log(f"diagnosis: the figures are drawn in this process ({exc})")
+        worker = None
+    try:
+        yield worker
+    finally:
+        if worker is not None:
+            worker.close()
+
+
+def _figures_made(painter, log) -> dict | None:
+    """The figures the worker drew; None (drawn by the page itself) where its process failed."""
+    if painter is None:
+        return None
+    try:
+        return painter.result()
+    except ModelError as exc:  # the process, not the figures: they are drawn here instead
+        log(f"diagnosis: the figures are drawn in this process ({exc})")
+        return None
+
+
 def run_diagnosis(job: DiagnoseJob, dataset_name: str, dataset_path: str, matrices: str | None, out_dir: str, *,
                   history_csv: str | None = None, model=None, subspace: str | None = None,
                   basis: str | None = None, log=print_log) -> Diagnosis:
@@ -78,14 +109,18 @@ def run_diagnosis(job: DiagnoseJob, dataset_name: str, dataset_path: str, matric
     final basis is kept in and the next run starts from (``diagnosis.reuse_subspace``); ``basis``: the
     run model's shared basis (rule ``diagnosis_basis``), the start when nothing is kept.
     """
-    system, data = _system_and_data(job, dataset_path, matrices, model)
-    kept, memo = _warm(job, system, subspace, log, basis)
-    res = diagnose(system, job.settings, data, start_basis=kept, memo=memo, log=log)
-    _keep(job, system, subspace, res, memo, log)
+    with _figure_worker(log) as painter:  # imports matplotlib beside the fits, draws beside the saving
+        system, data = _system_and_data(job, dataset_path, matrices, model)
+        kept, memo = _warm(job, system, subspace, log, basis)
+        res = diagnose(system, job.settings, data, start_basis=kept, memo=memo, log=log)
+        if painter is not None:
+            painter.submit(figures, FigureData.of(res))
+        _keep(job, system, subspace, res, memo, log)
+        figs = _figures_made(painter, log)
     h = job.config_hash
     run = {"time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "config_hash": h,
            "n_dofs": system.n_dofs, "dataset_path": str(dataset_path), "states": [d.name for d in data]}
-    write_outputs(res, out_dir, dataset_name, run)
+    write_outputs(res, out_dir, dataset_name, run, figs)
     if history_csv:
         append_history(history_csv, history_row(res, dataset_name, h))
     log(res.verdict)
