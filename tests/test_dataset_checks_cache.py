@@ -59,3 +59,14 @@ def test_a_cache_that_cannot_be_written_changes_nothing(folder, monkeypatch, tmp
     calls = _count_validations(monkeypatch)
     assert checked.folder_checks(folder) == checked.folder_checks(folder) == ({"power_off": 6, "power_on": 6}, [])
     assert len(calls) == 2 and not list(tmp_path.glob("a_file*/**"))
+
+
+def test_other_files_in_the_folder_are_not_read(folder, monkeypatch):
+    calls = _count_validations(monkeypatch)
+    checked.folder_checks(folder)
+    (folder / "raw_time_histories.bin").write_bytes(b"\0" * 1000)  # not a dataset file: the key stays
+    checked.folder_checks(folder)
+    assert len(calls) == 1
+    (folder / "modes.csv").unlink()  # a dataset file gone: checked again, and said
+    states, problems = checked.folder_checks(folder)
+    assert len(calls) == 2 and states is None and any("modes.csv" in p for p in problems)

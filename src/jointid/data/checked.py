@@ -5,7 +5,8 @@ Every Snakemake start validates the configuration, and with it every dataset fol
 folder's validation (:func:`jointid.data.dataset.validate_dataset`).  That took about 0.75 s of each start,
 most of it importing pandas, on folders that rarely change.  The answers are a function of the folder's
 files and of this package's code alone, so they are kept in a small file keyed by both
-(:func:`folder_key`: the name and bytes of every file in the folder, and :func:`jointid.version.code_digest`):
+(:func:`folder_key`: the bytes of the dataset's files, :data:`jointid.data.files.DATASET_FILES`, and
+:func:`jointid.version.code_digest`):
 a folder whose files or checking code changed is read and validated again.
 
 The file is ``$JOINTID_CACHE_DIR/dataset-checks.json`` (default ``$XDG_CACHE_HOME/jointid``, else
@@ -36,14 +37,16 @@ def cache_file() -> Path:
 
 
 def folder_key(folder) -> str:
-    """Digest of the checking code and of the name and bytes of every file directly in ``folder``."""
+    """Digest of the checking code and of the dataset files in ``folder`` (each file's name, and its bytes or
+    that it is absent; other files, e.g. raw time histories, are not read)."""
+    from jointid.data.files import DATASET_FILES
     from jointid.version import code_digest
 
     h = hashlib.sha256(code_digest().encode())
-    for path in sorted(Path(folder).iterdir()):
-        if path.is_file():
-            h.update(path.name.encode() + b"\0")
-            h.update(hashlib.sha256(path.read_bytes()).digest())
+    for name in DATASET_FILES:
+        path = Path(folder) / name
+        h.update(name.encode() + b"\0")
+        h.update(hashlib.sha256(path.read_bytes()).digest() if path.is_file() else b"absent")
     return h.hexdigest()
 
 

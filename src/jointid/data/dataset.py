@@ -34,9 +34,8 @@ import yaml
 from jointid.data.conditions import check_conditions, hz_confirmed
 from jointid.data.validate import (COLUMNS, DIRECTIONS, CheckedModes, Problems, check_frf, check_modes, check_shapes,
                                    read_table)
+from jointid.data.files import DATASET_FILES
 from jointid.errors import DataError
-
-DATASET_FILES = ("modes.csv", "shapes.csv", "frf.csv", "conditions.yaml", "README.md")
 
 
 @dataclass(frozen=True)
