@@ -33,8 +33,8 @@ def doe_sheet(opts: DoeOptions, lower=None, upper=None) -> pd.DataFrame:
 
 
 def doe_rows(opts: DoeOptions, lower=None, upper=None) -> list[dict]:
-    """The rows of :func:`doe_sheet` as dicts, without pandas (the Snakefile reads the point names and a point's
-    parameters at parse time: importing pandas there cost each Snakemake start about 0.4 s)."""
+    """The rows of :func:`doe_sheet` as dicts, without pandas: what the Snakefile reads at parse time (the point
+    names, a point's parameters).  Snakemake itself imports pandas later in a start, to compare the params."""
     from jointid.identification.doe import design, to_physical, verification_points
 
     names = opts.joints.names
