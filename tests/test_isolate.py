@@ -72,3 +72,23 @@ def test_the_page_figures_drawn_by_a_worker_are_the_pages_own():
         worker.submit(figures, data)
         drawn = worker.result()
     assert drawn == figures(data) and set(drawn) == {"ladder", "errors", "ranking", "points", "mac_s1"}
+
+
+def test_a_figure_worker_that_fails_leaves_the_figures_to_the_page():
+    from jointid.stages.diagnosis import _figures_made
+
+    class Dead:  # a worker whose process died (e.g. killed): its result says so
+        def result(self):
+            raise ModelError("the diagnosis page's figures: its process was killed by signal 9 (out of memory?)")
+
+    said = []
+    assert _figures_made(Dead(), said.append) is None  # html_page then draws them in the job's own process
+    assert said and "drawn in this process" in said[0] and "signal 9" in said[0]
+    assert _figures_made(None, said.append) is None and len(said) == 1  # no worker: nothing to say
+
+    class Broken:  # the figures themselves fail: the error is the job's, as when drawn in its own process
+        def result(self):
+            raise ValueError("bad figure data")
+
+    with pytest.raises(ValueError, match="bad figure data"):
+        _figures_made(Broken(), said.append)
