@@ -87,7 +87,8 @@ def default_options() -> dict:
 def diagnose(system: System, settings: DiagnosisSettings, data: list[StateData], *, effects: dict | None = None,
              candidates: list[str] | None = None, n_refit: int | None = None, alpha: float | None = None,
              reference_state: str | None = None, solver: ReducedSolver | None = None,
-             start_basis=None, memo=None, compare: bool = True, drift: bool = True, log=print_log) -> Diagnosis:
+             start_basis=None, memo=None, compare: bool = True, drift: bool = True, tables_ready=None,
+             log=print_log) -> Diagnosis:
     # many parameters: the loop's options (effects, candidates, refits, solver reuse, ...), keyword with defaults
     """Run the whole loop on measured states: compare, calibrate, score, refit, combine, rank, ladder, drift.
 
@@ -107,16 +108,17 @@ def diagnose(system: System, settings: DiagnosisSettings, data: list[StateData],
         State the baseline is calibrated on for the comparison step (default: the state with the
         smallest motor force, first in order).
     solver : ReducedSolver, optional
-        A reduced solver of the same system to reuse (its subspace only grows; saves the set-up when
-        several datasets of one rig are diagnosed).
+        A reduced solver of the same system to reuse (its subspace only grows; several datasets of one rig).
     start_basis : jointid.fe.warmstart.Kept, optional
-        A basis the reduced solver starts from instead of the reference modes and their responses
-        (kept from an earlier run, :mod:`jointid.fe.warmstart`).
+        A basis the solver starts from (kept from an earlier run, :mod:`jointid.fe.warmstart`).
     memo : jointid.diagnosis.memo.FitMemo, optional
         Fits recorded on the same model (:meth:`Diagnoser.fit`); every fit is recorded in it.
     compare, drift : bool
         Run the comparison step (baseline calibrated on the reference state) and the per-state drift
         fits (both on by default).
+    tables_ready : callable, optional
+        Given the page figures' :class:`Diagnosis` fields (``ladder, compare, current, ranking, point_residuals,
+        mac``) as keywords once final, before the drift fits (the stage draws the figures beside those).
 
     Returns
     -------
@@ -151,16 +153,17 @@ def diagnose(system: System, settings: DiagnosisSettings, data: list[StateData],
                         int(opt["max_effects"]), me, current_weight)
     verdict, explained_by = verdict_text(findings, diag.data)
     ladder_rows += suggested_ladder(diag, fits, explained_by, ranking)
+    shown = {"ladder": pd.DataFrame(ladder_rows), "compare": compare_tab, "current": current_table, "ranking": ranking,
+             "point_residuals": correlate.point_residuals(shape_res), "mac": mac_mats}  # final: nothing below changes them
+    if tables_ready is not None:
+        tables_ready(**shown)
     drift_tab = drift_table(diag, current, log, skip=not drift)
     notes += model_notes(current, data) + diag.shapes.note() + absorbed
-    return Diagnosis(ranking=ranking, ladder=pd.DataFrame(ladder_rows), compare=compare_tab,
-                     compare_summary=correlate.error_summary(compare_tab), current=current_table,
-                     drift=drift_tab, shape_residuals=shape_res,
-                     point_residuals=correlate.point_residuals(shape_res), mac=mac_mats, verdict=verdict,
-                     explained_by=explained_by, fits=fits, notes=notes, parameters=parameter_table(fits),
-                     timing_s=time.time() - t_start, solver=diag.solver, combinations=combos,
-                     next_measurements=nxt, preload_curve=curve, identifiable=ident, absorbed=absorbed,
-                     model_error=me)
+    return Diagnosis(**shown, compare_summary=correlate.error_summary(compare_tab), drift=drift_tab,
+                     shape_residuals=shape_res, verdict=verdict, explained_by=explained_by, fits=fits, notes=notes,
+                     parameters=parameter_table(fits), timing_s=time.time() - t_start, solver=diag.solver,
+                     combinations=combos, next_measurements=nxt, preload_curve=curve, identifiable=ident,
+                     absorbed=absorbed, model_error=me)
 
 
 def search(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], candidates, effects, opt: dict, log):

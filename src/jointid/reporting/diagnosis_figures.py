@@ -40,10 +40,6 @@ class FigureData:
     point_residuals: pd.DataFrame
     mac: dict
 
-    @classmethod
-    def of(cls, res: Diagnosis) -> FigureData:
-        return cls(res.ladder, res.compare, res.current, res.ranking, res.point_residuals, dict(res.mac))
-
 
 PRELOAD = ("matplotlib.pyplot", __name__)
 """What a figure process imports before it is asked (with ``MPLBACKEND=Agg``)."""

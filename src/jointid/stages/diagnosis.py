@@ -71,7 +71,7 @@ def _keep(job: DiagnoseJob, system, subspace: str | None, res: Diagnosis, memo: 
 @contextmanager
 def _figure_worker(log):
     """The page's figures in a process of their own (:class:`jointid.isolate.Worker`): started now, it imports
-    matplotlib while the diagnosis runs, and draws while the kept subspace is written; None where no process
+    matplotlib while the diagnosis runs, and draws while the drift fits run and the kept subspace is written; None where no process
     can be started (the figures are then drawn here)."""
     try:
         worker = isolate.Worker(*PRELOAD, what="the diagnosis page's figures", env={"MPLBACKEND": "Agg"})
@@ -109,12 +109,11 @@ def run_diagnosis(job: DiagnoseJob, dataset_name: str, dataset_path: str, matric
     final basis is kept in and the next run starts from (``diagnosis.reuse_subspace``); ``basis``: the
     run model's shared basis (rule ``diagnosis_basis``), the start when nothing is kept.
     """
-    with _figure_worker(log) as painter:  # imports matplotlib beside the fits, draws beside the saving
+    with _figure_worker(log) as painter:  # imports matplotlib beside the fits, draws beside the drift fits
         system, data = _system_and_data(job, dataset_path, matrices, model)
         kept, memo = _warm(job, system, subspace, log, basis)
-        res = diagnose(system, job.settings, data, start_basis=kept, memo=memo, log=log)
-        if painter is not None:
-            painter.submit(figures, FigureData.of(res))
+        ready = None if painter is None else lambda **tables: painter.submit(figures, FigureData(**tables))
+        res = diagnose(system, job.settings, data, start_basis=kept, memo=memo, tables_ready=ready, log=log)
         _keep(job, system, subspace, res, memo, log)
         figs = _figures_made(painter, log)
     h = job.config_hash
