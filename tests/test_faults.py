@@ -45,7 +45,8 @@ from jointid.stages import jobs, recovery
 JOINTID = SNAKEMAKE.with_name("jointid")
 # written beside the declared outputs, on purpose different after a rerun (the run log and the
 # diagnosis's kept basis, the start of its next run): not artifacts of the run
-SIDE_FILES = ("results/history.csv", "results/history.csv.lock", "results/diagnosis/*/subspace.npz")
+SIDE_FILES = ("results/history.csv", "results/history.csv.lock", "results/diagnosis/*/subspace.npz",
+              "results/diagnosis/*/subspace.basis-*.npy")
 
 
 # ------------------------------------------------------------------ helpers
@@ -222,14 +223,16 @@ def test_heal_forgets_the_kept_subspaces_only_when_it_repaired_something(tmp_pat
     """A kept diagnosis subspace survives a heal with nothing to repair (the loop's reruns start from it)
     and goes with any repair (the rebuilt diagnosis starts afresh, byte-identical to a run from clean)."""
     kept = tmp_path / "results" / "diagnosis" / "paper" / "subspace.npz"
-    io.write_text(kept, "basis")
+    io.write_text(kept, "records")
+    kept_basis = kept.with_name("subspace.basis-0123456789abcdef.npy")  # its basis, kept apart (jointid.fe.warmstart)
+    io.write_text(kept_basis, "basis")
     out = _result_with_sidecar(tmp_path)
-    assert recovery.heal(tmp_path) == (0, []) and kept.exists()
+    assert recovery.heal(tmp_path) == (0, []) and kept.exists() and kept_basis.exists()
     cut_to_half(out)
     status, lines = recovery.heal(tmp_path)
     assert status == 0 and len(lines) == 2 and lines[0].startswith("removed damaged results/surface/model.json")
     assert lines[1].startswith("removed 1 kept diagnosis subspace(s) (results/diagnosis/paper/subspace.npz)")
-    assert not kept.exists()
+    assert not kept.exists() and not kept_basis.exists()
 
 
 def test_heal_removes_a_result_whose_sidecar_is_damaged(tmp_path):

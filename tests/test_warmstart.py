@@ -45,6 +45,29 @@ def test_kept_basis_is_read_back_for_its_model_only(tmp_path):
     assert broken is None and "unreadable" in why
 
 
+def test_a_basis_kept_apart_is_written_again_only_when_it_changed(tmp_path):
+    m = _model()
+    rs = _solver(m)
+    path = tmp_path / "subspace.npz"
+    warmstart.save(path, rs, m, apart=True)
+    first = sorted(p.name for p in tmp_path.iterdir())
+    assert len(first) == 2 and first[0] == "subspace.basis-" + first[0].split("-", 1)[1] and first[1] == "subspace.npz"
+    kept, why = warmstart.load(path, m, 29)
+    assert kept.source == first[0] and np.array_equal(kept.V, rs.V) and f"{rs.V.shape[1]} vectors kept" in why
+    rerun = _solver(m, kept=kept)  # taken as it is, and not grown: the same file is named, not written again
+    inode = (tmp_path / first[0]).stat().st_ino  # a file written again is a new file (renamed over the old)
+    warmstart.save(path, rerun, m, apart=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == first and (tmp_path / first[0]).stat().st_ino == inode
+    assert np.array_equal(warmstart.load(path, m, 29)[0].V, rs.V)
+    rerun._append(np.random.default_rng(0).standard_normal((29, 2)))  # grown: a new file, the old one removed
+    warmstart.save(path, rerun, m, apart=True)
+    now = sorted(p.name for p in tmp_path.iterdir())
+    assert len(now) == 2 and now[0] != first[0] and warmstart.load(path, m, 29)[0].V.shape[1] == rs.V.shape[1] + 2
+    (tmp_path / now[0]).unlink()  # the basis gone: started afresh, said so
+    missing, why = warmstart.load(path, m, 29)
+    assert missing is None and "unreadable" in why
+
+
 def test_a_kept_basis_is_taken_as_it_is_at_the_same_reference_masses(tmp_path):
     m = _model()
     rs = _solver(m)

@@ -34,8 +34,8 @@ __all__ = ["Worker", "call"]
 
 
 class Worker:
-    """A child process started ahead of its step (module doc).  It imports the modules ``preload`` while the
-    caller works on, computes the one call :meth:`submit` hands it while the caller goes on, and
+    """A child process started ahead of its step (module doc).  It imports the modules ``preload`` (an entry
+    ``"module:function"`` also calls that function, a warm-up) while the caller works on, computes the one call :meth:`submit` hands it while the caller goes on, and
     :meth:`result` returns the answer.  ``what`` names the step in an error.  Use it as a context manager
     (or call :meth:`close`): a child not asked is ended."""
 
@@ -138,10 +138,14 @@ def _main(inp: str, out: str) -> int:
 
 
 def _serve(preload: list[str]) -> int:
-    """``python -m jointid.isolate MODULE...``: import the modules, then read the input and output paths of
-    one call from stdin (none: exit) and make it."""
-    for module in preload:
-        importlib.import_module(module)
+    """``python -m jointid.isolate MODULE[:FUNCTION]...``: import the modules (and call each function named,
+    without arguments: a warm-up, e.g. a first figure drawn), then read the input and output paths of one
+    call from stdin (none: exit) and make it."""
+    for entry in preload:
+        module, _, func = entry.partition(":")
+        mod = importlib.import_module(module)
+        if func:
+            getattr(mod, func)()
     lines = sys.stdin.read().split("\n")
     if len(lines) < 2 or not lines[0]:
         return 0

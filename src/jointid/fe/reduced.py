@@ -139,6 +139,7 @@ class ReducedSolver:
         self.fallbacks: dict = {}  # point_key -> why a full solve answered there (certify.full_solve)
         self.log = None  # progress lines (certificates), e.g. print
         self.mc_ref = dict(mc)
+        self.adopted = None  # (basis file, columns) of a kept basis taken as it is (_start_from)
         self.n_factorizations = 0
         self._pending = None  # the reference point's factorisation under way in a background thread
         self._checked_without_products = 0  # points checked while a kept basis's products are deferred
@@ -184,6 +185,7 @@ class ReducedSolver:
         if (KV is None or MV is None) and not self._defer_products:
             KV, MV = self._products_with(V)
         self.basis.adopt(V, KV, MV)
+        self.adopted = (kept.source, V.shape[1]) if kept.source else None  # the file its first columns are (warmstart.save)
         self.Kr, self.Mr = dict(kept.Kr), dict(kept.Mr)
         self.PV = self.P @ V
         kept_checks = kept.certified_at(self.generation)

@@ -65,7 +65,7 @@ def _keep(job: DiagnoseJob, system, subspace: str | None, res: Diagnosis, memo: 
             "evaluated at the recorded optimum (re-checked there unless its check passed on the kept subspace), "
             "not searched again")
     if _kept_file(job, subspace) is not None and res.solver:
-        warmstart.save(subspace, res.solver, system, memo.records if memo is not None else None)
+        warmstart.save(subspace, res.solver, system, memo.records if memo is not None else None, apart=True)
 
 
 @contextmanager

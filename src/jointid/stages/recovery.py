@@ -85,6 +85,8 @@ def forget_subspaces(results: Path, workdir: Path) -> list[str]:
     kept = sorted([*results.glob("diagnosis/*/subspace.npz"), *results.glob("*/diagnosis/*/subspace.npz")])
     for p in kept:
         p.unlink(missing_ok=True)
+        for basis in p.parent.glob(f"{p.stem}.basis-*.npy"):  # its basis (jointid.fe.warmstart, apart)
+            basis.unlink(missing_ok=True)
     return [f"removed {len(kept)} kept diagnosis subspace(s) ({', '.join(_rel(p, workdir) for p in kept[:2])}"
             f"{' ...' if len(kept) > 2 else ''}): the diagnoses rerun afresh, as from clean"] if kept else []
 
