@@ -9,31 +9,39 @@ files and of this package's code alone, so they are kept in a small file keyed b
 :func:`jointid.version.code_digest`):
 a folder whose files or checking code changed is read and validated again.
 
-The file is ``$JOINTID_CACHE_DIR/dataset-checks.json`` (default ``$XDG_CACHE_HOME/jointid``, else
-``~/.cache/jointid``).  It is only a shortcut: a cache that cannot be read or written is ignored, and the
-checks then run as before.
+The file is ``$JOINTID_CACHE_DIR/dataset-checks.json`` (:mod:`jointid.usercache`).  It is only a shortcut: a
+cache that cannot be read or written is ignored, and the checks then run as before.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
-import os
+from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["folder_checks", "folder_key", "cache_file"]
+from jointid import usercache
+
+__all__ = ["folder_checks", "folder_key"]
+
+CACHE = "dataset-checks"
+"""The answers' file (:func:`jointid.usercache.cache_file`)."""
 
 MAX_ENTRIES = 64
 """Most folders remembered (the newest)."""
 
+_asked: set | None = None  # the folders asked while :func:`recording` (a validation being remembered)
 
-def cache_file() -> Path:
-    """Where the checks are kept (module doc)."""
-    base = os.environ.get("JOINTID_CACHE_DIR")
-    if not base:
-        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        base = os.path.join(xdg, "jointid")
-    return Path(base) / "dataset-checks.json"
+
+@contextmanager
+def recording():
+    """The set of the folders :func:`folder_checks` is asked about inside the ``with`` block (a validation
+    remembered by :mod:`jointid.config.remembered` depends on them)."""
+    global _asked
+    outer, _asked = _asked, set()
+    try:
+        yield _asked
+    finally:
+        _asked = outer
 
 
 def folder_key(folder) -> str:
@@ -54,12 +62,13 @@ def folder_checks(folder) -> tuple[dict[str, int] | None, list[str]]:
     """``(modes per state, problems)`` of the dataset folder ``folder``
     (:func:`jointid.data.dataset.modes_per_state`, :func:`jointid.data.dataset.validate_dataset`), from the
     cache when the folder and the code are unchanged since they were last computed."""
+    if _asked is not None:
+        _asked.add(str(folder))
     try:
         key = folder_key(folder)
     except OSError:  # unreadable: the checks say what is wrong
         key = None
-    kept = _read() if key else {}
-    hit = kept.get(key) if key else None
+    hit = usercache.lookup(CACHE, key) if key else None
     if isinstance(hit, dict) and isinstance(hit.get("problems"), list):
         states = hit.get("states")
         return (None if states is None else {str(k): int(v) for k, v in states}), [str(p) for p in hit["problems"]]
@@ -67,29 +76,6 @@ def folder_checks(folder) -> tuple[dict[str, int] | None, list[str]]:
 
     states, problems = modes_per_state(folder), validate_dataset(folder)
     if key:
-        kept.pop(key, None)
-        kept[key] = {"states": None if states is None else list(states.items()), "problems": list(problems)}
-        _write(dict(list(kept.items())[-MAX_ENTRIES:]))
+        usercache.remember(CACHE, key, {"states": None if states is None else list(states.items()),
+                                        "problems": list(problems)}, MAX_ENTRIES)
     return states, problems
-
-
-def _read() -> dict:
-    try:
-        data = json.loads(cache_file().read_text())
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
-
-def _write(data: dict) -> None:
-    path = cache_file()
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.part")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp.write_text(json.dumps(data))
-        os.replace(tmp, path)  # whole, or not at all: a concurrent start reads the old or the new file
-    except OSError:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
