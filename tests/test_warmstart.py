@@ -1,6 +1,7 @@
 """A reduced solver's subspace kept from one run to the next (``diagnosis.reuse_subspace``): the file, its
 model check, and a warm run of the quick half agreeing with a cold one to the solver tolerance."""
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +64,16 @@ def test_a_basis_kept_apart_is_written_again_only_when_it_changed(tmp_path):
     warmstart.save(path, rerun, m, apart=True)
     now = sorted(p.name for p in tmp_path.iterdir())
     assert len(now) == 2 and now[0] != first[0] and warmstart.load(path, m, 29)[0].V.shape[1] == rs.V.shape[1] + 2
-    (tmp_path / now[0]).unlink()  # the basis gone: started afresh, said so
+    stale, fresh = tmp_path / "subspace.basis-0000000000000000.npy", tmp_path / "subspace.basis-1111111111111111.npy"
+    for f in (stale, fresh):
+        f.write_bytes(b"x")
+    os.utime(stale, (stale.stat().st_atime - 3600, stale.stat().st_mtime - 3600))  # left by a crash an hour ago
+    warmstart.save(path, _solver(m), m, apart=True)  # another run from clean: the orphan goes, a file written
+    left = {p.name for p in tmp_path.iterdir()}  # a moment ago by a job beside it stays
+    assert stale.name not in left and fresh.name in left
+    with np.load(path) as f:
+        named = str(f["basis_file"])
+    (tmp_path / named).unlink()  # the basis gone: started afresh, said so
     missing, why = warmstart.load(path, m, 29)
     assert missing is None and "unreadable" in why
 

@@ -131,9 +131,22 @@ def save(path: str | Path, solver, system, fits: dict | None = None, products: t
     else:
         arrays["V"] = np.asfortranarray(solver.V[:, :r])
     _replace(path, lambda tmp: np.savez(tmp, **arrays), ".npz")
-    for old in path.parent.glob(f"{path.stem}.basis-*.npy"):  # the basis files no longer named
-        if not apart or old.name != str(arrays["basis_file"]):
-            old.unlink(missing_ok=True)
+    _drop_other_bases(path, str(arrays["basis_file"]) if apart else "", getattr(solver, "adopted", None))
+
+
+def _drop_other_bases(path: Path, named: str, adopted) -> None:
+    """Remove the basis files beside ``path`` that it no longer names: the one the solver started from at
+    once, any other only when older than a minute (a diagnosis and its quick half run at the same time on
+    one folder would otherwise remove each other's new file; the loser's next run then starts afresh)."""
+    import time
+
+    started_from = adopted[0] if adopted else ""
+    for old in path.parent.glob(f"{path.stem}.basis-*.npy"):
+        try:
+            if old.name != named and (old.name == started_from or time.time() - old.stat().st_mtime > 60):
+                old.unlink(missing_ok=True)
+        except OSError:  # gone meanwhile
+            pass
 
 
 def _replace(path: Path, write, suffix: str) -> None:
