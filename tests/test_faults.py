@@ -324,6 +324,31 @@ UNEXPECTED = textwrap.dedent("""
 """)
 
 
+SUCCEEDS = textwrap.dedent("""
+    import sys
+    from types import SimpleNamespace
+    from jointid.stages.runner import run_script
+
+    def stage(cfg, inp, out):
+        print("stage: the result written")
+        with open(out[0], "w") as fh:
+            fh.write("order\\n1\\n")
+
+    run_script(SimpleNamespace(log=[sys.argv[1]], params=SimpleNamespace(cfg={}), input=[], output=[sys.argv[2]],
+                               rule="verify"), stage)
+    print("after run_script")  # not reached: a job that succeeded ends its process there
+""")
+
+
+def test_a_job_that_succeeded_ends_its_process_with_its_log_and_outputs_written(tmp_path):
+    log, out = tmp_path / "verify.log", tmp_path / "verify.csv"
+    proc = subprocess.run([sys.executable, "-c", SUCCEEDS, str(log), str(out)], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert out.read_text() == "order\n1\n" and provenance_path(out).is_file()
+    assert "stage: the result written" in log.read_text() and "after run_script" not in proc.stdout + proc.stderr
+
+
 def test_an_unexpected_error_is_one_line_on_screen_and_its_traceback_in_the_log(tmp_path):
     log = tmp_path / "verify.log"
     proc = subprocess.run([sys.executable, "-c", UNEXPECTED, str(log)], cwd=tmp_path, capture_output=True, text=True,
