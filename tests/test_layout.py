@@ -93,3 +93,16 @@ def test_a_cycle_through_annotations_only_is_a_cycle_and_a_lazy_package_is_passe
     (pkg / "__init__.py").write_text("from jointid.fe.b import h\n")  # loaded eagerly: b -> jointid -> b
     proc = subprocess.run([sys.executable, str(ROOT / "tools" / "layout.py"), str(pkg)], capture_output=True, text=True)
     assert "cycle: jointid <-> jointid.fe.a <-> jointid.fe.b" in proc.stdout, proc.stdout
+
+
+def test_every_rule_script_ends_with_its_one_run_script_call():
+    """A job that succeeded ends its process inside run_script (jointid.stages.runner._leave): nothing after it would run."""
+    import ast
+
+    scripts = sorted((ROOT / "workflow" / "scripts").glob("*.py"))
+    assert scripts
+    for path in scripts:
+        tree = ast.parse(path.read_text())
+        calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "run_script"]
+        last = tree.body[-1]
+        assert len(calls) == 1 and isinstance(last, ast.Expr) and last.value is calls[0], path.name
