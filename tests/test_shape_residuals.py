@@ -86,6 +86,8 @@ def test_shape_jacobian_matches_finite_differences(rig, tmp_path):
     ev = diag.evaluate(base, x, index, refine=False)
     shape = np.array([mode < 0 for _, mode in ev.rows])
     assert shape.sum() == 2 * 4 * len(rig["system"].labels) and ev.n_scales == 8
+    alone = diag.evaluate(base, x, index, refine=False, jacobian=False)  # the misfit alone (the beta-P curve)
+    assert np.array_equal(alone.r, ev.r) and alone.rows == ev.rows and alone.J.shape == (len(ev.r), 0)
     h = 1e-4  # the Ritz pairs carry round-off of the large reduced stiffness: a smaller step measures it
     for j in range(len(x)):
         step = np.eye(len(x))[j] * h

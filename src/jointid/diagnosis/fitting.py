@@ -220,7 +220,7 @@ class Diagnoser:
         return out
 
     def evaluate(self, variant: Variant, x, index: list, track: list | None = None, *,
-                 refine: bool = True, misfits: list | None = None) -> Evaluation:
+                 refine: bool = True, misfits: list | None = None, jacobian: bool = True) -> Evaluation:
         """Residuals ``ln(f_model / f_meas) / sigma`` and Jacobian at ``x``.
 
         ``index`` gives the model mode of each measured mode; with ``track`` (reference reduced
@@ -229,7 +229,8 @@ class Diagnoser:
         visible model modes (misfits, :meth:`misfit_sets`) add residuals ``ln(f_u / f_near) / sigma``
         after each state's measured modes, rows ``(state, 0)``; ``misfits`` (per state ``(modes,
         targets, reference reduced vectors or None)``) holds that set fixed and follows its modes,
-        else it is found at ``x``.
+        else it is found at ``x``.  ``jacobian=False``: the residuals only (``J`` has no columns; the
+        residuals are the same bits), for a caller that needs the misfit alone (the beta-P curve).
         """
         x = np.asarray(x, float)
         sols = self.solve_states(variant, x, refine=refine)
@@ -268,8 +269,8 @@ class Diagnoser:
             fm_all[ok] = f
             fmod.append(fm_all)
             mis.append((np.asarray(cols, int), np.asarray(tgt, float), sol.freqs_Hz[cols]))
-            dc = variant.dcoefficients(x, d.info)
-            Jb = np.zeros((len(ok) + len(bad) + len(cols), variant.n_params))
+            dc = variant.dcoefficients(x, d.info) if jacobian else []
+            Jb = np.zeros((len(ok) + len(bad) + len(cols), variant.n_params if jacobian else 0))
             use = np.concatenate([idx[ok], cols]).astype(int)
             sub = Solution(sol.freqs_Hz[use], sol.lam[use], sol.Y[:, use], sol.lam_all, sol.Y_all,
                            sol.kc, sol.mc, sol.shapes[:, use], sol.generation)
@@ -282,7 +283,8 @@ class Diagnoser:
         known, corr = known_budget(np.concatenate(kn), mode_correlation(np.hstack(modes)), np.concatenate(own))
         ev = Evaluation(x, np.concatenate(r), np.vstack(J), sols, new_index, rows, fmod, mis,
                         sigma=np.concatenate(sig), known=known if known.any() else None, known_corr=corr)
-        return self.shapes.extend(ev, self.solver, [variant.dcoefficients(x, d.info) for d in self.data])
+        return self.shapes.extend(ev, self.solver, [variant.dcoefficients(x, d.info) if jacobian else []
+                                                    for d in self.data])
 
     def _follow(self, sol: Solution, ref_Y: np.ndarray, idx: np.ndarray) -> np.ndarray:
         r = self.solver.V.shape[1]

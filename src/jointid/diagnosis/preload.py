@@ -167,7 +167,7 @@ def _preload_curve(diag: Diagnoser, fit: Fit) -> pd.DataFrame:
         var = _with_preload(fit.variant, k, P)
         x = fit.x.copy()
         x[j] = b
-        ev = diag.evaluate(var, x, fit.ev.index)
+        ev = diag.evaluate(var, x, fit.ev.index, jacobian=False)  # the misfit alone
         rows.append({"preload_N": P, "beta": b, "chi2": float(ev.r @ ev.r), "fitted": P == P0})
     return pd.DataFrame(rows)
 
