@@ -78,15 +78,21 @@ def test_a_figure_worker_that_fails_leaves_the_figures_to_the_page():
     from jointid.stages.diagnosis import _figures_made
 
     class Dead:  # a worker whose process died (e.g. killed): its result says so
+        asked = True
+
         def result(self):
             raise ModelError("the diagnosis page's figures: its process was killed by signal 9 (out of memory?)")
 
     said = []
     assert _figures_made(Dead(), said.append) is None  # html_page then draws them in the job's own process
+    with isolate.Worker() as idle:  # handed nothing (the diagnosis stopped before its tables): not waited for
+        assert not idle.asked and _figures_made(idle, said.append) is None
     assert said and "drawn in this process" in said[0] and "signal 9" in said[0]
     assert _figures_made(None, said.append) is None and len(said) == 1  # no worker: nothing to say
 
     class Broken:  # the figures themselves fail: the error is the job's, as when drawn in its own process
+        asked = True
+
         def result(self):
             raise ValueError("bad figure data")
 

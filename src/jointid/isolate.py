@@ -35,7 +35,8 @@ __all__ = ["Worker", "call"]
 
 class Worker:
     """A child process started ahead of its step (module doc).  It imports the modules ``preload`` (an entry
-    ``"module:function"`` also calls that function, a warm-up) while the caller works on, computes the one call :meth:`submit` hands it while the caller goes on, and
+    ``"module:function"`` also calls that function, a warm-up) while the caller works on, computes the one
+    call :meth:`submit` hands it while the caller goes on, and
     :meth:`result` returns the answer.  ``what`` names the step in an error.  Use it as a context manager
     (or call :meth:`close`): a child not asked is ended."""
 
@@ -62,6 +63,11 @@ class Worker:
         except OSError:  # the child has ended: result() says how
             pass
         self._sent = True
+
+    @property
+    def asked(self) -> bool:
+        """Whether :meth:`submit` handed the child its call (:meth:`result` would otherwise wait for nothing)."""
+        return self._sent
 
     def result(self):
         """The answer of the submitted call (waits for it); the child's exception is raised again here."""

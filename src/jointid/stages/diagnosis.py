@@ -87,7 +87,7 @@ def _figure_worker(log):
 
 def _figures_made(painter, log) -> dict | None:
     """The figures the worker drew; None (drawn by the page itself) where its process failed."""
-    if painter is None:
+    if painter is None or not painter.asked:  # nothing handed to it: the page draws the figures
         return None
     try:
         return painter.result()
