@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -130,7 +129,7 @@ def save(path: str | Path, solver, system, fits: dict | None = None, products: t
         arrays["basis_file"] = np.array(_save_basis(path, solver, r))
     else:
         arrays["V"] = np.asfortranarray(solver.V[:, :r])
-    _replace(path, lambda tmp: np.savez(tmp, **arrays), ".npz")
+    _replace(path, lambda fh: np.savez(fh, **arrays))
     _drop_other_bases(path, str(arrays["basis_file"]) if apart else "", getattr(solver, "adopted", None))
 
 
@@ -149,14 +148,12 @@ def _drop_other_bases(path: Path, named: str, adopted) -> None:
             pass
 
 
-def _replace(path: Path, write, suffix: str) -> None:
-    """``write(tmp)`` to a temporary file beside ``path``, then renamed to it."""
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp{suffix}")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+def _replace(path: Path, write) -> None:
+    """``write(file)`` into a temporary file beside ``path``, renamed to it (:func:`jointid.io.atomic_path`)."""
+    from jointid.io import atomic_path
+
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        write(fh)
 
 
 def _save_basis(path: Path, solver, r: int) -> str:
@@ -170,7 +167,7 @@ def _save_basis(path: Path, solver, r: int) -> str:
     h = hashlib.sha256(np.array(V.shape, dtype=np.int64).tobytes())
     h.update(np.ascontiguousarray(V.ravel(order="F")[:: max(1, V.size // 65536)]).tobytes())
     name = f"{path.stem}.basis-{h.hexdigest()[:16]}.npy"
-    _replace(path.parent / name, lambda tmp: np.save(tmp, V), ".npy")
+    _replace(path.parent / name, lambda fh: np.save(fh, V))
     return name
 
 
