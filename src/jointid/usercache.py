@@ -47,14 +47,13 @@ def _read(name: str) -> dict:
 
 
 def _write(name: str, data: dict) -> None:
-    path = cache_file(name)
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.part")
+    """Write the answers through the project's atomic write (whole, or not at all: a concurrent start reads the
+    old or the new file); a failure is ignored (module doc).  Imported here: a start that finds its answer
+    does not load it."""
+    from jointid.errors import JointidError
+    from jointid.io import write_text
+
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp.write_text(json.dumps(data))
-        os.replace(tmp, path)  # whole, or not at all: a concurrent start reads the old or the new file
-    except OSError:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
+        write_text(cache_file(name), json.dumps(data))
+    except (OSError, JointidError):
+        pass
