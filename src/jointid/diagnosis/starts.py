@@ -3,6 +3,7 @@
 * :func:`refit_starts` - the start values of a one-parameter candidate;
 * :func:`sized_starts` - more starts, at the effect's typical sizes, when those all ended at the null;
 * :func:`rounded_start` - a start taken from an estimate, to a few significant digits;
+* :func:`chi2_tie` - how far apart two chi-squares must be to be two optima;
 * :func:`best_fit` - the optimum of least chi-square over several starts, twins within the solver's
   accuracy (:func:`chi2_resolution`) taken as one.
 """
@@ -91,6 +92,14 @@ def chi2_resolution(f, eig_rtol: float = EIGEN_RTOL) -> float:
     return float(np.sum(np.abs(ev.r[rows]) * eig_rtol / np.asarray(ev.sigma, float)[rows]))
 
 
+def chi2_tie(f, low: float | None = None) -> float:
+    """How much lower than ``low`` (default: the chi-square of ``f``) another fit's chi-square must be to be a
+    different, better optimum: the larger of :data:`TIE_RTOL` relative and what the solver's accuracy alone can
+    move the chi-square of ``f`` (:func:`chi2_resolution`).  Closer, the two are one optimum reached twice."""
+    low = f.chi2 if low is None else low
+    return max(TIE_RTOL * abs(low), chi2_resolution(f)) + 1e-9
+
+
 def best_fit(fits: list):
     """The fit of least chi-square over several starts; fits within :data:`TIE_RTOL` of it, or within
     what the solver's accuracy alone can move a chi-square (:func:`chi2_resolution`), are one optimum
@@ -101,8 +110,7 @@ def best_fit(fits: list):
     if not finite:
         return fits[0]
     low = min(f.chi2 for f in finite)
-    return next(f for f in finite
-                if f.chi2 <= low + max(TIE_RTOL * abs(low), chi2_resolution(f)) + 1e-9)
+    return next(f for f in finite if f.chi2 <= low + chi2_tie(f, low))
 
 
 def rounded_start(t: float) -> float:
