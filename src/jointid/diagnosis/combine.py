@@ -62,7 +62,7 @@ def combine_candidates(diag: Diagnoser, current: Fit, singles: dict, n_combine: 
         var = fa.variant.extended(spec_b)
         log(f"diagnosis: refitting {current.variant.name} + {a} + {b} {steps.next()}")
         starts = continuation_starts(current, fa, fb)
-        fits[f"+{a}+{b}"] = best_fit([diag.fit(var, x0, index=fa.ev.index) for x0 in starts])
+        fits[f"+{a}+{b}"] = best_fit(diag.fit_starts(var, starts, index=fa.ev.index))
         names[f"+{a}+{b}"] = (a, b)
     if fits:  # the leading pair is a reported optimum (verdict, ladder): certified as the leading single
         lead_pair = min(fits, key=lambda k: fits[k].aicc)
@@ -97,7 +97,7 @@ def refit_on_ladder(diag: Diagnoser, rungs: list[Fit], current: Fit, spec: Effec
     below = rungs[-1]
     fb = refit_at(diag, below, spec) if len(rungs) == 1 else refit_on_ladder(diag, rungs[:-1], below, spec)
     var = current.variant.extended(spec)
-    best = best_fit([diag.fit(var, x0, index=current.ev.index) for x0 in continuation_starts(below, current, fb)])
+    best = best_fit(diag.fit_starts(var, continuation_starts(below, current, fb), index=current.ev.index))
     if verify:
         best = diag.certify(best)
     return best

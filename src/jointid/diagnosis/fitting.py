@@ -299,7 +299,17 @@ class Diagnoser:
             out[rows[rr]] = cc
         return out
 
-    def fit(self, variant: Variant, x0, *, index=None, max_loops: int = 4, verify: bool = False) -> "Fit":
+    def fit_starts(self, variant: Variant, starts, *, index=None) -> list["Fit"]:
+        """:meth:`fit` of ``variant`` from each of ``starts`` in turn.  A start whose search on the subspace
+        ends at the optimum an earlier start reached (:func:`same_optimum`) is not refined and checked
+        again: it takes that fit (on the paper's diagnosis most starts end at one optimum)."""
+        fits: list[Fit] = []
+        for x0 in starts:
+            fits.append(self.fit(variant, x0, index=index, known=fits))
+        return fits
+
+    def fit(self, variant: Variant, x0, *, index=None, max_loops: int = 4, verify: bool = False,
+            known=()) -> "Fit":
         """Bounded least squares of ``variant`` from ``x0``; pairing re-done until stable.
 
         With a :class:`jointid.diagnosis.memo.FitMemo` (``memo``), a fit asked with exactly the inputs
@@ -307,6 +317,7 @@ class Diagnoser:
         the full space, or certified by a check kept with the subspace) instead of being searched
         again; every fit searched is recorded.
         ``verify``: the optimum is certified (:meth:`ReducedSolver.verify`) and refitted if it fails.
+        ``known``: fits of ``variant`` from other starts (:meth:`fit_starts`).
         """
         x0 = np.clip(np.asarray(x0, float), variant.lower, variant.upper)
         key = rec = None
@@ -319,7 +330,7 @@ class Diagnoser:
             ev = self.evaluate(variant, rec["x"], rec["index"], refine=True,
                                misfits=[(c, t, None) for c, t in rec["misfits"]])
         else:
-            ev = self._search(variant, x0, index, max_loops)
+            ev = self._search(variant, x0, index, max_loops, known)
             if key is not None:
                 self.memo.put(key, ev)
         if verify:
@@ -338,9 +349,11 @@ class Diagnoser:
         """``fit`` asked again from its optimum with the certificate (:meth:`fit` with ``verify``)."""
         return self.fit(fit.variant, fit.x, index=fit.ev.index, verify=True)
 
-    def _search(self, variant: Variant, x0: np.ndarray, index, max_loops: int) -> Evaluation:
+    def _search(self, variant: Variant, x0: np.ndarray, index, max_loops: int, known=()) -> Evaluation:
         """The search of :meth:`fit`: least squares on the subspace, refinement at the optimum, pairing
-        re-done, until the pairing and the subspace are stable; returns the final evaluation."""
+        re-done, until the pairing and the subspace are stable; returns the final evaluation.  When a
+        least squares ends at the optimum of one of ``known`` with its pairing (:func:`same_optimum`), that
+        fit's: the refinement and checks from there would find it again."""
         if index is None:
             index = [p.model_index for p in self.pair(self.solve_states(variant, x0))]
         ev = None
@@ -364,6 +377,9 @@ class Diagnoser:
                                     bounds=(variant.lower, variant.upper), method="trf", x_scale=1.0,
                                     xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=40)
                 x_opt = res.x
+                same = next((f for f in known if same_optimum(f, x_opt, index)), None)
+                if same is not None:
+                    return same.ev
             else:
                 x_opt = x0
             size = (self.solver.generation, self.solver.V.shape[1])
@@ -380,6 +396,19 @@ class Diagnoser:
             if same_pairs and (not changed_space or not variant.n_params):
                 break
         return ev
+
+
+SAME_OPTIMUM = 0.05
+"""A start's optimum is an earlier start's when every parameter lies within this fraction of that fit's
+standard error (its scaled covariance) of it, with the same pairing: a difference no interval can show."""
+
+
+def same_optimum(fit: "Fit", x, index) -> bool:
+    """Whether ``x`` with pairing ``index`` is the optimum of ``fit`` (:data:`SAME_OPTIMUM`)."""
+    if index is None or not all(np.array_equal(a, b) for a, b in zip(fit.ev.index, index)):
+        return False
+    se = np.sqrt(np.maximum(np.diag(fit.scaled_covariance()), 0.0))
+    return bool(np.all(np.abs(np.asarray(x, float) - fit.x) <= SAME_OPTIMUM * se))
 
 
 def shares_terms(a: System, b: System) -> bool:
@@ -412,10 +441,11 @@ def refit(diag: Diagnoser, fit: Fit, spec: EffectSpec, t_hat: np.ndarray, *, ver
     var = fit.variant.extended(spec)
     q = var.n_params - fit.variant.n_params
     starts = refit_starts(spec, float(t_hat[0])) if q == 1 else [[rounded_start(t) for t in np.clip(t_hat, 0, None)]]
-    best = best_fit([diag.fit(var, np.concatenate([fit.x, np.atleast_1d(s)]), index=fit.ev.index) for s in starts])
+    best = best_fit(diag.fit_starts(var, [np.concatenate([fit.x, np.atleast_1d(s)]) for s in starts],
+                                    index=fit.ev.index))
     if q == 1 and at_its_null(spec, best.x[-1]):  # every start ended at the null: try the effect at typical sizes
         more = sized_starts(spec, starts)
-        best = best_fit([best] + [diag.fit(var, np.concatenate([fit.x, [s]]), index=fit.ev.index) for s in more])
+        best = best_fit([best] + diag.fit_starts(var, [np.concatenate([fit.x, [s]]) for s in more], index=fit.ev.index))
     if verify:
         best = diag.certify(best)
     return best

@@ -295,8 +295,7 @@ def calibrate_ladder(diag: Diagnoser, fit_base: Fit, enabled: list[Enabled], log
             x0 = np.concatenate([current.x, [en.effect.param(n).to_t(en.values[n]) for n in spec.free]])
             near = np.concatenate([current.x, [en.effect.param(n).t_near_null() for n in spec.free]])
             starts = [x0] if np.allclose(near, x0) else [x0, near]
-            tried = [diag.fit(var, x, index=current.ev.index) for x in starts]
-            best = best_fit(tried)
+            best = best_fit(diag.fit_starts(var, starts, index=current.ev.index))
         current = diag.certify(best) if en is enabled[-1] else best
         label = "+" + en.effect.name
         fits[label] = current

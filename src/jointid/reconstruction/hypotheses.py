@@ -120,7 +120,7 @@ def search(diag: Diagnoser, law: LinkedLaw, log=print_log) -> Searched:
     for P in classes:  # continuation: each class starts at the optimum (and pairing) of the one before
         var = linked_variant(system, settings, law if linked else None, P)
         if x_prev is None:  # the configured start and the hypothesis's effects at their null, best kept
-            fit = min((diag.fit(var, x0) for x0 in _starts(var)), key=lambda f: f.chi2)
+            fit = min(diag.fit_starts(var, _starts(var)), key=lambda f: f.chi2)
         else:
             fit = diag.fit(var, x_prev, index=index)
         x_prev, index = fit.x, fit.ev.index
