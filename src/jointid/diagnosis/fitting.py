@@ -36,7 +36,7 @@ from scipy.optimize import least_squares, linear_sum_assignment
 from jointid.config.typed_diagnosis import DiagnosisSettings
 from jointid.correlate import pairing as correlate
 from jointid.diagnosis import mesh_error
-from jointid.diagnosis.results import Evaluation, Fit
+from jointid.diagnosis.results import Evaluation, Fit, standard_distance
 from jointid.diagnosis.shape_residuals import ShapeTerms
 from jointid.diagnosis.starts import (EIGEN_RTOL, START_DIGITS, TIE_RTOL, best_fit, chi2_resolution,  # noqa: F401
                                       at_its_null, refit_starts, rounded_start, sized_starts)
@@ -407,8 +407,7 @@ def same_optimum(fit: "Fit", x, index) -> bool:
     """Whether ``x`` with pairing ``index`` is the optimum of ``fit`` (:data:`SAME_OPTIMUM`)."""
     if index is None or not all(np.array_equal(a, b) for a, b in zip(fit.ev.index, index)):
         return False
-    se = np.sqrt(np.maximum(np.diag(fit.scaled_covariance()), 0.0))
-    return bool(np.all(np.abs(np.asarray(x, float) - fit.x) <= SAME_OPTIMUM * se))
+    return standard_distance(fit, x) <= SAME_OPTIMUM
 
 
 def shares_terms(a: System, b: System) -> bool:

@@ -35,7 +35,7 @@ from jointid.diagnosis.judging import judge_fits, model_error_of
 from jointid.diagnosis.mesh_budget import mesh_budget, refit_answer
 from jointid.diagnosis.predictive import check_pairs
 from jointid.diagnosis.preload import identifiable_fits, profile_candidate
-from jointid.diagnosis.results import refit_row
+from jointid.diagnosis.results import refit_row, standard_distance
 from jointid.diagnosis.starts import chi2_tie
 from jointid.diagnosis.statistics import identifiability, score_candidate, state_contrasts
 from jointid.diagnosis.tables import (compare_tables, drift_table, parameter_table, ranking_frame,
@@ -224,9 +224,7 @@ def better_basin(diag: Diagnoser, current: Fit, fits: dict, log) -> tuple[Fit, s
 def outside_interval(f: Fit, x) -> bool:
     """Whether any parameter of ``x`` (the first ``len(x)`` of ``f``'s) lies outside ``f``'s 95 % interval
     (its scaled covariance): another basin, not ``f``'s own optimum found again to the search's tolerance."""
-    x = np.asarray(x, float)
-    se = np.sqrt(np.maximum(np.diag(f.scaled_covariance())[:len(x)], 0.0))
-    return bool(np.any(np.abs(x - np.asarray(f.x[:len(x)], float)) > 1.96 * se))
+    return standard_distance(f, x) > 1.96
 
 
 def at_null(f: Fit, n_slots: int) -> bool:

@@ -318,6 +318,15 @@ class Fit:
         return out
 
 
+def standard_distance(fit, x) -> float:
+    """The largest distance of ``x`` from the first ``len(x)`` parameters of ``fit``, in that fit's standard
+    errors (its scaled covariance, the intervals every report gives)."""
+    x = np.asarray(x, float)
+    se = np.sqrt(np.maximum(np.diag(fit.scaled_covariance())[:len(x)], 0.0))
+    d = np.abs(x - np.asarray(fit.x[:len(x)], float))
+    return float(np.max(np.where(d > 0, d / np.maximum(se, 1e-300), 0.0), initial=0.0))
+
+
 def refit_row(f: Fit, current: Fit, data: list[StateData], alpha: float, extra_params: int = 0) -> dict:
     """Ranking columns of a candidate's refit ``f`` (its one parameter is the last of ``x``) against
     the ``current`` model: delta AICc, chi-square and p-value, whether it explains the data, the
