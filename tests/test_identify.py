@@ -158,6 +158,11 @@ def test_extra_residuals_and_weights_enter_the_objective():
                  extra=lambda x: 100.0 * (x - x_target))
     np.testing.assert_allclose(r.x_coded, x_target, atol=1e-3)
     assert r.residuals.size == 5 and r.jacobian.shape == (5, 2)
+    # the extra residuals' Jacobian given (here exactly 100 I) gives the fit of central differences
+    r_j = identify(model, f_meas, lower=LO2, upper=HI2, names=NAMES2, n_starts=3,
+                   extra=lambda x: 100.0 * (x - x_target), extra_jacobian=lambda x: 100.0 * np.eye(2))
+    np.testing.assert_allclose(r_j.x_coded, r.x_coded, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(r_j.jacobian[3:], 100.0 * np.eye(2), rtol=1e-12)
     # zero weight on mode 3: data from a different k-set in mode 3 only changes nothing
     f_bad = f_meas.copy()
     f_bad[2] *= 1.1

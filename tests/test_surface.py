@@ -129,6 +129,26 @@ def test_quadratic_basis_order():
     np.testing.assert_array_equal(A[0], [1, 2, 3, 5, 6, 10, 15, 4, 9, 25])
 
 
+@pytest.mark.parametrize("k", [1, 2, 4])
+def test_quadratic_basis_and_its_gradient_by_hand(k):
+    """Columns 1, x_i, x_i x_j (i < j), x_i^2 of several points, and their derivative, written out."""
+    from jointid.identification.surface import _quadratic_basis_gradient
+
+    X = np.random.default_rng(k).uniform(-1, 1, (3, k))
+    for x, row in zip(X, quadratic_basis(X)):
+        cross = [x[i] * x[j] for i in range(k) for j in range(i + 1, k)]
+        np.testing.assert_array_equal(row, [1.0, *x, *cross, *(x ** 2)])
+        G = np.zeros((row.size, k))
+        G[1:1 + k] = np.eye(k)
+        t = 1 + k
+        for i in range(k):
+            for j in range(i + 1, k):
+                G[t, i], G[t, j] = x[j], x[i]
+                t += 1
+        G[t:] = 2.0 * np.diag(x)
+        np.testing.assert_array_equal(_quadratic_basis_gradient(x), G)
+
+
 def test_verification_errors_relative():
     X = doe.design("ccf", 2)
     s = fit_surface(X, 100 + 10 * X[:, 0])

@@ -176,6 +176,7 @@ def identify(
     lower=None,
     upper=None,
     extra: Callable[[np.ndarray], np.ndarray] | None = None,
+    extra_jacobian: Callable[[np.ndarray], np.ndarray] | None = None,
     n_factors: int | None = None,
 ) -> IdentifyResult:
     # many parameters: the multistart fit's options, keyword with defaults
@@ -206,8 +207,9 @@ def identify(
         Physical bounds of the coding (see :func:`jointid.identification.doe.to_physical`).  Without them results
         stay in coded units.
     extra : callable, optional
-        ``extra(x) -> (q,)`` additional residuals (e.g. ``sqrt(w_mac) * (1 - MAC_ii)``);
-        differentiated by central differences.
+        ``extra(x) -> (q,)`` additional residuals (e.g. ``sqrt(w_mac) * (1 - MAC_ii)``).
+    extra_jacobian : callable, optional
+        ``extra_jacobian(x) -> (q, k)``, the derivative of ``extra``; central differences otherwise.
     n_factors : int, optional
         Number of parameters if neither names, lower nor array bounds give it.
 
@@ -235,7 +237,7 @@ def identify(
             raise ConfigError(f"identify: lower/upper have {lo_p.size} entries for {k} parameters; "
                               f"give one physical (lower, upper) pair per parameter")
 
-    residual, residual_jac = _residual_functions(model, f_meas, w, jacobian, extra, k)
+    residual, residual_jac = _residual_functions(model, f_meas, w, jacobian, (extra, extra_jacobian), k)
     best, n_agree, n_run = _multistart(residual, residual_jac, lo_b, hi_b, n_starts, seed, k)
     x = np.clip(best.x, lo_b, hi_b)
 
@@ -306,9 +308,11 @@ def _check_inputs(f_meas, w, names, k, lo_b, hi_b, lower, upper, sigma_rel, n_st
         raise ConfigError(problems)
 
 
-def _residual_functions(model, f_meas, w, jacobian, extra, k):
+def _residual_functions(model, f_meas, w, jacobian, extras, k):
     """``(residual, residual_jac)``: the weighted relative residuals ``sqrt(w) (f - f_meas) / f_meas``
-    (then ``extra(x)``) and their Jacobian (m + q, k) w.r.t. the coded parameters."""
+    (then ``extra(x)``) and their Jacobian (m + q, k) w.r.t. the coded parameters.  ``extras``:
+    ``(extra, extra_jacobian)``, either may be None."""
+    extra, extra_jacobian = extras
     m = f_meas.size
     sw = np.sqrt(w)
     scale = sw / f_meas  # d r_i / d f_i
@@ -330,7 +334,9 @@ def _residual_functions(model, f_meas, w, jacobian, extra, k):
             Jf = _central_diff(lambda z: np.asarray(model(z), float).reshape(-1), x)
         J = scale[:, None] * Jf
         if extra is not None:
-            J = np.vstack([J, _central_diff(lambda z: np.asarray(extra(z), float).reshape(-1), x)])
+            Je = (_central_diff(lambda z: np.asarray(extra(z), float).reshape(-1), x) if extra_jacobian is None
+                  else np.asarray(extra_jacobian(x), dtype=float).reshape(-1, k))
+            J = np.vstack([J, Je])
         return J
 
     return residual, residual_jac

@@ -26,6 +26,7 @@ points from :func:`jointid.identification.doe.verification_points`); accept it o
 
 from __future__ import annotations
 
+import functools
 import itertools
 import warnings
 from dataclasses import dataclass, field
@@ -85,24 +86,33 @@ def quadratic_basis(X) -> np.ndarray:
     """
     X = as_points(X)
     n, k = X.shape
-    cols = [np.ones(n)] + [X[:, i] for i in range(k)]
-    cols += [X[:, i] * X[:, j] for i, j in _pairs(k)]
-    cols += [X[:, i] ** 2 for i in range(k)]
-    return np.column_stack(cols)
+    i, j = _pair_columns(k)
+    B = np.empty((n, n_quadratic_terms(k)))
+    B[:, 0] = 1.0
+    B[:, 1:1 + k] = X
+    B[:, 1 + k:1 + k + i.size] = X[:, i] * X[:, j]
+    B[:, 1 + k + i.size:] = X ** 2
+    return B
+
+
+@functools.lru_cache(maxsize=None)
+def _pair_columns(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The columns ``(i, j)``, ``i < j``, of the quadratic's cross terms, in :func:`_pairs` order."""
+    pairs = np.array(_pairs(k), dtype=int).reshape(-1, 2)
+    return pairs[:, 0].copy(), pairs[:, 1].copy()
 
 
 def _quadratic_basis_gradient(x: np.ndarray) -> np.ndarray:
     """d(basis)/dx at one point: shape (n_terms, k)."""
     k = x.size
+    i, j = _pair_columns(k)
     G = np.zeros((n_quadratic_terms(k), k))
-    for i in range(k):
-        G[1 + i, i] = 1.0
-    for t, (i, j) in enumerate(_pairs(k)):
-        G[1 + k + t, i] = x[j]
-        G[1 + k + t, j] = x[i]
-    off = 1 + k + len(_pairs(k))
-    for i in range(k):
-        G[off + i, i] = 2.0 * x[i]
+    diag = np.arange(k)
+    G[1 + diag, diag] = 1.0
+    t = 1 + k + np.arange(i.size)
+    G[t, i] = x[j]
+    G[t, j] = x[i]
+    G[1 + k + i.size + diag, diag] = 2.0 * x
     return G
 
 

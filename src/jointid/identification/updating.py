@@ -143,13 +143,15 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
 
     def fit(pairing, pen, tgt):
         model = LogFrequencyModel(surf, pairing)
-        extra = None
+        extra = extra_jac = None
         if pen.size:  # the unpaired visible modes: their distance to the nearest measured mode
             extra = lambda x: (full(x)[pen] - tgt) / tgt  # noqa: E731
+            extra_jac = lambda x: full.jacobian(x)[pen] / tgt[:, None]  # noqa: E731
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always", NumericalWarning)
             res = identify(model, f_meas, weights=weights, jacobian=model.jacobian, n_starts=n_starts,
-                           seed=seed, sigma_rel=sigma_rel, names=names, lower=lower, upper=upper, extra=extra)
+                           seed=seed, sigma_rel=sigma_rel, names=names, lower=lower, upper=upper, extra=extra,
+                           extra_jacobian=extra_jac)
         return res, [str(x.message) for x in w]
 
     def run(pairing, x_hint=None):
