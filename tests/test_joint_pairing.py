@@ -267,3 +267,35 @@ def test_each_states_own_pairing_is_a_candidate_even_when_its_search_did_not_lis
     assert {tuple(info[s]["own"]) for s in f} <= {tuple(c["pairing"]) for c in info["candidates"]}
     for s in f:
         pairing_notes(doc, s, list(f), pairing, info, "independent")
+
+
+def test_a_fit_asked_again_with_the_same_memo_is_not_run_again(monkeypatch):
+    """identify_state's memo: the same pairing (and misfit set) of the same state is fitted once; the
+    joint pairing gives the same answer as when every fit is run afresh."""
+    from jointid.identification import updating
+
+    doc = _doc()
+    f = {"a": np.array([390.0, 1330.0, 2050.0]), "b": np.array([430.0, 1420.0, 2150.0])}
+    calls = []
+    real = updating.identify
+    monkeypatch.setattr(updating, "identify", lambda *a, **k: calls.append(1) or real(*a, **k))
+    memo: dict = {}
+    first = identify_state(doc, f["a"], LOWER, UPPER, pairing=[0, 1, 3], memo=memo, **KW)
+    n_first = len(calls)
+    again = identify_state(doc, f["a"], LOWER, UPPER, pairing=[0, 1, 3], memo=memo, **KW)
+    assert n_first >= 1 and len(calls) == n_first  # answered from the memo
+    assert again[0] is first[0] and list(again[1]) == list(first[1])
+    other = identify_state(doc, f["a"], LOWER, UPPER, pairing=[0, 2, 3], memo=memo, **KW)
+    assert len(calls) > n_first and other[0].cost != first[0].cost  # another pairing is fitted
+    # the joint pairing with its memos, against the same search with every fit run afresh
+    calls.clear()
+    pairing, info = identify_states_jointly(doc, f, LOWER, UPPER, **KW)
+    n_memo = len(calls)
+    monkeypatch.setattr(updating, "identify_state",
+                        lambda *a, memo=None, **k: identify_state(*a, **k))  # no memo: every fit runs
+    calls.clear()
+    pairing0, info0 = updating.identify_states_jointly(doc, f, LOWER, UPPER, **KW)
+    assert len(calls) > n_memo
+    assert list(pairing) == list(pairing0)
+    assert [(c["pairing"], c["cost"]) for c in info["candidates"]] == \
+        [(c["pairing"], c["cost"]) for c in info0["candidates"]]

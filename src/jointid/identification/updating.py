@@ -107,7 +107,7 @@ def state_misfits(full, rule, ref_shapes, f_meas, pairing, x) -> tuple[np.ndarra
 def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
                    meas_shapes: np.ndarray | None = None, weights=None, n_starts: int = 16,
                    seed: int = 0, sigma_rel: float = 0.01, pairing=None, candidates: list | None = None,
-                   rule=None, damping=None, decision: dict | None = None):
+                   rule=None, damping=None, decision: dict | None = None, memo: dict | None = None):
     # many parameters: the surface fit's options (shapes, weights, starts, pairing, rule, damping), keyword with defaults
     # long: four closures share the surface, the data and the rule (misfits, fit, run, pair); the body is the multistart
     """Identify the joint parameters of one state from measured frequencies.
@@ -126,7 +126,9 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
     measured mode, :func:`jointid.identification.ties.tie_damping`) the pairing whose unpaired visible
     modes could all hide in a measured peak's half-power band, else the nearest partners.
     ``decision`` (a dict) receives the rule that decided and the tied pairings' unpaired visible modes
-    (:func:`tie_record`).
+    (:func:`tie_record`).  ``memo`` (a dict, kept by the caller across calls for the same state and
+    options) holds every multistart fit by its pairing and misfit set: a fit asked again is not run again
+    (it is a function of those alone, so the answer is the same).
     """
     surf = Surface.from_dict(doc["surface"])
     names = doc["names"]
@@ -142,6 +144,14 @@ def identify_state(doc: dict, f_meas: np.ndarray, lower: np.ndarray, upper: np.n
         return state_misfits(full, rule, ref_shapes, f_meas, pairing, x)
 
     def fit(pairing, pen, tgt):
+        if memo is None:
+            return _fit(pairing, pen, tgt)
+        key = (tuple(int(c) for c in pairing), tuple(int(c) for c in pen), np.asarray(tgt, float).tobytes())
+        if key not in memo:
+            memo[key] = _fit(pairing, pen, tgt)
+        return memo[key]
+
+    def _fit(pairing, pen, tgt):
         model = LogFrequencyModel(surf, pairing)
         extra = extra_jac = None
         if pen.size:  # the unpaired visible modes: their distance to the nearest measured mode
@@ -282,10 +292,11 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
     dmp = kw.pop("damping", None)
     damping = {s: None if dmp is None else dmp.get(s) for s in f_meas}
     cands, own = {}, {}
+    memos = {s: {} for s in f_meas}  # each state's fits by pairing and misfit set (identify_state)
     for state, f in f_meas.items():
         found: list = []
         _, p, _ = identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[state],
-                                 candidates=found, rule=rules[state], damping=damping[state], **kw)
+                                 candidates=found, rule=rules[state], damping=damping[state], memo=memos[state], **kw)
         own[state] = tuple(int(c) for c in p)
         for pairing, _ in found:
             cands.setdefault(pairing, None)
@@ -296,7 +307,8 @@ def identify_states_jointly(doc: dict, f_meas: dict, lower, upper, **kw) -> tupl
     for _ in range(4):  # the pairings the starts found, then the swaps of the best, until none is new
         for pairing in queue:
             fits[pairing] = {s: identify_state(doc, np.asarray(f, float), lower, upper, sigma_rel=sigma[s],
-                                               pairing=pairing, rule=rules[s], **kw)[0] for s, f in f_meas.items()}
+                                               pairing=pairing, rule=rules[s], memo=memos[s], **kw)[0]
+                             for s, f in f_meas.items()}
             costs = {s: r.cost for s, r in fits[pairing].items()}
             tried.append({"pairing": list(pairing), "cost": sum(costs.values()),
                           "chi2": sum(c / sigma[s] ** 2 for s, c in costs.items()), "costs": costs,
