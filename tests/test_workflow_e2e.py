@@ -220,6 +220,10 @@ def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
         assert b["uncertainty_pct"] == pytest.approx(np.hypot(par["frequency_uncertainty_pct"], me["sigma_model_pct"]))
         assert b["budget_pct"] == pytest.approx(b["uncertainty_pct"] * cfg["mesh_check"]["budget_fraction"])
         assert b["within"] is (b["max_error_pct"] <= b["budget_pct"])
+        # a refinement of fewer than the three axes says that a uniform one would find more
+        from jointid.identification.meshcheck import AXES
+        covered = set().union(*(AXES.get(c, set()) for c in doc["halved"])) >= {"length", "thickness", "width"}
+        assert ("part of a uniform refinement's error" in b["sentence"]) is not covered
         paired = tab[tab.measured_mode > 0].sort_values("measured_mode")
         np.testing.assert_allclose(b["error_pct"], paired.change_pct.abs(), rtol=1e-6)
         own = ("default_mesh_Hz", "refined_mesh_Hz") if doc["extrapolated_over_edge_levels"] else ("default_Hz", "refined_Hz")

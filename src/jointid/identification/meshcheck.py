@@ -35,7 +35,12 @@ import numpy as np
 from jointid.identification.record import IdentificationRecord
 
 
-def error_budget(change_pct, par: IdentificationRecord, fraction: float) -> dict:
+AXES = {"length": {"length"}, "thickness": {"thickness"}, "width": {"width"}, "plan": {"length", "width"}}
+"""The axes along which each cell class of ``mesh_check.halve`` halves every cell (joint_zone and edges:
+none entirely)."""
+
+
+def error_budget(change_pct, par: IdentificationRecord, fraction: float, halved=("length", "thickness", "width")) -> dict:
     """Each paired mode's discretisation error against ``fraction`` of its frequency uncertainty.
 
     Parameters
@@ -48,6 +53,11 @@ def error_budget(change_pct, par: IdentificationRecord, fraction: float) -> dict
         ``model_error.sigma_model_pct`` (``sigma_m``, 0 when absent).
     fraction : float
         ``mesh_check.budget_fraction``.
+    halved : sequence of str
+        The cell classes the refined mesh halved (``mesh_check.halve``).  Where they do not halve every
+        cell along all three axes, the sentence says that a uniform refinement would find more: each
+        halving lowers the frequencies, and to first order the three axes' shifts add up to the uniform
+        refinement's (:mod:`jointid.diagnosis.mesh_error`).
 
     Returns
     -------
@@ -65,7 +75,10 @@ def error_budget(change_pct, par: IdentificationRecord, fraction: float) -> dict
     worst = int(np.nanargmax(np.where(ok, err, -1.0))) if ok.any() else -1
     max_err = float(err[worst]) if worst >= 0 else float("nan")
     within = bool(ok.any() and max_err <= budget)
-    sentence = (f"Mesh error at most {max_err:.2f} % (measured mode {worst + 1}); the budget is "
+    axes = set().union(*(AXES.get(c, set()) for c in halved))
+    part = "" if axes >= {"length", "thickness", "width"} else (
+        f", with the {', '.join(halved)} cells halved: part of a uniform refinement's error, which is larger")
+    sentence = (f"Mesh error at most {max_err:.2f} % (measured mode {worst + 1}{part}); the budget is "
                 f"{budget:.2f} % ({fraction:.2g} x the frequency uncertainty {unc:.2f} % = sqrt(noise {s:.2g} %^2 "
                 f"+ model error {sm:.2g} %^2)): " + ("within." if within else
                                                     "above it; refine the mesh (mesh.max_cell_size_m)."))

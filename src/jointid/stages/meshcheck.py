@@ -116,7 +116,7 @@ def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_
     io.write_csv(table, out_csv)
     change = np.full(len(fe_mode), np.nan)
     change[use] = 100 * np.expm1(dlnf)
-    budget = error_budget(change, par, opts.budget_fraction)
+    budget = error_budget(change, par, opts.budget_fraction, halve)
     doc = {"state": state, "halved": list(halve), "extrapolated_over_edge_levels": edges,
            "budget": budget,
            "n_dofs_default": int(n_dofs_c), "n_dofs_refined": int(n_dofs_f),
