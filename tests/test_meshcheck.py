@@ -51,7 +51,7 @@ def test_error_budget_holds_the_mesh_error_against_a_third_of_the_total_uncertai
     b = error_budget([0.5, -1.2, np.nan], IdentificationRecord({}, frequency_uncertainty_pct=1.0), 1 / 3)
     assert not b["within"] and b["budget_pct"] == pytest.approx(1 / 3)
     assert "above it" in b["sentence"]
-    assert "part of a uniform refinement" not in b["sentence"]  # every axis halved (the default)
+    assert "part of a uniform refinement" not in b["sentence"]  # every axis halved (error_budget's default)
     # the thickness alone (the mesh check's default): the sentence says a uniform refinement finds more
     thin = error_budget([0.5, -1.2, np.nan], par, 1 / 3, ("thickness",))["sentence"]
     assert "with the thickness cells halved: part of a uniform refinement's error, which is larger" in thin
