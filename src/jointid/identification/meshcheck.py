@@ -35,11 +35,6 @@ import numpy as np
 from jointid.identification.record import IdentificationRecord
 
 
-AXES = {"length": {"length"}, "thickness": {"thickness"}, "width": {"width"}, "plan": {"length", "width"}}
-"""The axes along which each cell class of ``mesh_check.halve`` halves every cell (joint_zone and edges:
-none entirely)."""
-
-
 def error_budget(change_pct, par: IdentificationRecord, fraction: float, halved=("length", "thickness", "width")) -> dict:
     """Each paired mode's discretisation error against ``fraction`` of its frequency uncertainty.
 
@@ -75,8 +70,9 @@ def error_budget(change_pct, par: IdentificationRecord, fraction: float, halved=
     worst = int(np.nanargmax(np.where(ok, err, -1.0))) if ok.any() else -1
     max_err = float(err[worst]) if worst >= 0 else float("nan")
     within = bool(ok.any() and max_err <= budget)
-    axes = set().union(*(AXES.get(c, set()) for c in halved))
-    part = "" if axes >= {"length", "thickness", "width"} else (
+    from jointid.geometry.mesh import axes_halved
+
+    part = "" if all(axes_halved(tuple(halved))) else (
         f", with the {', '.join(halved)} cells halved: part of a uniform refinement's error, which is larger")
     sentence = (f"Mesh error at most {max_err:.2f} % (measured mode {worst + 1}{part}); the budget is "
                 f"{budget:.2f} % ({fraction:.2g} x the frequency uncertainty {unc:.2f} % = sqrt(noise {s:.2g} %^2 "
