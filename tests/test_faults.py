@@ -275,7 +275,8 @@ ORPHAN = textwrap.dedent("""
         with atomic_path(out[0]) as tmp:
             tmp.write_bytes(b"half of a result")
             print(tmp, file=sys.__stdout__, flush=True)
-            time.sleep(120)
+            while True:  # short sleeps, as a job computes (tests/test_interrupt.py, SIGTERM_STAGE)
+                time.sleep(0.1)
 
     run_script(SimpleNamespace(log=[sys.argv[2]], params=SimpleNamespace(cfg={}), input=[], output=[sys.argv[1]],
                                rule="identify"), stage)

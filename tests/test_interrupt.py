@@ -108,6 +108,9 @@ def test_stale_cleanup_keeps_live_writers_and_other_targets(tmp_path):
     assert not dead.exists() and not other_host_old.exists() and not legacy_old.exists()
 
 
+# The stage sleeps in short steps, as a job computes.  One long sleep would not do: numpy's BLAS starts a
+# thread at import, the kernel may deliver the SIGTERM to it, and the main thread, whose sleep is then not
+# interrupted, runs Python's handler only when it wakes (seen once in eight runs on a loaded machine).
 SIGTERM_STAGE = textwrap.dedent("""
     import sys, time
     from types import SimpleNamespace
@@ -120,7 +123,8 @@ SIGTERM_STAGE = textwrap.dedent("""
         with atomic_path(out[0]) as tmp:
             tmp.write_bytes(b"half of a new result")
             print(tmp, file=sys.__stdout__, flush=True)
-            time.sleep(120)
+            while True:  # a working job: Python runs the handler between two bytecodes
+                time.sleep(0.1)
 
     smk = SimpleNamespace(log=[log], params=SimpleNamespace(cfg={}), input=[], output=[target],
                           rule="probe")
