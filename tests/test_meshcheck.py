@@ -58,3 +58,24 @@ def test_error_budget_holds_the_mesh_error_against_a_third_of_the_total_uncertai
     assert "part of a uniform" not in error_budget([0.5], par, 1 / 3, ("plan", "thickness"))["sentence"]
     # nothing followed: not within
     assert not error_budget([np.nan], par, 1 / 3)["within"]
+
+
+def test_optimum_modes_round_trip_and_refuse_other_parameters(tmp_path):
+    from jointid.errors import ModelError
+    from jointid.identification.optimum_modes import OptimumModes
+
+    at = OptimumModes(("k_normal_N_per_m3", "k_lateral_N_per_m3"), np.array([1.2e12, 3.4e11]),
+                      np.array([100.0, 250.5, 400.25]), np.arange(12.0).reshape(4, 3), np.arange(6.0).reshape(3, 2),
+                      5000)
+    path = tmp_path / "optimum_modes.npz"
+    at.write(path)
+    back = OptimumModes.read(path)
+    assert back.names == at.names and back.n_dofs == 5000
+    for a, b in ((at.theta_N_per_m3, back.theta_N_per_m3), (at.freqs_Hz, back.freqs_Hz), (at.shapes, back.shapes),
+                 (at.dlnf_dlog10theta, back.dlnf_dlog10theta)):
+        assert np.array_equal(a, b)
+    back.check_parameters(at.names, [1.2e12, 3.4e11], path)  # the same parameters: accepted
+    with pytest.raises(ModelError, match="other joint parameters"):
+        back.check_parameters(at.names, [1.2e12, 3.5e11], path)
+    with pytest.raises(ModelError, match="rebuild them"):
+        back.check_parameters(at.names[::-1], [3.4e11, 1.2e12], path)

@@ -194,6 +194,29 @@ def test_zoomed_surfaces_are_more_accurate_and_carry_the_identification(coarse_r
         assert [par["surface_box"][n] for n in box["names"]] == [list(b) for b in zip(box["lower"], box["upper"])]
 
 
+def test_mesh_check_takes_the_default_mesh_solve_from_verify(coarse_run, tmp_path, monkeypatch):
+    """Rule verify keeps its solve at the identified parameters (``optimum_modes.npz``) and the mesh check
+    reads it instead of solving the default mesh again: the check with that solve made afresh gives the
+    same files, byte for byte."""
+    from conftest import COARSE_RUN, coarse_config_dict
+    from jointid.config import rule_keys as keys
+    from jointid.config.options import MeshCheckOptions
+    from jointid.config.snakefile import sections, validated
+    from jointid.stages.meshcheck import run_mesh_check
+
+    monkeypatch.chdir(coarse_run)
+    cfg = validated(coarse_config_dict(COARSE_RUN), ["config.yaml"])
+    opts = MeshCheckOptions.from_config(sections(cfg, *keys.MESH_CHECK))
+    assert not opts.extrapolate  # the default: both meshes at their base level, verify's solve used
+    state, r = STATES[0], coarse_run / "results"
+    assert "rule verify's solve" in (coarse_run / f"logs/mesh_check/{state}.log").read_text()
+    run_mesh_check(opts, state, str(r / f"identify/{state}/params.json"), str(r / f"identify/{state}/verify.csv"),
+                   str(r / "model/matrices.npz"), str(tmp_path / "check.json"), str(tmp_path / "check.csv"),
+                   log=lambda m: None)
+    assert (tmp_path / "check.json").read_bytes() == (r / f"mesh_check/{state}.json").read_bytes()
+    assert (tmp_path / "check.csv").read_bytes() == (r / f"mesh_check/{state}.csv").read_bytes()
+
+
 def test_mesh_check_reports_a_nested_refinement_of_each_state(coarse_run):
     wd = coarse_run
     cfg = coarse_config()

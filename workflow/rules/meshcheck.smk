@@ -1,5 +1,6 @@
 # Mesh check (mesh_check.enabled, on by default): each state's identified parameters re-solved on a nested
-# refinement of the mesh; the first-order change a re-identification there would give.
+# refinement of the mesh; the first-order change a re-identification there would give.  The default mesh's
+# solve at those parameters is rule verify's (results/identify/{state}/optimum_modes.npz): not solved again.
 #   results/mesh_check/{state}.json (parameters: value, refined value, change %, 95 % interval)
 #   results/mesh_check/{state}.csv  (every mode: default and refined frequency, change %, MAC)
 
@@ -14,6 +15,7 @@ if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "
         input:
             params=rules.identify.output.params,
             verify=rules.verify.output.table,
+            modes=rules.verify.output.modes,  # the default mesh's solve at the identified parameters
             matrices=rules.mesh.output.matrices,
         output:
             json=f"{R}/mesh_check/{{state}}.json",

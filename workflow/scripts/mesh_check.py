@@ -4,4 +4,5 @@ from jointid.stages.runner import run_script
 from jointid.stages.meshcheck import run_mesh_check
 
 run_script(snakemake, lambda cfg, inp, out: run_mesh_check(
-    MeshCheckOptions.from_config(cfg), snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv), provenance=True)
+    MeshCheckOptions.from_config(cfg), snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv,
+    modes_npz=inp.modes), provenance=True)

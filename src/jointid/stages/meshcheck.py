@@ -1,6 +1,7 @@
-"""Rule ``mesh_check`` (opt-in, ``mesh_check.enabled``): each state's identified parameters re-solved
+"""Rule ``mesh_check`` (``mesh_check.enabled``, on by default): each state's identified parameters re-solved
 on a nested refinement of the mesh, and the first-order change a re-identification there would give
-(:mod:`jointid.identification.meshcheck`).
+(:mod:`jointid.identification.meshcheck`).  The default mesh's solve at those parameters is rule verify's
+(``optimum_modes.npz``), unless both meshes are extrapolated over their edge levels.
 
 Imports of the numerical modules are inside the functions (see :mod:`jointid.stages.model`).
 """
@@ -61,11 +62,13 @@ def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
 
 
 def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_csv: str, matrices: str,
-                   out_json: str, out_csv: str, log=print) -> dict:
+                   out_json: str, out_csv: str, log=print, modes_npz: str | None = None) -> dict:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rule ``mesh_check`` for one state's identified parameters (see the module doc); with
     ``mesh_check.edge_levels`` and ``mesh.extrapolate_edges`` both meshes are extrapolated over one and
-    two more edge levels (built in this job).
+    two more edge levels (built in this job).  ``modes_npz``: rule verify's solve of the default mesh at the
+    identified parameters (:class:`jointid.identification.optimum_modes.OptimumModes`), used instead of
+    solving it again when the meshes are compared at their base level.
 
     Writes every mode of the default mesh beside the refined mesh's (``out_csv``,
     :func:`jointid.identification.meshcheck.mode_table`) and the parameters' first-order change
@@ -76,6 +79,7 @@ def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_
     from jointid.correlate.pairing import pair_by_shapes
     from jointid.fe.model import edge_level_builders
     from jointid.identification.meshcheck import error_budget, first_order_shift, mode_table, parameter_changes
+    from jointid.identification.optimum_modes import OptimumModes
     from jointid.identification.record import IdentificationRecord
 
     halve = opts.halve
@@ -88,9 +92,16 @@ def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_
     # mesh_check.edge_levels: both meshes extrapolated over their edge levels; else both at their base level
     spec = opts.model
     edges = opts.extrapolate
-    say("default mesh at the identified parameters")
-    f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(
-        spec, theta_d, names, theta, matrices, edge_level_builders(spec, progress=say) if edges else [], say)
+    if modes_npz and not edges:
+        at = OptimumModes.read(modes_npz)
+        at.check_parameters(names, theta, modes_npz)
+        say("default mesh at the identified parameters: rule verify's solve")
+        f_c = f_c_mesh = at.freqs_Hz
+        shapes_c, J_all, n_dofs_c = at.shapes, at.dlnf_dlog10theta, at.n_dofs
+    else:
+        say("default mesh at the identified parameters")
+        f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(
+            spec, theta_d, names, theta, matrices, edge_level_builders(spec, progress=say) if edges else [], say)
     say(f"the mesh with {', '.join(halve)} cells halved")
     f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(spec, theta_d, halve, edges, say)
     index, macs = pair_by_shapes(shapes_c, shapes_f, threshold=0.8)

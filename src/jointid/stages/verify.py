@@ -18,6 +18,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from jointid.config.typed import ModelSpec
+    from jointid.identification.optimum_modes import OptimumModes
     from jointid.identification.record import IdentificationRecord
 
 
@@ -124,10 +125,12 @@ def certificate(state: str, par: "IdentificationRecord", modes) -> dict:
 
 def run_verify(spec: ModelSpec, state: str, params_json: str, surface_json: str, matrices: str, out_csv: str,
                edge_matrices: list[str] | None = None, unpaired_csv: str | None = None,
-               tied_csv: str | None = None, certificate_json: str | None = None) -> None:
+               tied_csv: str | None = None, certificate_json: str | None = None,
+               modes_npz: str | None = None) -> None:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rule ``verify``: :func:`verify` on the rule's files -> ``out_csv`` (``verify.csv``), ``unpaired_csv``,
-    ``tied_csv`` and ``certificate_json``."""
+    ``tied_csv``, ``certificate_json`` and ``modes_npz`` (the modes the mesh check needs,
+    :class:`jointid.identification.optimum_modes.OptimumModes`)."""
     from jointid.fe.model import load_model
     from jointid.identification.record import IdentificationRecord
 
@@ -140,18 +143,22 @@ def run_verify(spec: ModelSpec, state: str, params_json: str, surface_json: str,
         io.write_csv(res.unpaired, unpaired_csv)
     if tied_csv:
         io.write_csv(res.tied, tied_csv)
+    if modes_npz:
+        res.modes.write(modes_npz)
 
 
 @dataclass(frozen=True, eq=False)
 class Verified:
     """What rule ``verify`` finds for one state (:func:`verify`): the tables' rows (``verify.csv``), the
     unpaired visible model modes (``unpaired_visible.csv``), the tied pairings' FE partners
-    (``tied_pairings.csv``) and the full solve's certificate (``certificate.json``)."""
+    (``tied_pairings.csv``), the full solve's certificate (``certificate.json``) and its modes as the mesh
+    check needs them (``optimum_modes.npz``)."""
 
     table: "pd.DataFrame"
     unpaired: "pd.DataFrame"
     tied: "pd.DataFrame"
     certificate: dict
+    modes: "OptimumModes"
 
 
 def verify(spec: ModelSpec, state: str, par: "IdentificationRecord", doc: dict, model,
@@ -174,10 +181,13 @@ def verify(spec: ModelSpec, state: str, par: "IdentificationRecord", doc: dict, 
     """
     import pandas as pd
 
+    from jointid.identification.optimum_modes import optimum_modes
     from jointid.identification.polish import solve_point
 
     freqs, shapes, desc, modes = solve_point(spec, model, par.theta, certify=True)
     cert = certificate(state, par, modes)
+    at = optimum_modes(spec, model, par.names, [par.theta[n] for n in par.names], freqs, shapes, modes.phi,
+                       modes.omega2)
     f_meas = np.asarray(par.f_meas_Hz)
     correction = par.correction_record
     lim = _extrapolated(spec, state, par, model, freqs, shapes, edge_matrices)
@@ -223,4 +233,4 @@ def verify(spec: ModelSpec, state: str, par: "IdentificationRecord", doc: dict, 
                "its factors come from its previous optimum, to first order")
         log(f"verify[{state}]: extrapolated frequencies vs the identification's: max "
             f"{np.nanmax(np.abs(drift)):.2e} % ({why})")
-    return Verified(rows, pd.DataFrame(seen, columns=cols), tied, cert)
+    return Verified(rows, pd.DataFrame(seen, columns=cols), tied, cert, at)
