@@ -440,7 +440,7 @@ rule verify:
         unpaired=f"{R}/identify/{{state}}/unpaired_visible.csv",
         tied=f"{R}/identify/{{state}}/tied_pairings.csv",
         certificate=f"{R}/identify/{{state}}/certificate.json",  # residual + Sturm count of the full solve
-        modes=f"{R}/identify/{{state}}/optimum_modes.npz",  # what the mesh check needs of that solve (a few kB)
+        modes=f"{R}/identify/{{state}}/optimum_modes.npz",  # what the mesh check needs of that solve (20 kB)
     params:
         cfg=CFG_VERIFY,
     log:

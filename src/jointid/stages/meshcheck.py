@@ -29,15 +29,14 @@ def _default_mesh(spec, theta_d, names, theta, matrices, edge_models, say):
     edge levels, or functions that build them), its own frequencies, shapes,
     d ln f / d log10 theta of every mode, number of DOFs)``.
     """
-    from jointid.fe.model import joint_terms, load_model
+    from jointid.fe.model import load_model
+    from jointid.identification.optimum_modes import optimum_modes
     from jointid.identification.polish import edge_limit_at, solve_point
-    from jointid.identification.polish import log_jacobian
 
     coarse = load_model(matrices)
     _, shapes_c, _, modes_c = solve_point(spec, coarse, theta_d, describe=False)
-    jt = joint_terms(spec.joints, spec.mesh_file)
-    terms = [{t: 1.0 for t in jt[n]} for n in names]
-    J_all = log_jacobian(coarse.stiffness, modes_c.phi, modes_c.omega2, terms, theta)
+    J_all = optimum_modes(spec, coarse, names, theta, modes_c.freqs_Hz, shapes_c, modes_c.phi,
+                          modes_c.omega2).dlnf_dlog10theta
     f_c = modes_c.freqs_Hz
     if edge_models:
         say("default mesh: extrapolated over its edge levels")
@@ -94,7 +93,7 @@ def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_
     edges = opts.extrapolate
     if modes_npz and not edges:
         at = OptimumModes.read(modes_npz)
-        at.check_parameters(names, theta, modes_npz)
+        at.check_parameters(names, [par.theta[n] for n in names], modes_npz)
         say("default mesh at the identified parameters: rule verify's solve")
         f_c = f_c_mesh = at.freqs_Hz
         shapes_c, J_all, n_dofs_c = at.shapes, at.dlnf_dlog10theta, at.n_dofs
