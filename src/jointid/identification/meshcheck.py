@@ -35,7 +35,7 @@ import numpy as np
 from jointid.identification.record import IdentificationRecord
 
 
-def error_budget(change_pct, par: IdentificationRecord, fraction: float, halved=("length", "thickness", "width")) -> dict:
+def error_budget(change_pct, par: IdentificationRecord, fraction: float, halved=None) -> dict:
     """Each paired mode's discretisation error against ``fraction`` of its frequency uncertainty.
 
     Parameters
@@ -48,8 +48,9 @@ def error_budget(change_pct, par: IdentificationRecord, fraction: float, halved=
         ``model_error.sigma_model_pct`` (``sigma_m``, 0 when absent).
     fraction : float
         ``mesh_check.budget_fraction``.
-    halved : sequence of str
-        The cell classes the refined mesh halved (``mesh_check.halve``).  Where they do not halve every
+    halved : sequence of str, optional
+        The cell classes the refined mesh halved (``mesh_check.halve``; None: every cell along all three
+        axes).  Where they do not halve every
         cell along all three axes, the sentence says that a uniform refinement would find more: each
         halving lowers the frequencies, and to first order the three axes' shifts add up to the uniform
         refinement's (:mod:`jointid.diagnosis.mesh_error`).
@@ -72,7 +73,7 @@ def error_budget(change_pct, par: IdentificationRecord, fraction: float, halved=
     within = bool(ok.any() and max_err <= budget)
     from jointid.geometry.mesh import axes_halved
 
-    part = "" if all(axes_halved(tuple(halved))) else (
+    part = "" if halved is None or all(axes_halved(tuple(halved))) else (
         f", with the {', '.join(halved)} cells halved: part of a uniform refinement's error, which is larger")
     sentence = (f"Mesh error at most {max_err:.2f} % (measured mode {worst + 1}{part}); the budget is "
                 f"{budget:.2f} % ({fraction:.2g} x the frequency uncertainty {unc:.2f} % = sqrt(noise {s:.2g} %^2 "
