@@ -155,3 +155,25 @@ def test_ritz_pairs_asked_again_on_the_same_basis_come_from_the_memo(monkeypatch
     rs._append(np.random.default_rng(0).standard_normal((N - 1, 1)))  # the basis grew: asked afresh
     rs._ritz(*NEAR, N_MODES)
     assert len(calls) == 3
+
+
+def test_the_sensitivities_of_several_directions_are_each_directions_own(model):
+    """Each term's energy formed once for all directions gives every direction's sensitivity bit for bit."""
+    rs = _solver(model)
+    sol = rs.solve(*NEAR, N_MODES)
+    dirs = [({"K_ground": 1.0}, {}), ({}, {"M_point": 1.0}), ({"K_ground": 2.5}, {"M_point": -0.5}), ({}, {})]
+    together = rs.sensitivities(sol, dirs)
+    Y = np.vstack([sol.Y, np.zeros((rs.V.shape[1] - sol.Y.shape[0], sol.Y.shape[1]))])
+    for (dkc, dmc), got in zip(dirs, together):
+        want = np.zeros(Y.shape[1])  # d lambda = y^T (dK - lambda dM) y, term by term in the same order
+        for name, c in dkc.items():
+            want += c * np.einsum("ij,ij->j", Y, rs.Kr[name] @ Y)
+        for name, c in dmc.items():
+            want -= c * sol.lam * np.einsum("ij,ij->j", Y, rs.Mr[name] @ Y)
+        assert np.array_equal(got, want)
+    assert not together[-1].any()
+    # and the first direction against a central difference of the exact eigenvalues
+    h = 1e-3 * NEAR[0]["K_ground"]
+    up, down = ({"K_ground": NEAR[0]["K_ground"] + h}, NEAR[1]), ({"K_ground": NEAR[0]["K_ground"] - h}, NEAR[1])
+    fd = ((TWO_PI * _exact_Hz(model, *up, N_MODES)) ** 2 - (TWO_PI * _exact_Hz(model, *down, N_MODES)) ** 2) / (2 * h)
+    np.testing.assert_allclose(together[0], fd, rtol=1e-4)

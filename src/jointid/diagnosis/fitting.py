@@ -275,8 +275,7 @@ class Diagnoser:
             sub = Solution(sol.freqs_Hz[use], sol.lam[use], sol.Y[:, use], sol.lam_all, sol.Y_all,
                            sol.kc, sol.mc, sol.shapes[:, use], sol.generation)
             at = np.concatenate([np.arange(len(ok)), len(ok) + len(bad) + np.arange(len(cols))]).astype(int)
-            for j, (dkc, dmc) in enumerate(dc):
-                dlam = self.solver.sensitivity(sub, dkc, dmc)
+            for j, dlam in enumerate(self.solver.sensitivities(sub, dc)):
                 Jb[at, j] = dlam / (2 * np.maximum(sub.lam, 1e-9))
             J.append(Jb / s_row[:, None])
             rows += [(si, int(i) + 1) for i in ok] + [(si, int(i) + 1) for i in bad] + [(si, 0)] * len(cols)

@@ -42,8 +42,7 @@ def extra_jacobian(diag: Diagnoser, variant: Variant, x, ev: Evaluation, cols) -
         at = np.concatenate([np.arange(len(ok)), len(idx) + np.arange(len(mis))]).astype(int)
         dc = variant.dcoefficients(x, d.info)
         Jb = np.zeros((len(idx) + len(mis), len(cols)))
-        for k, j in enumerate(cols):
-            dlam = diag.solver.sensitivity(sub, *dc[j])
+        for k, dlam in enumerate(diag.solver.sensitivities(sub, [dc[j] for j in cols])):
             Jb[at, k] = dlam / (2 * np.maximum(sub.lam, 1e-9))
         out.append(Jb)
     n_f = sum(len(b) for b in out)

@@ -504,12 +504,29 @@ class ReducedSolver:
 
     def sensitivity(self, sol: Solution, dkc: dict, dmc: dict) -> np.ndarray:
         """``dlambda / dx`` of the ``n`` modes of ``sol`` for one coefficient direction, ``(n,)``."""
+        return self.sensitivities(sol, [(dkc, dmc)])[0]
+
+    def sensitivities(self, sol: Solution, directions) -> list[np.ndarray]:
+        """:meth:`sensitivity` for each ``(dkc, dmc)`` of ``directions``; each term's ``diag(Y^T A_t Y)`` is
+        formed once for all of them (the directions of a fit share terms: a joint layer's stiffness and an
+        effect that scales it), and summed as :meth:`sensitivity` sums it (the same bits)."""
         Y = pad_to_basis(sol.Y, self.V.shape[1])
-        out = np.zeros(Y.shape[1])
-        for name, c in dkc.items():
-            if c != 0.0:
-                out += c * np.einsum("ij,ij->j", Y, self.Kr[name] @ Y)
-        for name, c in dmc.items():
-            if c != 0.0:
-                out -= c * sol.lam * np.einsum("ij,ij->j", Y, self.Mr[name] @ Y)
+        energy: dict = {}
+
+        def term(group: str, name: str) -> np.ndarray:
+            if (group, name) not in energy:
+                red = self.Kr if group == "K" else self.Mr
+                energy[group, name] = np.einsum("ij,ij->j", Y, red[name] @ Y)
+            return energy[group, name]
+
+        out = []
+        for dkc, dmc in directions:
+            d = np.zeros(Y.shape[1])
+            for name, c in dkc.items():
+                if c != 0.0:
+                    d += c * term("K", name)
+            for name, c in dmc.items():
+                if c != 0.0:
+                    d -= c * sol.lam * term("M", name)
+            out.append(d)
         return out
