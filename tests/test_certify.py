@@ -157,6 +157,25 @@ def test_ritz_pairs_asked_again_on_the_same_basis_come_from_the_memo(monkeypatch
     assert len(calls) == 3
 
 
+@pytest.mark.parametrize("near", [1.0, 1e-2, 1e-4], ids=["new", "partly-known", "mostly-known"])
+def test_a_grown_basis_stays_mass_orthonormal_and_its_projections_exact(model, near):
+    """Enrichment vectors new to the basis, or lying mostly in it (Gram eigenvalues about 1e-6 after the
+    Gram-Schmidt passes, which the normalisation amplifies), keep the basis M_ref-orthonormal and the
+    projected terms those of the basis, to round-off; vectors already in it add nothing."""
+    rs = _solver(model)
+    rng = np.random.default_rng(1)
+    V0 = rs.V.copy()
+    W = V0 @ rng.standard_normal((V0.shape[1], 3)) + near * rng.standard_normal((V0.shape[0], 3))
+    W = np.hstack([W, W[:, :1] + W[:, 1:2]])  # and a dependent column, dropped
+    added = rs._append(W)
+    assert added == 3
+    assert rs._append(rs.V @ rng.standard_normal((rs.V.shape[1], 2))) == 0  # nothing new: nothing added
+    V, M = rs.V, rs.M_ref
+    assert np.max(np.abs(V.T @ (M @ V) - np.eye(V.shape[1]))) < 1e-11
+    np.testing.assert_allclose(rs.Kr["K0"], V.T @ (rs.K_terms["K0"] @ V), rtol=0, atol=1e-9 * np.abs(rs.Kr["K0"]).max())
+    np.testing.assert_allclose(rs.Mr["M_point"], V.T @ (rs.M_terms["M_point"] @ V), rtol=0, atol=1e-12)
+
+
 def test_the_sensitivities_of_several_directions_are_each_directions_own(model):
     """Each term's energy formed once for all directions gives every direction's sensitivity bit for bit."""
     rs = _solver(model)
