@@ -71,6 +71,7 @@ CFG_TABLES_CHAIN = merged(CFG_MODAL_CHAIN, sections(config, "doe.zoom"), CFG_FIT
                           *map(cfg_identify, STATES))
 
 EXTRA_TARGETS = []  # rule files included below append their final outputs here
+RULE_WILDCARDS = {}  # rule -> wildcard values of its own, where they are fewer than WILDCARD_VALUES's (ARTIFACTS)
 
 # Scheduling on few cores: the run is bound by its total work (both cores busy), so the two long poles go
 # first, side by side, and the short jobs fill in around them: the diagnosis and its basis (the longest
@@ -497,4 +498,5 @@ ON_DEMAND = {"all", "current"} | (set() if USE_ROM else {"rom"}) \
 WILDCARD_VALUES = {"state": STATES, "point": POINTS, "dataset": list(DIAG_DATASETS), "name": list(HYPOTHESES),
                    "source": list(EMA_SOURCES)}
 ARTIFACTS = sorted({f for r in workflow.rules if r.name not in ON_DEMAND for pattern in r.output
-                    for f in expand(re.sub(r"\{(\w+),[^{}]*\}", r"{\1}", str(pattern)), **WILDCARD_VALUES)})
+                    for f in expand(re.sub(r"\{(\w+),[^{}]*\}", r"{\1}", str(pattern)),
+                                    **{**WILDCARD_VALUES, **RULE_WILDCARDS.get(r.name, {})})})

@@ -112,3 +112,49 @@ def test_a_basis_of_another_model_is_not_taken(case, tmp_path):
     rec = run_hypothesis(HypothesisJob.from_config(other, "heavy", check_hypothesis_effects), str(matrices), str(tmp_path / "h.json"), basis=str(basis), log=lines.append)
     assert any("kept for another model: starting afresh" in m for m in lines), lines
     assert np.isfinite(rec["chi2"])
+
+
+def test_hypotheses_on_models_of_their_own_are_certified_only_where_admissible(tmp_path):
+    """Rule hypotheses_run_model with hypotheses apart (issue 54: a rejected hypothesis needs its fit, not a
+    certificate): their jobs leave the certificate pending; ranked with the run model's, an admissible one
+    (a table 0.2 mm thicker: the run's model again, to the eye of the data) is fitted again on its own model
+    and certified, a rejected one (the rails 50 mm further apart) keeps its fit and says why it has no Sturm
+    count.  After the job no record is pending, and exactly the admissible ones carry a certificate and the
+    next measurement's predictions."""
+    from jointid.reconstruction.hypotheses import CERTIFIED, NOT_CERTIFIED, PENDING
+    from jointid.reconstruction.ranking import rank_hypotheses
+
+    raw = coarse_config_dict()
+    thick = float(raw["rig"]["table"]["thickness_m"]) + 2e-4
+    raw["hypotheses"] = {"light": LIGHT,
+                         "thicker": {"description": "the table 0.2 mm thicker (its own model)",
+                                     "overrides": {"rig": {"table": {"thickness_m": thick}}}},
+                         "wide": {"description": "the rails 50 mm further apart (its own model)",
+                                  "overrides": {"rig": {"rails": {"spacing_m": float(raw["rig"]["rails"]["spacing_m"]) + 0.05}}}}}
+    cfg = load_config(raw)
+    matrices = tmp_path / "matrices.npz"
+    save_model(build_model(ModelSpec.from_config(cfg)), matrices)
+    jobs = {n: HypothesisJob.from_config(cfg, n, check_hypothesis_effects) for n in raw["hypotheses"]}
+    assert jobs["thicker"].own_model and jobs["wide"].own_model and not jobs["light"].own_model
+    searched = []
+    for name in ("thicker", "wide"):
+        rec = run_hypothesis(jobs[name], str(matrices), str(tmp_path / f"{name}_search.json"), certify=False,
+                             log=lambda m: None)
+        assert not rec["certified"] and rec["certificate"] == PENDING and "predictions" not in rec
+        searched.append(str(tmp_path / f"{name}_search.json"))
+    lines = []
+    run_hypotheses([jobs["light"]], str(matrices), [str(tmp_path / "light.json")], others=searched,
+                   apart=[jobs["thicker"], jobs["wide"]],
+                   apart_jsons=[str(tmp_path / "thicker.json"), str(tmp_path / "wide.json")], log=lines.append)
+    from jointid import io
+
+    final = {n: io.read_json(str(tmp_path / f"{n}.json")) for n in ("light", "thicker", "wide")}
+    rows, _, _ = rank_hypotheses(final)
+    admissible = {r["hypothesis"]: bool(r.get("admissible")) for r in rows}
+    assert admissible["thicker"] and not admissible["wide"], admissible
+    for name, rec in final.items():
+        assert rec["certified"] == admissible[name]
+        assert rec["certificate"] == (CERTIFIED if admissible[name] else NOT_CERTIFIED)
+        assert ("predictions" in rec) == rec["certified"]
+        assert rec["own_model"] == (name != "light")
+    assert "hypothesis thicker: admissible, certified" in lines and "hypothesis wide: admissible, certified" not in lines

@@ -11,8 +11,11 @@
 # coefficients of the run's model (materials, masses, forces, effects, the contact law) are fitted together
 # in one job (rule hypotheses_run_model): the model loaded once, one set of terms, one reduced solver grown
 # from fit to fit, then ranked with the others (their jobs first) so that only the admissible ones get the
-# certificate's Sturm count and the next measurement's predictions.  With full (a cluster,
-# docs/scale-out.md) each is a job of its own, and each is certified.
+# certificate's Sturm count and the next measurement's predictions.  Those with a model of their own are then
+# fitted in their jobs without it (results/hypotheses/<name>/search.json); the job on the run's model ranks them
+# with its own, fits an admissible one again on its model to certify it, and writes every fit.json.  With full
+# (a cluster, docs/scale-out.md), or with no hypothesis on the run's model, each is a job of its own, and each
+# is certified.
 
 from jointid.config.hypotheses import check_hypotheses, cost_rank, needs_own_model
 from jointid.diagnosis.effects import check_hypothesis_effects
@@ -22,6 +25,9 @@ HYPOTHESES = check_hypotheses(config, check_hypothesis_effects)  # a bad hypothe
 SHARED = [n for n in HYPOTHESES if config["solver"]["method"] == "reduced"
           and not needs_own_model(config["hypotheses"][n], config)]  # fitted together (rule hypotheses_run_model)
 SEPARATE = [n for n in HYPOTHESES if n not in SHARED]  # a job each (rule hypothesis)
+# with a job on the run's model, the separate jobs leave their certificate to it (rule hypotheses_run_model)
+APART = f"{R}/hypotheses/{{name}}/search.json" if SHARED else f"{R}/hypotheses/{{name}}/fit.json"
+RULE_WILDCARDS["hypothesis"] = {"name": SEPARATE}  # the Snakefile's ARTIFACTS: search.json of these only
 
 
 def _hypotheses_cfg(names):
@@ -48,11 +54,14 @@ if SHARED:
             matrices=rules.mesh.output.matrices,
             dataset=_run_datasets(),
             basis=BASIS,
-            others=expand(f"{R}/hypotheses/{{name}}/fit.json", name=SEPARATE),  # ranked with these: the certificates
+            others=expand(APART, name=SEPARATE),  # ranked with these, certified here if admissible
         output:
             fits=expand(f"{R}/hypotheses/{{name}}/fit.json", name=SHARED),
+            apart=expand(f"{R}/hypotheses/{{name}}/fit.json", name=SEPARATE),
         params:
-            cfg=_hypotheses_cfg(SHARED),
+            cfg=_hypotheses_cfg(SHARED + SEPARATE),
+            shared=SHARED,
+            separate=SEPARATE,
         log:
             f"{LOGS}/hypotheses/run_model.log",
         benchmark:
@@ -73,9 +82,10 @@ if SEPARATE:
             dataset=_run_datasets,
             basis=_hypothesis_basis,
         output:
-            fit=f"{R}/hypotheses/{{name}}/fit.json",
+            fit=APART,
         params:
             cfg=lambda wc: _hypotheses_cfg([wc.name]),
+            certify=not SHARED,  # else left to rule hypotheses_run_model
         wildcard_constraints:
             name="|".join(SEPARATE),
         log:

@@ -13,4 +13,4 @@ def _basis(inp):
 
 run_script(snakemake, lambda cfg, inp, out: run_hypothesis(
     HypothesisJob.from_config(cfg, snakemake.wildcards.name, check_hypothesis_effects), inp.matrices, out.fit,
-    basis=_basis(inp)), provenance=True)
+    basis=_basis(inp), certify=snakemake.params.certify), provenance=True)

@@ -73,7 +73,7 @@ def _forces_differ(data: list[StateData]) -> bool:
 
 
 def fit_hypothesis(system, settings: DiagnosisSettings, law: LinkedLaw, data: list[StateData], *, start_basis=None,
-                   log=print_log) -> dict:
+                   certify: bool = True, log=print_log) -> dict:
     """Fit one hypothesis (``settings`` and ``law``: of its configuration,
     :func:`jointid.config.hypotheses.hypothesis_config`) to ``data`` under the linked law; the best preload
     class by chi-square.
@@ -85,14 +85,18 @@ def fit_hypothesis(system, settings: DiagnosisSettings, law: LinkedLaw, data: li
     the reduced solver from (:mod:`jointid.stages.basis`).
     """
     # measured shapes are fitted as in the diagnosis: a block of their own, with its own model error in the ranking
-    return fit_with(Diagnoser(system, settings, data, start_basis=start_basis, log=log), law, log)
+    return fit_with(Diagnoser(system, settings, data, start_basis=start_basis, log=log), law, log, certify=certify)
 
 
-def fit_with(diag: Diagnoser, law: LinkedLaw, log=print_log) -> dict:
+def fit_with(diag: Diagnoser, law: LinkedLaw, log=print_log, *, certify: bool = True) -> dict:
     """:func:`fit_hypothesis` with a diagnoser of the hypothesis's system, settings and data (its reduced solver
     possibly shared with other hypotheses on the same terms, :func:`jointid.diagnosis.terms.build_systems`):
-    :func:`search` and the certified :func:`record`."""
-    return record(diag, search(diag, law, log), certify=True)
+    :func:`search` and its :func:`record`, certified unless ``certify`` is false (the certificate is then
+    left to the job that ranks it with the others: :data:`PENDING`)."""
+    rec = record(diag, search(diag, law, log), certify=certify)
+    if not certify:
+        rec["certificate"] = PENDING
+    return rec
 
 
 @dataclass
@@ -138,6 +142,10 @@ CERTIFIED = "residual check and Sturm count at the optimum"
 NOT_CERTIFIED = ("none: not admissible in this run's ranking, so no answer rests on it; every solve of its fit was "
                  "checked in the full space (residuals), without the Sturm count")
 """A record's ``certificate`` when it was not (:func:`jointid.stages.hypotheses.run_hypotheses`)."""
+PENDING = ("pending: fitted in a job of its own (its own model); the job of the hypotheses on the run's model ranks "
+           "it with them and certifies it only if it is admissible")
+"""The ``certificate`` of a record fitted apart whose certificate is left to the ranking with the others
+(:func:`jointid.stages.hypotheses.run_hypotheses`, which replaces it by :data:`CERTIFIED` or :data:`NOT_CERTIFIED`)."""
 
 
 def record(diag: Diagnoser, found: Searched, *, certify: bool) -> dict:

@@ -23,7 +23,7 @@ import pandas as pd
 from jointid import io
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.progress import Steps
-from jointid.reconstruction.hypotheses import fit_hypothesis, record, search
+from jointid.reconstruction.hypotheses import NOT_CERTIFIED, fit_hypothesis, record, search
 from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
 from jointid.reconstruction.next_measurement import ProposalOptions, next_measurement_markdown, propose
 from jointid.diagnosis.terms import build_system, build_systems
@@ -39,7 +39,7 @@ ADMISSIBLE_DELTA_AICC = 4.0
 
 
 def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, basis: str | None = None,
-                   log=print_log) -> dict:
+                   certify: bool = True, log=print_log) -> dict:
     """Fit the hypothesis of ``job`` (:meth:`jointid.config.hypotheses.HypothesisJob.from_config`) and write
     its record to ``out_json``.
 
@@ -51,10 +51,18 @@ def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, b
     An override of ``states.<state>.em_force_N`` is the hypothesis's attraction in that state and
     wins over the dataset's ``conditions.yaml`` (which otherwise gives the force).  ``basis``: the
     run model's shared reduced basis (rule ``diagnosis_basis``, :mod:`jointid.stages.basis`), the start
-    of the reduced solver of a hypothesis on the run's model.
+    of the reduced solver of a hypothesis on the run's model.  ``certify=False``: the record is left
+    uncertified (:data:`~jointid.reconstruction.hypotheses.PENDING`) for :func:`run_hypotheses`, which ranks
+    it with the others and certifies it only if it is admissible.
     """
     limit_threads(1)
     t0 = time.time()
+    rec, own, system = _fit_apart(job, matrices, basis, certify, log)
+    return _write(job, rec, own, system, out_json, t0, log)
+
+
+def _fit_apart(job: HypothesisJob, matrices: str | None, basis: str | None, certify: bool, log) -> tuple:
+    """:func:`run_hypothesis`'s fit: ``(record, whether it built its own model, its system)``."""
     name, spec = job.name, job.settings.model
     own = job.own_model
     log(f"hypothesis {name}: {'building its own model' if own else 'the run model'}")
@@ -66,12 +74,14 @@ def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, b
     system = build_system(model, spec)
     data = _states(job, system, log)
     start = None if own else load_basis(basis, system, log)
-    rec = fit_hypothesis(system, job.settings, job.law, data, start_basis=start, log=log)
-    return _write(job, rec, own, system, out_json, t0, log)
+    rec = fit_hypothesis(system, job.settings, job.law, data, start_basis=start, certify=certify, log=log)
+    return rec, own, system
 
 
 def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str], *, basis: str | None = None,
-                   others: list[str] = (), log=print_log) -> list[dict]:
+                   others: list[str] = (), apart: list[HypothesisJob] = (), apart_jsons: list[str] = (),
+                   log=print_log) -> list[dict]:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Fit the hypotheses of ``jobs``, which change only coefficients of the run's model
     (:func:`~jointid.config.hypotheses.needs_own_model` false), in one process: the model loaded once, one set
     of terms for all (:func:`jointid.diagnosis.terms.build_systems`) and one reduced solver, started from the
@@ -80,11 +90,16 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     (another basis), not to the last digit.
 
     A certificate where an answer rests on it: the fits are ranked with the records of ``others`` (the
-    run's other hypotheses' ``fit.json``, each certified in its own job) as rule ``hypotheses`` ranks them,
+    run's other hypotheses' records, each fitted in its own job) as rule ``hypotheses`` ranks them,
     and only the admissible ones (:func:`jointid.reconstruction.ranking.admissible`) get the certificate's
     Sturm count and the predictions of the next measurement; the ranking is made again after each round,
     until every admissible hypothesis is certified.  Every solve of every fit is checked in the full space
-    (residuals); a rejected hypothesis's record says that it was not Sturm-counted, and why."""
+    (residuals); a rejected hypothesis's record says that it was not Sturm-counted, and why.
+
+    ``apart`` (the jobs of ``others``, in their order): those records were left uncertified in their own
+    jobs (:func:`run_hypothesis` with ``certify=False``).  An admissible one is fitted again here on its own
+    model and certified; each is written to ``apart_jsons`` (its final record).  Without ``apart`` the
+    records of ``others`` are taken as their jobs certified them."""
     limit_threads(1)
     model = load_model(matrices)
     if "solids" not in model.meta and model.meta.get("kind") != "mesh" and any(j.overrides_model for j in jobs):
@@ -107,15 +122,20 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     for path in others:
         rec = io.read_json(path)
         fixed[rec["hypothesis"]] = rec
+    apart_by_name = {j.name: j for j in apart}
     while True:  # certify the admissible ones; a certificate may move a fit, so rank again
         rows, _, _ = rank_hypotheses({**fixed, **recs}, delta=ADMISSIBLE_DELTA_AICC)
-        todo = [r["hypothesis"] for r in rows if r.get("admissible") and r["hypothesis"] in recs
-                and not recs[r["hypothesis"]]["certified"]]
+        todo = [r["hypothesis"] for r in rows if r.get("admissible") and not {**fixed, **recs}[r["hypothesis"]]["certified"]
+                and (r["hypothesis"] in recs or r["hypothesis"] in apart_by_name)]
         if not todo:
             break
         for name in todo:
             log(f"hypothesis {name}: admissible, certified")
-            recs[name] = _named(by_name[name], record(diags[name], found[name], certify=True), diags[name].system)
+            if name in recs:
+                recs[name] = _named(by_name[name], record(diags[name], found[name], certify=True), diags[name].system)
+            else:  # fitted apart on its own model, uncertified there: fitted again on it, and certified
+                rec, own, system = _fit_apart(apart_by_name[name], matrices, basis, True, log)
+                fixed[name] = _named(apart_by_name[name], rec, system, own)
     out = []
     for job, path in zip(jobs, out_jsons):
         rec = recs[job.name]
@@ -123,6 +143,13 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
         log(f"hypothesis {job.name}: chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f}"
             + ("" if rec["certified"] else " (not admissible: no Sturm count)"))
         out.append(rec)
+    for job, path in zip(apart, apart_jsons):
+        rec = fixed[job.name]
+        if not rec["certified"]:
+            rec["certificate"] = NOT_CERTIFIED
+        io.write_json(path, rec)
+        log(f"hypothesis {job.name} (its own model): chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f}"
+            + ("" if rec["certified"] else " (not admissible: no Sturm count)"))
     log(f"hypotheses on the run model: {len(jobs)} in {time.time() - t0:.0f} s")
     return out
 
