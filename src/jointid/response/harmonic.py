@@ -172,7 +172,8 @@ def _static_solution(Kf, b, free, small: bool, backend: str, shifted):
 
 
 def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto", shifted=None,
-                    response=None):
+                    response=None, K_free=None):
+    # many parameters: the model (K, fixed, K_free), the load and response, the kept modes, the solver to use
     """Static residual flexibility of the modes not kept in ``phi``, or None if ``K`` is singular.
 
     ``R = q^T K^-1 p - sum_r (q^T phi_r)(p^T phi_r) / w_r^2`` (m/N for a unit load ``p``) with the
@@ -204,6 +205,9 @@ def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto"
     response : array_like, shape (n_dofs,), optional
         Response vector ``q`` (e.g. a unit vector at a response DOF) for a transfer residual, which
         may have either sign; default the load (drive point).
+    K_free : sparse matrix, optional
+        ``K`` restricted to the DOFs not in ``fixed`` (:func:`jointid.fe.modal.restrict`), formed once by a
+        caller with many loads (default: formed here).
 
     Returns
     -------
@@ -221,7 +225,8 @@ def static_residual(K, load, phi, freqs_Hz, *, fixed=None, backend: str = "auto"
     n = K.shape[0]
     free = free_dofs(n, fixed)
     b = p[free]
-    x, failed = _static_solution(restrict(sp.csr_matrix(K), free), b, free, n < 20000, backend, shifted)
+    Kf = restrict(sp.csr_matrix(K), free) if K_free is None else K_free
+    x, failed = _static_solution(Kf, b, free, n < 20000, backend, shifted)
     if failed:
         return None, None, failed
     w2 = (2.0 * np.pi * fr) ** 2

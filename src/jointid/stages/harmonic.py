@@ -278,8 +278,10 @@ def _response(opts, state, par, model, kc, mc, band, verify_csv, progress):
     # many parameters: the computing part of run_harmonic, with the inputs it read
     """Modes, residual, damping and FRF of one state (the computing part of :func:`run_harmonic`), and
     the modal data of every table point (:func:`point_data`)."""
+    import scipy.sparse as sp
+
     from jointid.fe.describe import describe_modes
-    from jointid.fe.modal import release_model_pages
+    from jointid.fe.modal import free_dofs, release_model_pages, restrict
 
     s = opts.model.solver
     K, M = model.K(kc), model.M(mc)
@@ -290,8 +292,9 @@ def _response(opts, state, par, model, kc, mc, band, verify_csv, progress):
     direction = opts.direction
     try:
         names, P = drive_patches(model, opts.drive_point, direction, opts.patch_diameter_m)
+        K_free = restrict(sp.csr_matrix(K), free_dofs(K.shape[0], model.fixed))  # once for the patches' loads
         resid = [static_residual(K, np.asarray(P[k].toarray()).ravel(), modes.phi, modes.freqs_Hz, fixed=model.fixed,
-                                 backend=s.backend, shifted=shifted) for k in range(len(names))]
+                                 backend=s.backend, shifted=shifted, K_free=K_free) for k in range(len(names))]
     finally:
         shifted.free_memory()
     k0 = names.index(opts.drive_point)
