@@ -158,3 +158,29 @@ def test_hypotheses_on_models_of_their_own_are_certified_only_where_admissible(t
         assert ("predictions" in rec) == rec["certified"]
         assert rec["own_model"] == (name != "light")
     assert "hypothesis thicker: admissible, certified" in lines and "hypothesis wide: admissible, certified" not in lines
+
+
+def test_a_model_file_without_per_part_solids_still_writes_the_hypotheses_apart(tmp_path):
+    """A model file written before the solids were kept per part: the job on the run's model fits each
+    hypothesis as its own job would, certified, and writes the records of those apart too (their jobs left
+    the certificate to it)."""
+    from jointid import io
+    from jointid.reconstruction.hypotheses import CERTIFIED
+
+    raw = coarse_config_dict()
+    raw["hypotheses"] = {"light": LIGHT,
+                         "wide": {"description": "the rails 50 mm further apart (its own model)",
+                                  "overrides": {"rig": {"rails": {"spacing_m": float(raw["rig"]["rails"]["spacing_m"]) + 0.05}}}}}
+    cfg = load_config(raw)
+    model = build_model(ModelSpec.from_config(cfg))
+    model.meta.pop("solids", None)
+    matrices = tmp_path / "matrices.npz"
+    save_model(model, matrices)
+    light, wide = (HypothesisJob.from_config(cfg, n, check_hypothesis_effects) for n in ("light", "wide"))
+    assert light.overrides_model and wide.own_model
+    run_hypothesis(wide, str(matrices), str(tmp_path / "wide_search.json"), certify=False, log=lambda m: None)
+    run_hypotheses([light], str(matrices), [str(tmp_path / "light.json")], others=[str(tmp_path / "wide_search.json")],
+                   apart=[wide], apart_jsons=[str(tmp_path / "wide.json")], log=lambda m: None)
+    for name in ("light", "wide"):
+        rec = io.read_json(str(tmp_path / f"{name}.json"))
+        assert rec["certified"] and rec["certificate"] == CERTIFIED and "predictions" in rec

@@ -103,7 +103,10 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     limit_threads(1)
     model = load_model(matrices)
     if "solids" not in model.meta and model.meta.get("kind") != "mesh" and any(j.overrides_model for j in jobs):
-        # a model file written before the solids were kept per part: each hypothesis as its own job would
+        # a model file written before the solids were kept per part: each hypothesis as its own job would,
+        # certified (those apart too: their jobs left it to this one)
+        for job, path in zip(apart, apart_jsons):
+            run_hypothesis(job, matrices, path, basis=basis, log=log)
         return [run_hypothesis(j, matrices, out, basis=basis, log=log) for j, out in zip(jobs, out_jsons)]
     systems = build_systems(model, [j.settings.model for j in jobs])
     start, solver = load_basis(basis, systems[0], log), None
