@@ -114,6 +114,12 @@ def test_a_basis_of_another_model_is_not_taken(case, tmp_path):
     assert np.isfinite(rec["chi2"])
 
 
+def _wide(raw: dict) -> dict:
+    """A hypothesis with a model of its own that the data reject: the rails 50 mm further apart."""
+    return {"description": "the rails 50 mm further apart (its own model)",
+            "overrides": {"rig": {"rails": {"spacing_m": float(raw["rig"]["rails"]["spacing_m"]) + 0.05}}}}
+
+
 def test_hypotheses_on_models_of_their_own_are_certified_only_where_admissible(tmp_path):
     """Rule hypotheses_run_model with hypotheses apart (issue 54: a rejected hypothesis needs its fit, not a
     certificate): their jobs leave the certificate pending; ranked with the run model's, an admissible one
@@ -129,8 +135,7 @@ def test_hypotheses_on_models_of_their_own_are_certified_only_where_admissible(t
     raw["hypotheses"] = {"light": LIGHT,
                          "thicker": {"description": "the table 0.2 mm thicker (its own model)",
                                      "overrides": {"rig": {"table": {"thickness_m": thick}}}},
-                         "wide": {"description": "the rails 50 mm further apart (its own model)",
-                                  "overrides": {"rig": {"rails": {"spacing_m": float(raw["rig"]["rails"]["spacing_m"]) + 0.05}}}}}
+                         "wide": _wide(raw)}
     cfg = load_config(raw)
     matrices = tmp_path / "matrices.npz"
     save_model(build_model(ModelSpec.from_config(cfg)), matrices)
@@ -169,8 +174,7 @@ def test_a_model_file_without_per_part_solids_still_writes_the_hypotheses_apart(
 
     raw = coarse_config_dict()
     raw["hypotheses"] = {"light": LIGHT,
-                         "wide": {"description": "the rails 50 mm further apart (its own model)",
-                                  "overrides": {"rig": {"rails": {"spacing_m": float(raw["rig"]["rails"]["spacing_m"]) + 0.05}}}}}
+                         "wide": _wide(raw)}
     cfg = load_config(raw)
     model = build_model(ModelSpec.from_config(cfg))
     model.meta.pop("solids", None)

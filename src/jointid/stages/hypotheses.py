@@ -127,8 +127,10 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
         fixed[rec["hypothesis"]] = rec
     apart_by_name = {j.name: j for j in apart}
     while True:  # certify the admissible ones; a certificate may move a fit, so rank again
-        rows, _, _ = rank_hypotheses({**fixed, **recs}, delta=ADMISSIBLE_DELTA_AICC)
-        todo = [r["hypothesis"] for r in rows if r.get("admissible") and not {**fixed, **recs}[r["hypothesis"]]["certified"]
+        every = {**fixed, **recs}
+        rows, _, _ = rank_hypotheses(every, delta=ADMISSIBLE_DELTA_AICC)
+        # the admissible ones not certified yet that this job can certify (its own, and those apart)
+        todo = [r["hypothesis"] for r in rows if r.get("admissible") and not every[r["hypothesis"]]["certified"]
                 and (r["hypothesis"] in recs or r["hypothesis"] in apart_by_name)]
         if not todo:
             break
