@@ -67,6 +67,28 @@ def test_a_point_certified_on_a_smaller_basis_is_not_checked_again(model):
     assert rs.n_checks == checks + 2
 
 
+def test_a_point_checked_to_a_looser_tolerance_is_checked_again_after_tightening(model):
+    """The hypotheses' search runs at a looser tolerance than their certificate: a point (and a state pair)
+    accepted at the looser one is not taken as checked at the tighter one."""
+    rs = ReducedSolver(model, *REF, N_MODES, [({"K_ground": 1.0}, {}), ({}, {"M_point": 1.0})], backend="scipy",
+                       tol=1e-1)
+    loose = rs.solve(*FAR, N_MODES)
+    pair = rs.solve_many([NEAR, NEAR2], N_MODES)
+    assert loose.error <= 1e-1 and all(p.error <= 1e-1 for p in pair)
+    assert rs.solve(*FAR, N_MODES) is loose  # the same tolerance: the memo answers
+    checks = rs.n_checks
+    rs.tighten(1e-9)
+    rs.tighten(1e-3)  # never loosened again
+    assert rs.tol == 1e-9
+    tight = rs.solve(*FAR, N_MODES)
+    again = rs.solve_many([NEAR, NEAR2], N_MODES)
+    assert rs.n_checks > checks
+    for pt, sol in ((FAR, tight), (NEAR, again[0]), (NEAR2, again[1])):
+        assert sol.error <= 1e-9
+        assert np.max(np.abs(sol.freqs_Hz / _exact_Hz(model, *pt, N_MODES) - 1)) < 1e-8
+    assert np.max(np.abs(loose.freqs_Hz / _exact_Hz(model, *FAR, N_MODES) - 1)) > 1e-8  # the looser answer was looser
+
+
 def test_points_are_checked_together_with_one_sparse_solve(model):
     rs = _solver(model)
     calls = []

@@ -428,11 +428,11 @@ class ReducedSolver:
         n = n or self.n_modes
         if refine:
             hit = self._refined.get(self._key(kc, mc, n))
-            if hit is not None:  # this point was refined on this very basis: nothing can have changed
+            if hit is not None and hit.error <= self.tol:  # refined on this very basis (to the present tolerance)
                 return hit
         prior = None if recheck or not refine else self._certified.get(self._point(kc, mc, n))
         checked = False
-        if prior is not None and prior[0] <= self.basis.r:
+        if self._passed(prior):
             self.n_checks_skipped += 1
             (lam, Y), worst = self._ritz(kc, mc, n), prior[1]
         elif refine:
@@ -456,12 +456,23 @@ class ReducedSolver:
         the kept columns (:mod:`jointid.fe.warmstart`), while the basis still contains them; else None."""
         key = self._point(kc, mc, n)
         hit = self._certified.get(key) if key in self._kept_points else None
-        return hit if hit is not None and hit[0] <= self.basis.r else None
+        return hit if self._passed(hit) else None
+
+    def _passed(self, check: tuple[int, float] | None) -> bool:
+        """Whether a check ``(basis size, estimated error)`` passed at this point still holds: on a basis no larger
+        than the present one (of this generation) and within the present tolerance (:meth:`tighten`)."""
+        return check is not None and check[0] <= self.basis.r and check[1] <= self.tol
+
+    def tighten(self, tol: float) -> None:
+        """Lower the tolerance to ``tol``: a point checked only to the looser one is checked again when next solved."""
+        self.tol = min(self.tol, float(tol))
 
     def _certify(self, kc: dict, mc: dict, n: int, r: int, worst: float) -> None:
         if len(self._certified) > 4096:
             self._certified.clear()
-        self._certified.setdefault(self._point(kc, mc, n), (r, worst))
+        key = self._point(kc, mc, n)
+        if not self._passed(self._certified.get(key)):  # the first check that passed at the present tolerance
+            self._certified[key] = (r, worst)
 
     def solve_many(self, points: list[tuple[dict, dict]], n: int | None = None, *,
                    refine: bool = True) -> list[Solution]:
@@ -469,7 +480,7 @@ class ReducedSolver:
         yet certified are first checked together (:func:`jointid.fe.certify.check_points`)."""
         n = n or self.n_modes
         todo = [(kc, mc) for kc, mc in points if refine and self._key(kc, mc, n) not in self._refined
-                and self._certified.get(self._point(kc, mc, n), (np.inf,))[0] > self.basis.r]
+                and not self._passed(self._certified.get(self._point(kc, mc, n)))]
         firsts = {}
         if len(todo) > 1:
             for (kc, mc), chk in zip(todo, certify.check_points(self, todo, n)):

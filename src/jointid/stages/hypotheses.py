@@ -23,7 +23,7 @@ import pandas as pd
 from jointid import io
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.progress import Steps
-from jointid.reconstruction.hypotheses import NOT_CERTIFIED, fit_hypothesis, record, search
+from jointid.reconstruction.hypotheses import NOT_CERTIFIED, SEARCH_TOL, fit_hypothesis, record, search
 from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
 from jointid.reconstruction.next_measurement import ProposalOptions, next_measurement_markdown, propose
 from jointid.diagnosis.terms import build_system, build_systems
@@ -116,7 +116,7 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     for job, system in zip(jobs, systems):
         log(f"hypothesis {job.name} {steps.next()}: the run model"
             + (", the reduced solver of the hypotheses before" if solver is not None else ""))
-        diag = Diagnoser(system, job.settings, _states(job, system, log), solver=solver,
+        diag = Diagnoser(system, job.settings, _states(job, system, log), solver=solver, tol=SEARCH_TOL,
                          start_basis=start if solver is None else None, log=log)
         diags[job.name], found[job.name] = diag, search(diag, job.law, log)
         solver = diag.solver
