@@ -97,6 +97,7 @@ class BlockTest:
                                  np.concatenate([3 * rail_bottom + c for c in range(3)] + [self.moved]))
         self.joints, self.cell_m = spec.joints, float(cell_m)
         self.backend = backend or spec.solver.backend
+        self._ordering = None  # the first factorisation's fill-reducing ordering: every test has the same pattern
 
     def rigidity(self, theta: dict[str, float], parts: bool = True) -> BlockRigidity:
         """Rigidity at joint parameters ``theta`` (N/m^3); ``parts=False`` skips the stiff-joint test
@@ -105,7 +106,8 @@ class BlockTest:
         out = {}
         for label, scale in (("assembly", 1.0), ("parts", STIFF_JOINTS))[: 2 if parts else 1]:
             K = (self.stiffness["K0"] + sum((scale * v) * self.stiffness[t] for t, v in kc.items())).tocsr()
-            lu = factorize(K[self.free][:, self.free], self.backend)
+            lu = factorize(K[self.free][:, self.free], self.backend, self._ordering)
+            self._ordering = getattr(lu, "ordering", None)  # PARDISO's (the same bits, without its reordering step)
             Kfm = K[self.free][:, self.moved]
             res = {}
             for name, d in DIRECTIONS.items():
