@@ -107,6 +107,32 @@ def test_block_and_arpack_agree_through_shift_invert_lanczos(monkeypatch):
     assert np.allclose(vb, va, atol=1e-8 * np.abs(va).max())  # same vectors, same signs
 
 
+def test_a_survey_tolerance_keeps_the_modes_in_fewer_solves(monkeypatch):
+    """The looser tolerance of a solve that is no certificate (fe.modal.SURVEY_TOL: refined meshes, the
+    harmonic band): accepted by the block method (no fallback), the frequencies still the closed form's,
+    the vectors the default's to 1e-7 (mass norm), in fewer block solves."""
+    n, k = 1500, 10  # conditioned so that the default tolerance's true residual passes RESIDUAL_TOL (8e-8)
+    K, M = chain(n)
+    sigma = shift_sigma(-10.0)
+    fac = factorize((K - sigma * M).tocsr(), "scipy")
+    monkeypatch.setattr(fm, "MIN_DOFS", 1000)  # the block method at this size
+    monkeypatch.setattr(fm, "_arpack", lambda *a, **kw: pytest.fail("fell back to ARPACK"))
+    solves = []
+
+    class Counted:
+        def solve(self, b):
+            solves.append(b.shape[1])
+            return fac.solve(b)
+
+    v0, f0 = shift_invert_lanczos(K, M, Counted(), k, sigma)
+    n_default, solves[:] = len(solves), []
+    v1, f1 = shift_invert_lanczos(K, M, Counted(), k, sigma, fm.SURVEY_TOL)
+    assert len(solves) < n_default
+    assert np.allclose((2 * np.pi * f1) ** 2, chain_eigenvalues(n, k), rtol=RTOL, atol=0)
+    D = v1 - v0
+    assert np.sqrt(np.einsum("ij,ij->j", D, M @ D)).max() < 1e-7
+
+
 @pytest.mark.parametrize("eps", [1e-12, -1e-12])
 def test_sign_does_not_depend_on_rounding_between_equal_components(eps):
     """Symmetric structures give components of equal magnitude; rounding orders them either way,

@@ -32,7 +32,7 @@ from jointid.errors import DataError
 from jointid.fe.certificate import reduced_certificate
 from jointid.fe.describe import describe_modes
 from jointid.fe.extrapolate import FrequencyCorrection, edge_limit
-from jointid.fe.modal import release_heap, solve_model
+from jointid.fe.modal import SURVEY_TOL, release_heap, solve_model
 from jointid.fe.fem import Model
 from jointid.fe.model import base_coefficients, joint_terms, load_model
 from jointid.fe.reduced import ReducedSolver
@@ -199,19 +199,20 @@ def _log(msg: str) -> None:
 
 
 def solve_point(spec: ModelSpec, model, theta: dict[str, float], n_modes: int | None = None, describe: bool = True,
-                certify: bool = False):
+                certify: bool = False, tol: float = 0.0):
     """Modal solve of the cached model at joint parameters ``theta`` (N/m^3).
 
     ``spec``: the model's description (its coefficients and solver options); ``n_modes``: default
     ``spec.solver.n_modes``; ``describe``: with the modes' energy table; ``certify``: with a Sturm
-    check of its completeness (``modes.sturm``, :func:`jointid.fe.modal.solve_model`).
+    check of its completeness (``modes.sturm``, :func:`jointid.fe.modal.solve_model`); ``tol``: the Lanczos
+    tolerance (:data:`jointid.fe.modal.SURVEY_TOL` for a mesh-error estimate).
 
     Returns ``(freqs_Hz, shapes at measuring points (n_labels, n_modes), description table, modes)``.
     """
     s = spec.solver
     kc, mc = base_coefficients(spec, model, theta)
     modes = solve_model(model, kc, mc, n_modes or s.n_modes, shift_Hz=s.shift_Hz, backend=s.backend,
-                        certify=certify)
+                        certify=certify, tol=tol)
     shapes = model.probe @ modes.phi
     desc = None
     if describe:
@@ -414,7 +415,7 @@ def edge_limit_at(spec: ModelSpec, models: list, theta: dict[str, float], log=No
             solves.append((base[0], base[1], model.n_dofs, *base[2:]))
             continue
         f, s, _, modes = solve_point(spec, model, theta, n_modes=spec.solver.n_modes + (2 if k else 0),
-                                     describe=False)
+                                     describe=False, tol=SURVEY_TOL)  # an estimate of the mesh error, no certificate
         J = (log_jacobian(model.stiffness, modes.phi, modes.omega2, terms, np.array([theta[n] for n in names]))
              if sensitivities else None)
         solves.append((f, s, model.n_dofs, J))

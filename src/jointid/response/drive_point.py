@@ -35,7 +35,7 @@ from jointid.response import harmonic as hm
 from jointid.response.harmonic import RIGID_HZ
 from jointid.config.typed import Damping
 from jointid.errors import ConfigError, DataError, ModelError, NumericalWarning
-from jointid.fe.modal import (Modes, count_modes_below, factorize_shifted, free_dofs, restrict, shift_sigma,
+from jointid.fe.modal import (SURVEY_TOL, Modes, count_modes_below, factorize_shifted, free_dofs, restrict, shift_sigma,
                               solve_modes)
 from jointid.geometry.points import dof_labels
 
@@ -164,7 +164,7 @@ def solve_band_modes(K, M, f_top_Hz: float, *, fixed=None, n_start: int = 20, sh
         seed = None
         while True:
             modes = solve_modes(K, M, n, shift_Hz=shift_Hz, fixed=fixed, backend=backend, factor=shifted.fac,
-                                v0_seed=seed)
+                                v0_seed=seed, tol=SURVEY_TOL)  # the band's completeness: the Sturm count
             top = float(modes.freqs_Hz[-1])
             found = int(np.count_nonzero(modes.freqs_Hz < target))
             say(f"harmonic: {n} modes up to {top:.0f} Hz (target {target:.0f} Hz)")

@@ -49,6 +49,7 @@ def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
     """Solve of the mesh with the ``halve`` cells halved (and its edge levels with
     ``extrapolate``); returns ``(frequencies, its own frequencies, shapes, number of DOFs)``."""
     from jointid.fe.model import build_model
+    from jointid.fe.modal import SURVEY_TOL
     from jointid.identification.polish import edge_limit_at, solve_point
 
     if extrapolate:  # and with the edge levels the extrapolation solves, each built in turn
@@ -56,7 +57,7 @@ def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
                                     for k in (0, *spec.mesh.edge_extra_levels)], theta_d, log=say)
         return lim_f.limit_Hz, lim_f.levels_Hz[0], lim_f.shapes, lim_f.n_dofs[0]
     fine = build_model(spec, halve=halve, progress=say)
-    _, shapes_f, _, modes_f = solve_point(spec, fine, theta_d, describe=False)
+    _, shapes_f, _, modes_f = solve_point(spec, fine, theta_d, describe=False, tol=SURVEY_TOL)
     return modes_f.freqs_Hz, modes_f.freqs_Hz, shapes_f, fine.n_dofs
 
 
