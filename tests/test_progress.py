@@ -33,7 +33,7 @@ def test_edge_levels_report_the_time_left_weighted_by_their_size(monkeypatch):
     from jointid.identification import polish
 
     lines = []
-    monkeypatch.setattr(polish, "solve_point", lambda spec, model, theta, n_modes, describe: (None, None, None, None))
+    monkeypatch.setattr(polish, "solve_point", lambda spec, model, theta, n_modes, describe, **kw: (None, None, None, None))
     monkeypatch.setattr(polish, "edge_limit", lambda solves, ratio=None: solves)
 
     class Model:
