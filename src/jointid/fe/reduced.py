@@ -427,8 +427,8 @@ class ReducedSolver:
         """
         n = n or self.n_modes
         if refine:
-            hit = self._refined.get(self._key(kc, mc, n))
-            if hit is not None and hit.error <= self.tol:  # refined on this very basis (to the present tolerance)
+            hit = self._refined_at(kc, mc, n)
+            if hit is not None:
                 return hit
         prior = None if recheck or not refine else self._certified.get(self._point(kc, mc, n))
         checked = False
@@ -458,6 +458,11 @@ class ReducedSolver:
         hit = self._certified.get(key) if key in self._kept_points else None
         return hit if self._passed(hit) else None
 
+    def _refined_at(self, kc: dict, mc: dict, n: int) -> Solution | None:
+        """The solution refined at this point on this very basis, to the present tolerance (:meth:`tighten`); else None."""
+        hit = self._refined.get(self._key(kc, mc, n))
+        return hit if hit is not None and hit.error <= self.tol else None
+
     def _passed(self, check: tuple[int, float] | None) -> bool:
         """Whether a check ``(basis size, estimated error)`` passed at this point still holds: on a basis no larger
         than the present one (of this generation) and within the present tolerance (:meth:`tighten`)."""
@@ -479,7 +484,7 @@ class ReducedSolver:
         """:meth:`solve` at several points (e.g. the states of one parameter vector); the points not
         yet certified are first checked together (:func:`jointid.fe.certify.check_points`)."""
         n = n or self.n_modes
-        todo = [(kc, mc) for kc, mc in points if refine and self._key(kc, mc, n) not in self._refined
+        todo = [(kc, mc) for kc, mc in points if refine and self._refined_at(kc, mc, n) is None
                 and not self._passed(self._certified.get(self._point(kc, mc, n)))]
         firsts = {}
         if len(todo) > 1:
