@@ -116,7 +116,7 @@ if HYPOTHESES:
             cfg=sections(config, *keys.RANKING),
         log:
             f"{LOGS}/hypotheses/ranking.log",
-        priority: PRIORITY_HYPOTHESES
+        priority: PRIORITY_CHECKS  # only the report waits for it: after the chain's jobs (see the Snakefile)
         threads: 1
         script:
             "../scripts/rank_hypotheses.py"
