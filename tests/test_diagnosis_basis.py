@@ -127,7 +127,7 @@ def test_hypotheses_on_models_of_their_own_are_certified_only_where_admissible(t
     and certified, a rejected one (the rails 50 mm further apart) keeps its fit and says why it has no Sturm
     count.  After the job no record is pending, and exactly the admissible ones carry a certificate and the
     next measurement's predictions."""
-    from jointid.reconstruction.hypotheses import CERTIFIED, NOT_CERTIFIED, PENDING
+    from jointid.reconstruction.hypotheses import CERTIFIED, PENDING, not_certified
     from jointid.reconstruction.ranking import rank_hypotheses
 
     raw = coarse_config_dict()
@@ -159,7 +159,7 @@ def test_hypotheses_on_models_of_their_own_are_certified_only_where_admissible(t
     assert admissible["thicker"] and not admissible["wide"], admissible
     for name, rec in final.items():
         assert rec["certified"] == admissible[name]
-        assert rec["certificate"] == (CERTIFIED if admissible[name] else NOT_CERTIFIED)
+        assert rec["certificate"] == (CERTIFIED if admissible[name] else not_certified(rec["search_tol"]))
         assert ("predictions" in rec) == rec["certified"]
         assert rec["own_model"] == (name != "light")
     assert "hypothesis thicker: admissible, certified" in lines and "hypothesis wide: admissible, certified" not in lines

@@ -140,6 +140,39 @@ def test_ranking_above_the_noise_is_judged_with_the_model_error():
     assert s["hypotheses"] == "a b" and (s["value_min"], s["value_max"]) == (1.0, 3.0)
 
 
+
+def test_the_chi2_bound_of_a_search_tolerance_holds_for_the_worst_signs():
+    """chi2_bound: every frequency off by tol / 2 (relative) in the direction that grows chi2 most moves it by
+    exactly the bound when every residual has the same size (Cauchy-Schwarz is then an equality)."""
+    from jointid.reconstruction.hypotheses import chi2_bound
+
+    sigma, tol, z = 0.01, 1e-4, np.full(12, 3.0)
+    chi2 = float(np.sum(z ** 2))
+    worst = float(np.sum((z + 0.5 * tol / sigma) ** 2)) - chi2
+    assert chi2_bound(chi2, 12, tol, sigma) == pytest.approx(worst, rel=1e-12)
+    rng = np.random.default_rng(3)  # any residuals, any signs of the errors: within it
+    for _ in range(50):
+        z = rng.normal(0.0, 5.0, 12)
+        e = rng.uniform(-1.0, 1.0, 12) * 0.5 * tol / sigma
+        assert abs(np.sum((z + e) ** 2) - np.sum(z ** 2)) <= chi2_bound(float(np.sum(z ** 2)), 12, tol, sigma)
+
+
+def test_a_hypothesis_its_search_tolerance_could_make_admissible_is_certified():
+    """may_be_admissible: an uncertified fit 5.95 above the best is outside the admissible set (beyond the window of 4,
+    and the best alone holds 95.1 % of the weight; the edge is at 5.89), but inside at 5.85: it is certified when
+    its chi2 bound is 0.1, and not when it is 0.01; a certified one is taken at its value."""
+    from jointid.stages.hypotheses import may_be_admissible
+
+    def rec(aicc, certified, bound):
+        return {**_record(aicc, 1.0, 0.9, 1.1), "certified": certified, "chi2_solver_bound": bound}
+
+    recs = {"best": rec(10.0, True, 0.0), "near": rec(15.95, False, 0.1), "far": rec(30.0, False, 0.1)}
+    assert may_be_admissible(recs) == ["best", "near"]
+    recs["near"]["chi2_solver_bound"] = 0.01
+    assert may_be_admissible(recs) == ["best"]
+    recs["near"] = rec(15.95, True, 0.1)  # certified: its bound no longer counts
+    assert may_be_admissible(recs) == ["best"]
+
 def test_broken_hypotheses_are_listed_apart_with_their_reason():
     good = _record(20.0, 1.0, 0.9, 1.1)
     rigid = {**_record(10.0, 2.0, 1.8, 2.2), "lowest_freq_Hz": 0.0}

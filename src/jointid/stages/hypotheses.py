@@ -23,8 +23,8 @@ import pandas as pd
 from jointid import io
 from jointid.diagnosis.fitting import Diagnoser, print_log
 from jointid.progress import Steps
-from jointid.reconstruction.hypotheses import NOT_CERTIFIED, SEARCH_TOL, fit_hypothesis, record, search
-from jointid.reconstruction.ranking import rank_hypotheses, reconstruction_ranges
+from jointid.reconstruction.hypotheses import SHAPE_SEARCH_TOL, fit_hypothesis, not_certified, record, search, search_tol
+from jointid.reconstruction.ranking import admissible, rank_hypotheses, reconstruction_ranges
 from jointid.reconstruction.next_measurement import ProposalOptions, next_measurement_markdown, propose
 from jointid.diagnosis.terms import build_system, build_systems
 from jointid.identification.model_error import NO_MODEL_ERROR, ModelError
@@ -36,6 +36,21 @@ if TYPE_CHECKING:
     from jointid.config.hypotheses import HypothesisJob, RankingOptions
 
 ADMISSIBLE_DELTA_AICC = 4.0
+
+
+def may_be_admissible(records: dict) -> list[str]:
+    """The hypotheses of ``records`` that are admissible (:func:`jointid.reconstruction.ranking.admissible`) with
+    every uncertified one's QAICc lowered by its ``chi2_solver_bound`` (:func:`jointid.reconstruction.hypotheses.chi2_bound`:
+    how far its search's tolerance can have left its chi-square above the exact model's; QAICc divides chi-square
+    by c-hat >= 1, so the chi-square bound bounds it too).  These get the certificate: a fit that the exact solve
+    could bring into the admissible set is not ranked out on a looser solve."""
+    rows, _, _ = rank_hypotheses(records, delta=ADMISSIBLE_DELTA_AICC)
+    ranked = [r for r in rows if r.get("rank") is not None and np.isfinite(r.get("qaicc", np.nan))]
+    if not ranked:
+        return []
+    q = [r["qaicc"] - (0.0 if records[r["hypothesis"]]["certified"]
+                       else float(records[r["hypothesis"]].get("chi2_solver_bound", 0.0))) for r in ranked]
+    return [r["hypothesis"] for r, a in zip(ranked, admissible(q, ADMISSIBLE_DELTA_AICC)) if a]
 
 
 def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, basis: str | None = None,
@@ -116,7 +131,8 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     for job, system in zip(jobs, systems):
         log(f"hypothesis {job.name} {steps.next()}: the run model"
             + (", the reduced solver of the hypotheses before" if solver is not None else ""))
-        diag = Diagnoser(system, job.settings, _states(job, system, log), solver=solver, tol=SEARCH_TOL,
+        data = _states(job, system, log)
+        diag = Diagnoser(system, job.settings, data, solver=solver, tol=search_tol(data),
                          start_basis=start if solver is None else None, log=log)
         diags[job.name], found[job.name] = diag, search(diag, job.law, log)
         solver = diag.solver
@@ -128,14 +144,15 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     apart_by_name = {j.name: j for j in apart}
     while True:  # certify the admissible ones; a certificate may move a fit, so rank again
         every = {**fixed, **recs}
-        rows, _, _ = rank_hypotheses(every, delta=ADMISSIBLE_DELTA_AICC)
-        # the admissible ones not certified yet that this job can certify (its own, and those apart)
-        todo = [r["hypothesis"] for r in rows if r.get("admissible") and not every[r["hypothesis"]]["certified"]
-                and (r["hypothesis"] in recs or r["hypothesis"] in apart_by_name)]
+        # the ones not certified yet that are, or that their search's tolerance could make, admissible and that this
+        # job can certify (its own, and those apart)
+        todo = [n for n in may_be_admissible(every) if not every[n]["certified"] and (n in recs or n in apart_by_name)]
         if not todo:
             break
+        plain = {r["hypothesis"] for r in rank_hypotheses(every, delta=ADMISSIBLE_DELTA_AICC)[0] if r.get("admissible")}
         for name in todo:
-            log(f"hypothesis {name}: admissible, certified")
+            log(f"hypothesis {name}: admissible, certified" if name in plain else
+                f"hypothesis {name}: within its search tolerance of the admissible set, certified")
             if name in recs:
                 recs[name] = _named(by_name[name], record(diags[name], found[name], certify=True), diags[name].system)
             else:  # fitted apart on its own model, uncertified there: fitted again on it, and certified
@@ -151,7 +168,8 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
     for job, path in zip(apart, apart_jsons):
         rec = fixed[job.name]
         if not rec["certified"]:
-            rec["certificate"] = NOT_CERTIFIED
+            # a record written before its tolerance was kept was searched at SHAPE_SEARCH_TOL (1e-5)
+            rec["certificate"] = not_certified(rec.get("search_tol", SHAPE_SEARCH_TOL))
         io.write_json(path, rec)
         log(f"hypothesis {job.name} (its own model): chi2 {rec['chi2']:.2f}, AICc {rec['aicc']:.2f}"
             + ("" if rec["certified"] else " (not admissible: no Sturm count)"))
