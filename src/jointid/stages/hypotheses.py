@@ -53,6 +53,14 @@ def may_be_admissible(records: dict) -> list[str]:
     return [r["hypothesis"] for r, a in zip(ranked, admissible(q, ADMISSIBLE_DELTA_AICC)) if a]
 
 
+def _to_certify(every: dict, mine: set) -> list[tuple[str, str]]:
+    """``(name, why)`` of the records of ``every`` not certified yet that :func:`may_be_admissible` names and whose
+    names are in ``mine`` (those this job can certify: its own, and those apart)."""
+    plain = {r["hypothesis"] for r in rank_hypotheses(every, delta=ADMISSIBLE_DELTA_AICC)[0] if r.get("admissible")}
+    return [(n, "admissible" if n in plain else "within its search tolerance of the admissible set")
+            for n in may_be_admissible(every) if not every[n]["certified"] and n in mine]
+
+
 def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, basis: str | None = None,
                    certify: bool = True, log=print_log) -> dict:
     """Fit the hypothesis of ``job`` (:meth:`jointid.config.hypotheses.HypothesisJob.from_config`) and write
@@ -143,16 +151,11 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
         fixed[rec["hypothesis"]] = rec
     apart_by_name = {j.name: j for j in apart}
     while True:  # certify the admissible ones; a certificate may move a fit, so rank again
-        every = {**fixed, **recs}
-        # the ones not certified yet that are, or that their search's tolerance could make, admissible and that this
-        # job can certify (its own, and those apart)
-        todo = [n for n in may_be_admissible(every) if not every[n]["certified"] and (n in recs or n in apart_by_name)]
+        todo = _to_certify({**fixed, **recs}, set(recs) | set(apart_by_name))
         if not todo:
             break
-        plain = {r["hypothesis"] for r in rank_hypotheses(every, delta=ADMISSIBLE_DELTA_AICC)[0] if r.get("admissible")}
-        for name in todo:
-            log(f"hypothesis {name}: admissible, certified" if name in plain else
-                f"hypothesis {name}: within its search tolerance of the admissible set, certified")
+        for name, why in todo:
+            log(f"hypothesis {name}: {why}, certified")
             if name in recs:
                 recs[name] = _named(by_name[name], record(diags[name], found[name], certify=True), diags[name].system)
             else:  # fitted apart on its own model, uncertified there: fitted again on it, and certified
