@@ -157,6 +157,18 @@ def test_the_chi2_bound_of_a_search_tolerance_holds_for_the_worst_signs():
         assert abs(np.sum((z + e) ** 2) - np.sum(z ** 2)) <= chi2_bound(float(np.sum(z ** 2)), 12, tol, sigma)
 
 
+def test_the_search_tolerance_is_looser_for_frequencies_only_than_with_shapes():
+    """search_tol: 1e-4 where no state has measured shapes (a frequency error of 5e-5 against a noise of 1 %),
+    1e-5 where one has (a Ritz vector's error goes as the square root of its eigenvalue's); either is looser than
+    the certificate's 1e-6, and an uncertified record states the tolerance it was searched at."""
+    from jointid.diagnosis.variants import StateData, StateInfo
+    from jointid.reconstruction.hypotheses import CERTIFY_TOL, NOT_CERTIFIED, not_certified, search_tol
+
+    freq = [StateData(s, StateInfo(s, f), np.array([344.3, 900.0]), None, 0.01) for s, f in (("off", 0.0), ("on", 1e3))]
+    shaped = [freq[0], StateData("on", StateInfo("on", 1e3), np.array([344.3, 900.0]), np.ones((6, 2)), 0.01)]
+    assert search_tol(freq) == 1e-4 and search_tol(shaped) == 1e-5 and CERTIFY_TOL < 1e-5
+    assert not_certified(1e-4).startswith(NOT_CERTIFIED) and "1e-04" in not_certified(1e-4)
+
 def test_a_hypothesis_its_search_tolerance_could_make_admissible_is_certified():
     """may_be_admissible: an uncertified fit 5.95 above the best is outside the admissible set (beyond the window of 4,
     and the best alone holds 95.1 % of the weight; the edge is at 5.89), but inside at 5.85: it is certified when
