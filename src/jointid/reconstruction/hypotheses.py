@@ -209,7 +209,7 @@ def record(diag: Diagnoser, found: Searched, *, certify: bool) -> dict:
     rec = fit_record(fit, diag.data, found.preload_N, found.profile, n_choices=found.n_choices)
     rec["certified"], rec["certificate"] = certify, CERTIFIED if certify else not_certified(tol)
     if not certify:
-        sigma = min(float(np.min(d.mode_sigma())) for d in diag.data if len(d.f_meas))
+        sigma = min((float(np.min(d.mode_sigma())) for d in diag.data if len(d.f_meas)), default=np.inf)  # none: no rows
         rec["search_tol"], rec["chi2_solver_bound"] = tol, chi2_bound(rec["chi2"], rec["n_data"], tol, sigma)
     if certify:
         rec["predictions"] = measurement_predictions(diag, fit, diag.data)

@@ -114,9 +114,10 @@ def run_hypotheses(jobs: list[HypothesisJob], matrices: str, out_jsons: list[str
 
     A certificate where an answer rests on it: the fits are ranked with the records of ``others`` (the
     run's other hypotheses' records, each fitted in its own job) as rule ``hypotheses`` ranks them,
-    and only the admissible ones (:func:`jointid.reconstruction.ranking.admissible`) get the certificate's
-    Sturm count and the predictions of the next measurement; the ranking is made again after each round,
-    until every admissible hypothesis is certified.  Every solve of every fit is checked in the full space
+    and only the admissible ones (:func:`jointid.reconstruction.ranking.admissible`), and those that their search's
+    tolerance could make admissible (:func:`may_be_admissible`), get the certificate's Sturm count and the
+    predictions of the next measurement; the ranking is made again after each round, until every admissible
+    hypothesis is certified.  Every solve of every fit is checked in the full space
     (residuals); a rejected hypothesis's record says that it was not Sturm-counted, and why.
 
     ``apart`` (the jobs of ``others``, in their order): those records were left uncertified in their own
