@@ -201,3 +201,30 @@ def test_the_mesh_errors_change_with_the_joints_is_its_energy_share_change():
     assert moved.sum() >= 2, actual
     assert np.all(np.sign(pred[moved]) == np.sign(actual[moved])), (pred, actual)
     assert np.all(np.abs(pred - actual)[moved] <= 0.35 * np.abs(actual)[moved]), (pred, actual)
+
+
+def test_the_refined_meshes_give_the_same_numbers_in_a_process_of_their_own_and_in_this_one():
+    """refined_shifts through jointid.isolate (the default mesh's way: a child process, for memory) and in the
+    caller's process (a mesh below ISOLATE_DOFS, the coarse rig's): the same shifts, shares and shape changes, to
+    the bit."""
+    from jointid import isolate
+    from jointid.config.typed import ModelSpec
+    from jointid.diagnosis.mesh_error import ISOLATE_DOFS, Point, refined_shifts
+    from jointid.diagnosis.terms import baseline_coefficients, build_system
+    from jointid.fe.modal import solve_modes
+
+    rig = diagnosis_rig()
+    spec = ModelSpec.from_config(rig["cfg"])
+    s = build_system(rig["model"], spec)
+    assert s.n_dofs < ISOLATE_DOFS  # the coarse rig is refined in the diagnosis's own process
+    kc, mc = baseline_coefficients(s, spec, {"k_normal_N_per_m3": 7e11, "k_lateral_N_per_m3": 6e11})
+    m = solve_modes(s.K(kc), s.M(mc), 6, fixed=s.fixed)
+    points = [Point(kc, mc, m.freqs_Hz, s.probe @ m.phi)]
+    here = refined_shifts(spec, ("thickness",), points, 6, True)
+    there = isolate.call(refined_shifts, spec, ("thickness",), points, 6, True)
+    assert here[1] == there[1]
+    (a,), (b,) = here[0][0], there[0][0]
+    assert np.array_equal(a.shift, b.shift) and np.array_equal(a.shape_change, b.shape_change)
+    assert np.array_equal(a.lost, b.lost)
+    for ga, gb in zip(a.shares, b.shares):
+        assert ga.keys() == gb.keys() and all(np.array_equal(ga[t], gb[t], equal_nan=True) for t in ga)

@@ -53,6 +53,7 @@ model coefficients are equal there (e.g. without an enabled effect that tells th
 refined solve.  The refined meshes are built and solved in a process of their own (:mod:`jointid.isolate`,
 :func:`refined_shifts`), which returns only the shifts: each is about twice the run's mesh, and on the
 default 6 mm cells the diagnosis's largest process fell from 2.51 GiB to 2.0 GiB (the same numbers, to the bit).
+A mesh below :data:`ISOLATE_DOFS` is refined in the diagnosis's own process.
 """
 
 from __future__ import annotations
@@ -62,11 +63,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["MeshErrors", "MeshReference", "Point", "refined_shifts", "correct", "drift", "estimate_mesh_errors", "shape_known", "solid_share",
+__all__ = ["ISOLATE_DOFS", "MeshErrors", "MeshReference", "Point", "refined_shifts", "correct", "drift", "estimate_mesh_errors", "shape_known", "solid_share",
            "FOLLOW_MAC"]
 
 FOLLOW_MAC = 0.8
 """A refined-mesh mode follows a model mode when their MAC at the measuring points is at least this."""
+
+ISOLATE_DOFS = 40000
+"""From this many DOFs of the run's mesh on, the refined meshes are solved in a process of their own
+(:func:`estimate_mesh_errors`, module doc); below, in the diagnosis's own process: each refined mesh then takes
+well under 1 GB, and a child's start costs about 1.2 s of imports (the synthetic diagnoses of the tests, on the
+coarse rig's 17 472 DOFs).  The same numbers either way (tests/test_mesh_error.py)."""
 
 DEFAULT_HALVE = ("length", "thickness", "width")
 """The cell classes halved one at a time (``diagnosis.mesh_error_halve``): the three axes, whose summed
@@ -220,9 +227,11 @@ def estimate_mesh_errors(spec, system, data, sols, index, halve: tuple, *, n_mod
                                      "gm": {t: np.zeros(len(sol.freqs_Hz)) for t in c[1]}}
              for c, sol in zip(coarse, sols)]
     points = [Point(dict(sol.kc), dict(sol.mc), np.asarray(sol.freqs_Hz), np.asarray(sol.shapes)) for sol in sols]
-    # the refined meshes in a process of their own: their memory is not stacked on the diagnosis's (module doc)
-    shifts, n_fine = isolate.call(refined_shifts, spec, tuple(halve), points, n_modes, lift is not None,
-                                  what="the mesh error's refined meshes")
+    # the refined meshes in a process of their own: their memory is not stacked on the diagnosis's (module doc);
+    # a small mesh's in this one (ISOLATE_DOFS)
+    args = (spec, tuple(halve), points, n_modes, lift is not None)
+    shifts, n_fine = (isolate.call(refined_shifts, *args, what="the mesh error's refined meshes")
+                      if system.n_dofs >= ISOLATE_DOFS else refined_shifts(*args))
     out = MeshErrors(tuple(halve), n_dofs=(int(system.n_dofs), n_fine))
     for per_state in shifts:
         for k, res in enumerate(per_state):

@@ -29,6 +29,7 @@ import pandas as pd
 import scipy.sparse as sp
 
 from jointid.errors import ModelError
+from jointid.fe.affine import sequential_sum
 from jointid.fe.fem import Model
 from jointid.config.typed import ModelSpec
 from jointid.fe.lame import add_lame_terms
@@ -105,20 +106,13 @@ class System:
         return self.model.ordering if same else None
 
     def K(self, kc: dict) -> sp.csr_matrix:
-        """``K0 + sum kc[name] * stiffness[name]`` (CSR)."""
-        out = self.stiffness["K0"].copy()
-        for name, c in kc.items():
-            if c != 0.0:
-                out = out + c * self.stiffness[name]
-        return out.tocsr()
+        """``K0 + sum kc[name] * stiffness[name]`` (CSR), the terms added in the order of ``kc``
+        (:func:`jointid.fe.affine.sequential_sum`)."""
+        return sequential_sum(self.stiffness["K0"], [(c, self.stiffness[n]) for n, c in kc.items() if c != 0.0])
 
     def M(self, mc: dict) -> sp.csr_matrix:
-        """``M0 + sum mc[name] * mass[name]`` (CSR)."""
-        out = self.mass["M0"].copy()
-        for name, c in mc.items():
-            if c != 0.0:
-                out = out + c * self.mass[name]
-        return out.tocsr()
+        """``M0 + sum mc[name] * mass[name]`` (CSR), the terms added in the order of ``mc``."""
+        return sequential_sum(self.mass["M0"], [(c, self.mass[n]) for n, c in mc.items() if c != 0.0])
 
 
 def carried_mass_kg(model: Model, M0=None, motor_kg: float | None = None) -> float:
