@@ -38,13 +38,15 @@ if TYPE_CHECKING:
 ADMISSIBLE_DELTA_AICC = 4.0
 
 
-def may_be_admissible(records: dict) -> list[str]:
+def may_be_admissible(records: dict, rows: list[dict] | None = None) -> list[str]:
     """The hypotheses of ``records`` that are admissible (:func:`jointid.reconstruction.ranking.admissible`) with
     every uncertified one's QAICc lowered by its ``chi2_solver_bound`` (:func:`jointid.reconstruction.hypotheses.chi2_bound`:
     how far its search's tolerance can have left its chi-square above the exact model's; QAICc divides chi-square
     by c-hat >= 1, so the chi-square bound bounds it too).  These get the certificate: a fit that the exact solve
-    could bring into the admissible set is not ranked out on a looser solve."""
-    rows, _, _ = rank_hypotheses(records, delta=ADMISSIBLE_DELTA_AICC)
+    could bring into the admissible set is not ranked out on a looser solve.  ``rows``: the ranking of ``records``
+    (:func:`rank_hypotheses`), when already made."""
+    if rows is None:
+        rows, _, _ = rank_hypotheses(records, delta=ADMISSIBLE_DELTA_AICC)
     ranked = [r for r in rows if r.get("rank") is not None and np.isfinite(r.get("qaicc", np.nan))]
     if not ranked:
         return []
@@ -56,9 +58,10 @@ def may_be_admissible(records: dict) -> list[str]:
 def _to_certify(every: dict, mine: set) -> list[tuple[str, str]]:
     """``(name, why)`` of the records of ``every`` not certified yet that :func:`may_be_admissible` names and whose
     names are in ``mine`` (those this job can certify: its own, and those apart)."""
-    plain = {r["hypothesis"] for r in rank_hypotheses(every, delta=ADMISSIBLE_DELTA_AICC)[0] if r.get("admissible")}
+    rows, _, _ = rank_hypotheses(every, delta=ADMISSIBLE_DELTA_AICC)
+    plain = {r["hypothesis"] for r in rows if r.get("admissible")}
     return [(n, "admissible" if n in plain else "within its search tolerance of the admissible set")
-            for n in may_be_admissible(every) if not every[n]["certified"] and n in mine]
+            for n in may_be_admissible(every, rows) if not every[n]["certified"] and n in mine]
 
 
 def run_hypothesis(job: HypothesisJob, matrices: str | None, out_json: str, *, basis: str | None = None,
