@@ -57,6 +57,7 @@ def _env(tmp: Path) -> dict:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not SNAKEMAKE.exists(), reason="snakemake is not installed beside this python")
+@pytest.mark.extended  # a non-default executor (profiles/cluster); its submit script and profile are checked below
 def test_doe_fanout_through_cluster_generic_executor(tmp_path):
     wd = _workdir(tmp_path)
     submit = f"{SUBMIT} --name {{name}} --mem {{resources.mem_mb}} --time {{resources.runtime}} --cpus {{threads}}"

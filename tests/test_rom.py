@@ -305,6 +305,7 @@ def test_dry_run_rom_rule_once_with_method_rom_and_never_with_full(tmp_path):
                      r"\s+output: results/rom/rom.npz, results/rom/rom.json", out["rom"], flags=re.M)
 
 
+@pytest.mark.extended  # the second training kind of the ROM, which is not the default solver (the first: the tests above)
 def test_training_kind_is_checked_and_modes_training_still_verifies(coarse):
     """Both training kinds meet the tolerance at fresh interior points; a wrong kind is a clear error."""
     cfg, model, rom_inverse = coarse
