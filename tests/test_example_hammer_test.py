@@ -6,7 +6,8 @@ the identified normal and lateral stiffness hold the truth in their 95 % interva
 power_off (hysteretic law, the EMA's own damping uncertainties) values no parameter whose 95 % interval
 misses the truth (eta_normal 0.06, zeta0 0.004, no loss in the other directions); the diagnosis on the
 EMA's own uncertainties names the hidden em_preload with an interval that holds it and a c_hat in [0.5, 2],
-and the same modes with one noise stated at half give a c_hat outside; all in under 3 minutes.
+and the same modes with one noise stated at half give a c_hat outside.  Its time is printed, not asserted (a speed
+target is a benchmark's, not a test's).
 """
 
 from __future__ import annotations
@@ -29,7 +30,6 @@ def test_hammer_test_example_runs_and_recovers_the_joints():
     summary = yaml.safe_load((ROOT / "examples/hammer_test/work/summary.yaml").read_text())
     print(f"hammer_test example: {summary['seconds']:.1f} s, modes {summary['modes']}, "
           f"error/sigma {summary['error_over_sigma']}")
-    assert summary["seconds"] < 180
     assert summary["data_check"] == []
     z = summary["error_over_sigma"]
     assert len(z) >= 5 and all(abs(v) <= 3 for v in z)  # the merged modes too: their sigma says so
