@@ -36,6 +36,12 @@ def _hypotheses_cfg(names):
     return cfg
 
 
+def _hypothesis_matrices(wc):
+    """The run's model file for a hypothesis on it; none for one that builds its own (its job then starts beside
+    rule mesh, on the core that would wait for it)."""
+    return [] if needs_own_model(config["hypotheses"][wc.name], config) else [rules.mesh.output.matrices]
+
+
 def _hypothesis_basis(wc):
     """The shared basis (rules/basis.smk) for a hypothesis on the run's model; none for one that builds its own."""
     return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
@@ -78,7 +84,7 @@ if SEPARATE:
 
     rule hypothesis:
         input:
-            matrices=rules.mesh.output.matrices,
+            matrices=_hypothesis_matrices,
             dataset=_run_datasets,
             basis=_hypothesis_basis,
         output:

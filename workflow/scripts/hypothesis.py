@@ -5,12 +5,13 @@ from jointid.stages.hypotheses import run_hypothesis
 from jointid.stages.runner import run_script
 
 
-def _basis(inp):
-    """The shared basis of a hypothesis on the run's model (an input list of one), else None."""
-    got = inp.get("basis")
+def _one(inp, key):
+    """The input ``key`` of a hypothesis on the run's model (an input list of one), else None (one with a
+    model of its own has neither the run's model file nor its basis)."""
+    got = inp.get(key)
     return got if isinstance(got, str) else (str(got[0]) if got else None)
 
 
 run_script(snakemake, lambda cfg, inp, out: run_hypothesis(
-    HypothesisJob.from_config(cfg, snakemake.wildcards.name, check_hypothesis_effects), inp.matrices, out.fit,
-    basis=_basis(inp), certify=snakemake.params.certify), provenance=True)
+    HypothesisJob.from_config(cfg, snakemake.wildcards.name, check_hypothesis_effects), _one(inp, "matrices"), out.fit,
+    basis=_one(inp, "basis"), certify=snakemake.params.certify), provenance=True)
