@@ -36,15 +36,11 @@ def _hypotheses_cfg(names):
     return cfg
 
 
-def _hypothesis_matrices(wc):
-    """The run's model file for a hypothesis on it; none for one that builds its own (its job then starts beside
-    rule mesh, on the core that would wait for it)."""
-    return [] if needs_own_model(config["hypotheses"][wc.name], config) else [rules.mesh.output.matrices]
-
-
-def _hypothesis_basis(wc):
-    """The shared basis (rules/basis.smk) for a hypothesis on the run's model; none for one that builds its own."""
-    return [] if needs_own_model(config["hypotheses"][wc.name], config) else [BASIS]
+def _on_run_model(path):
+    """The input function of ``path`` (the run's model file, its shared basis: rules mesh, basis.smk) for a
+    hypothesis on the run's model; none for one that builds its own, whose job then needs neither and starts
+    beside rule mesh, on the core that would wait for it."""
+    return lambda wc: [] if needs_own_model(config["hypotheses"][wc.name], config) else [path]
 
 
 def _hypothesis_priority(wildcards, input):
@@ -84,9 +80,9 @@ if SEPARATE:
 
     rule hypothesis:
         input:
-            matrices=_hypothesis_matrices,
+            matrices=_on_run_model(rules.mesh.output.matrices),
             dataset=_run_datasets,
-            basis=_hypothesis_basis,
+            basis=_on_run_model(BASIS),
         output:
             fit=APART,
         params:
