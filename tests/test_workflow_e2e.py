@@ -7,6 +7,7 @@ determinism and rerun tests.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -54,6 +55,21 @@ def test_dry_run_lists_every_stage_once_per_state_and_the_doe_in_one_job(tmp_pat
     extras = {"harmonic": len(STATES), "table1": 1, "report": 1, "diagnose": 1, "mesh_check": len(STATES)}
     assert {r: jobs.get(r, 0) for r in extras} == extras
     assert not (wd / "results").exists(), "a dry run must not write results"
+
+
+def test_a_hypothesis_with_a_model_of_its_own_does_not_wait_for_the_mesh(tmp_path):
+    """It builds its model from the configuration: neither the run's model file nor its basis is an input, so
+    it can start beside rule mesh; one on the run's model (solver.method full: a job of its own) has both."""
+    wd = copy_workflow(tmp_path / "wf")
+    (wd / "own.yaml").write_text("hypotheses:\n  thin:\n    overrides: {rig: {table: {thickness_m: 0.030}}}\n"
+                                 "  heavy:\n    overrides: {rig: {motors: {mass_each_kg: 6.0}}}\nsolver:\n  method: full\n")
+    inputs = {}
+    for name in ("thin", "heavy"):
+        out = run_snakemake(wd, "-n", "-f", f"results/hypotheses/{name}/fit.json", configs=[wd / "own.yaml"],
+                            check=True).stdout
+        inputs[name] = re.search(r"^rule hypothesis:\n\s+input: (.*)$", out, flags=re.M).group(1)
+    assert "matrices.npz" not in inputs["thin"] and "diagnosis_basis.npz" not in inputs["thin"], inputs
+    assert "results/model/matrices.npz" in inputs["heavy"] and "diagnosis_basis.npz" in inputs["heavy"], inputs
 
 
 def test_full_coarse_run_writes_both_tables(coarse_run):
