@@ -136,6 +136,23 @@ def test_vectorised_assembly_equals_scikit_fem_linear_elasticity():
     assert isinstance(K, sp.csr_matrix)
 
 
+def test_interleaved_blocks_hold_the_bits_of_one_coo_conversion():
+    """The shared-pattern interleave of the nine scalar blocks gives the matrix the general COO path gives,
+    bit for bit (values, index arrays, their types); blocks of different patterns take the general path."""
+    rng = np.random.default_rng(3)
+    n = 40
+    r, c = rng.integers(0, n, 600), rng.integers(0, n, 600)
+    blocks = [[sp.csr_matrix((rng.standard_normal(600), (r, c)), shape=(n, n)) for _ in range(3)] for _ in range(3)]
+    blocks[1][2].data[:5] = 0.0  # explicit zeros stay
+    fast, ref = fem._vector_from_scalar_blocks(blocks, n), fem._vector_from_coo(blocks, n)
+    for a, b in ((fast.indptr, ref.indptr), (fast.indices, ref.indices)):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    assert fast.data.tobytes() == ref.data.tobytes() and fast.shape == (3 * n, 3 * n)
+    blocks[2][0] = sp.csr_matrix((np.ones(3), ([0, 1, 2], [3, 2, 1])), shape=(n, n))  # another pattern
+    mixed = fem._vector_from_scalar_blocks(blocks, n)
+    assert abs(mixed - fem._vector_from_coo(blocks, n)).max() == 0.0
+
+
 # ---------------------------------------------------------------- nested refinement (mesh check)
 def test_halved_grid_is_nested_and_halves_the_chosen_cells():
     from jointid.config import load_config

@@ -103,7 +103,41 @@ def lame(E: float, nu: float) -> tuple[float, float]:
 
 
 def _vector_from_scalar_blocks(blocks, n):
-    """Interleave 3x3 scalar blocks ``blocks[c][d]`` (n x n) into a (3n x 3n) matrix."""
+    """Interleave 3x3 scalar blocks ``blocks[c][d]`` (n x n) into a (3n x 3n) matrix: entry ``(i, j)`` of
+    block ``(c, d)`` goes to ``(3i + c, 3j + d)``.
+
+    Blocks summed from one element list share one sparsity pattern (CSR, duplicates summed): the result's
+    index arrays then follow from that pattern and each value is moved, not added again, so the matrix holds
+    the same bits as the general path below (a COO of all nine blocks converted to CSR) in a fifth of its
+    time (``tests/test_fem.py``)."""
+    B = [[blocks[c][d] for d in range(3)] for c in range(3)]
+    ip, ix = B[0][0].indptr, B[0][0].indices
+    if not all(sp.isspmatrix_csr(b) and b.has_canonical_format and np.array_equal(b.indptr, ip)
+               and np.array_equal(b.indices, ix) for row in B for b in row):
+        return _vector_from_coo(B, n)
+    cnt = np.diff(ip).astype(np.int64)
+    nnz = len(ix)
+    row_of = np.repeat(np.arange(n, dtype=np.int64), cnt)
+    within = np.arange(nnz, dtype=np.int64) - ip[row_of]
+    start = 9 * ip[row_of].astype(np.int64) + 3 * within  # position of (k, c=0, d=0) in the result
+    itype = np.int32 if 9 * nnz < np.iinfo(np.int32).max else np.int64
+    data = np.empty(9 * nnz)
+    indices = np.empty(9 * nnz, dtype=itype)
+    for c in range(3):
+        base = start + 3 * c * cnt[row_of]
+        for d in range(3):
+            data[base + d] = B[c][d].data
+            indices[base + d] = 3 * ix + d
+    indptr = np.empty(3 * n + 1, dtype=itype)
+    indptr[:-1] = (9 * ip[:-1].astype(np.int64)[:, None] + 3 * np.arange(3) * cnt[:, None]).ravel()
+    indptr[-1] = 9 * nnz
+    out = sp.csr_matrix((data, indices, indptr), shape=(3 * n, 3 * n))
+    out.has_sorted_indices = True
+    return out
+
+
+def _vector_from_coo(blocks, n):
+    """:func:`_vector_from_scalar_blocks` of blocks of any patterns: one COO, converted to CSR."""
     rows, cols, vals = [], [], []
     for c in range(3):
         for d in range(3):
