@@ -43,6 +43,12 @@ def rig():
     return diagnosis_rig()
 
 
+@pytest.fixture(scope="module")
+def shaped(rig):
+    """The synthesised tie case with shapes at SHAPE_PCT noise (read-only: :func:`states` copies what it changes)."""
+    return synth.synthesise(truth(SHAPE_PCT), truth_settings(truth(SHAPE_PCT), rig["cfg"]), model=rig["model"])
+
+
 def truth(shape_pct: float, *, shapes: bool = True) -> dict:
     return {"joints": {"k_normal_N_per_m3": 8.0e11, "k_lateral_N_per_m3": 6.0e11},
             "states": {"power_off": {"em_force_N": 0.0}, "power_on": {"em_force_N": 1000.0}},
@@ -75,8 +81,8 @@ def lead(res) -> float:
     return float(q["rail_fixing"] - q["base_support"])
 
 
-def test_shape_jacobian_matches_finite_differences(rig, tmp_path):
-    data = states(rig, synth.synthesise(truth(SHAPE_PCT), truth_settings(truth(SHAPE_PCT), rig["cfg"]), model=rig["model"]), tmp_path / "ds")
+def test_shape_jacobian_matches_finite_differences(rig, shaped, tmp_path):
+    data = states(rig, shaped, tmp_path / "ds")
     cfg = {**rig["cfg"], "diagnosis": {**(rig["cfg"].get("diagnosis") or {}), "shape_residuals": True}}
     diag = Diagnoser(rig["system"], DiagnosisSettings.from_config(cfg), data, log=lambda m: None)
     base = Variant(rig["system"], DiagnosisSettings.from_config(cfg), [])
@@ -111,9 +117,9 @@ def test_frequency_only_dataset_gives_identical_numbers_with_the_switch_on_and_o
 
 @pytest.mark.parametrize("candidates", [THREE, pytest.param(None, marks=pytest.mark.extended)],
                          ids=["three effects", "whole library"])
-def test_a_tie_is_broken_by_shapes(rig, tmp_path, candidates):
+def test_a_tie_is_broken_by_shapes(rig, shaped, tmp_path, candidates):
     """Frequencies alone tie base_support and rail_fixing; shapes at MAC about 0.95 rank the truth first."""
-    out = synth.synthesise(truth(SHAPE_PCT), truth_settings(truth(SHAPE_PCT), rig["cfg"]), model=rig["model"])
+    out = shaped
     clean = synth.synthesise(truth(0.0), truth_settings(truth(0.0), rig["cfg"]), model=rig["model"])["shapes"]  # same seed: noise-free shapes
     macs = []
     for (s, m), g in out["shapes"].groupby(["state", "mode"]):
