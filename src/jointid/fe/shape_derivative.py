@@ -59,6 +59,21 @@ def _combine(red: dict, coeffs: dict, base: str | None) -> np.ndarray:
     return out
 
 
+def _term_products(red: dict, coeff_dicts: list[dict], Y: np.ndarray) -> dict:
+    """``red[name] @ Y`` for every term with a non-zero coefficient in any of ``coeff_dicts``."""
+    names = dict.fromkeys(n for d in coeff_dicts for n, c in d.items() if c != 0.0)
+    return {n: red[n] @ Y for n in names}
+
+
+def _applied(products: dict, coeffs: dict, k: int, r: int) -> np.ndarray:
+    """``sum c_a (red[a] @ y_k)``: a direction's term derivative applied to mode ``k`` (zero if empty)."""
+    out = np.zeros(r)
+    for name, c in coeffs.items():
+        if c != 0.0:
+            out += c * products[name][:, k]
+    return out
+
+
 def reduced_pencil(solver, kc: dict, mc: dict) -> tuple[np.ndarray, np.ndarray]:
     """Reduced stiffness and mass ``(K_r, M_r)`` of ``solver`` at coefficients ``(kc, mc)``."""
     return _combine(solver.Kr, kc, "K0"), _combine(solver.Mr, mc, "M0")
@@ -84,14 +99,17 @@ def probe_shape_derivatives(solver, sol: Solution, modes, directions: list[tuple
     """
     K, M = reduced_pencil(solver, sol.kc, sol.mc)
     r = K.shape[0]
-    dK = [_combine(solver.Kr, dkc, None) for dkc, _ in directions]
-    dM = [_combine(solver.Mr, dmc, None) for _, dmc in directions]
     Y = pad_to_basis(sol.Y, r)
     Y_all = pad_to_basis(sol.Y_all, r)
+    modes = [int(i) for i in modes]
+    Ys = Y[:, modes]
+    # the directions' reduced terms applied to the modes (a product per term, not a matrix per direction)
+    KY = _term_products(solver.Kr, [dkc for dkc, _ in directions], Ys)
+    MY = _term_products(solver.Mr, [dmc for _, dmc in directions], Ys)
+    MYs = M @ Ys
     out = np.zeros((solver.PV.shape[0], len(modes), len(directions)))
     for k, i in enumerate(modes):
-        y, lam = Y[:, i], float(sol.lam[i])
-        My = M @ y
+        y, lam, My = Ys[:, k], float(sol.lam[i]), MYs[:, k]
         Z = M @ Y_all[:, close_modes(sol.lam_all, lam)]  # the close modes' borders (module docstring)
         nb = 1 + Z.shape[1]
         B = np.zeros((r + nb, r + nb))
@@ -101,11 +119,12 @@ def probe_shape_derivatives(solver, sol: Solution, modes, directions: list[tuple
         B[:r, r + 1:] = Z
         B[r + 1:, :r] = Z.T
         rhs = np.zeros((r + nb, len(directions)))
-        for j, (a, b) in enumerate(zip(dK, dM)):
-            g = a @ y - lam * (b @ y)
+        for j, (dkc, dmc) in enumerate(directions):
+            dKy, dMy = _applied(KY, dkc, k, r), _applied(MY, dmc, k, r)
+            g = dKy - lam * dMy
             dlam = float(y @ g)
             rhs[:r, j] = -(g - dlam * My)
-            rhs[r, j] = -0.5 * float(y @ (b @ y))
+            rhs[r, j] = -0.5 * float(y @ dMy)
         dy = sla.lu_solve(sla.lu_factor(B, check_finite=False), rhs, check_finite=False)[:r]
         out[:, k, :] = solver.PV @ dy
     return out
