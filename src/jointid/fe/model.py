@@ -161,34 +161,38 @@ def build_model(spec: ModelSpec, *, refine: int | None = None, halve: tuple[str,
     element = spec.mesh.element
     rig = rig or build_rig(spec.rig.geometry)
     rmesh = mesh_from_config(rig, spec.mesh, refine, halve)
-    basis, stiffness, M0, dof_body = assemble_solids_and_joints(spec.materials, rig, rmesh, element)
+    facet_masses: dict[str, sp.csr_matrix] = {}  # face -> its facet mass, assembled once per build
+    basis, stiffness, M0, dof_body = assemble_solids_and_joints(spec.materials, rig, rmesh, element, facet_masses)
     solids, solids_meta = assemble_solid_parts(spec.materials, rig, rmesh, basis)
     elem, intorder = basis.elem, fem.ELEMENTS[element][1]
     doflocs = basis.doflocs
     say(f"mesh: {rmesh.mesh.t.shape[1]} {element} elements, {3 * basis.N} DOFs")
-    S_fix = fem.facet_mass(rmesh.mesh, elem, rmesh.facets["railfix"], intorder)
+
+    def facet_mass(face: str) -> sp.csr_matrix:
+        if face not in facet_masses:
+            facet_masses[face] = fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder)
+        return facet_masses[face]
+
+    S_fix = facet_mass("railfix")
     stiffness["K_railfix"] = sum(fem.spring_layer(S_fix, doflocs, i, dof_body) for i in range(3)).tocsr()
-    stiffness["K_foundation"] = fem.ground_springs(
-        fem.facet_mass(rmesh.mesh, elem, rmesh.facets["bottom"], intorder))
+    stiffness["K_foundation"] = fem.ground_springs(facet_mass("bottom"))
     support = spec.rig.support_kind
     fixed = np.array([], dtype=np.int64)
     if support == "mounts":
-        stiffness["K_mount"] = fem.ground_springs(
-            fem.facet_mass(rmesh.mesh, elem, rmesh.facets["mount"], intorder))
+        stiffness["K_mount"] = fem.ground_springs(facet_mass("mount"))
     elif support == "clamped":
         sdofs = basis.get_dofs(facets=rmesh.facets["bottom"]).all()
         fixed = np.sort(np.concatenate([3 * sdofs + c for c in range(3)]))
     mass = {"M0": M0}
     for name, facets in (("motor", "motor"), ("table_top", "table_top"), ("table_edge", "table_edge")):
-        mass[f"M_{name}"] = fem.surface_mass(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[facets], intorder))
+        mass[f"M_{name}"] = fem.surface_mass(facet_mass(facets))
     pts = measuring_points(spec.rig.geometry, rig.dims)
     xyz = pts[["x_m", "y_m", "z_m"]].to_numpy().T.copy()
     xyz[1] -= 1e-7  # nudge onto the solid side of the top surfaces
     P = basis.probes(xyz)  # (n_pts, N) scalar
     probe = fem.vector_rows(P)
     dof_part = dof_parts(basis, rmesh)
-    areas = {face: float(fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder).sum())
-             for face in ("top", "flank", "motor", "mount")}
+    areas = {face: float(facet_mass(face).sum()) for face in ("top", "flank", "motor", "mount")}
     meta = {"n_elements": int(rmesh.mesh.t.shape[1]), "n_dofs": int(3 * basis.N),
             "element": element, "support": support,
             "contact_area_m2": {"top": areas["top"], "flank": areas["flank"]},
@@ -209,12 +213,14 @@ def build_model(spec: ModelSpec, *, refine: int | None = None, halve: tuple[str,
     return model
 
 
-def assemble_solids_and_joints(materials: Mapping[str, Material], rig, rmesh, element: str):
+def assemble_solids_and_joints(materials: Mapping[str, Material], rig, rmesh, element: str,
+                               facet_masses: dict | None = None):
     """Elasticity of the solids (``materials`` by name) on ``rmesh`` and the unit joint spring layers.
 
     Returns ``(basis, stiffness, M0, dof_body)``: ``stiffness`` holds ``K0`` and ``K_<face>_<d>`` for
     the faces ``top`` and ``flank`` (see the module docstring); ``dof_body`` is the body of each scalar
-    DOF when the mesh has hanging nodes (else None).
+    DOF when the mesh has hanging nodes (else None).  ``facet_masses``: a dict that receives the two
+    faces' facet masses (the caller's areas use them again).
     """
     elem_cls, intorder = fem.ELEMENTS[element]
     elem = elem_cls()
@@ -228,6 +234,8 @@ def assemble_solids_and_joints(materials: Mapping[str, Material], rig, rmesh, el
         dof_body[basis.element_dofs] = rmesh.body[None, :]
     for face in ("top", "flank"):
         S = fem.facet_mass(rmesh.mesh, elem, rmesh.facets[face], intorder)
+        if facet_masses is not None:
+            facet_masses[face] = S
         for d, i in fem.DIRS.items():
             stiffness[f"K_{face}_{d}"] = fem.spring_layer(S, basis.doflocs, i, dof_body)
     return basis, stiffness, M0, dof_body
