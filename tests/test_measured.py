@@ -90,8 +90,10 @@ def test_write_then_read_round_trip(tmp_path):
     np.testing.assert_array_equal(ds.freqs("b"), [400.0, 900.0])
     np.testing.assert_array_equal(ds.damping("a"), [0.03, 0.04])
     assert ds.state_conditions("b")["currents"] == {"exciting_current_A": 3.0}
-    again = read_dataset(tmp_path / "ds", POINTS)
-    pd.testing.assert_frame_equal(again.modes, ds.modes)
+    again = read_dataset(tmp_path / "ds", POINTS)  # the dataset returned is the one the files hold, whole
+    for name in ("modes", "shapes", "frf"):
+        pd.testing.assert_frame_equal(getattr(again, name), getattr(ds, name), check_exact=True)
+    assert (again.name, again.conditions, again.states) == (ds.name, ds.conditions, ds.states)
     assert sorted(os.listdir(tmp_path)) == ["ds"]  # no temporary folders left
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -310,7 +310,7 @@ def read_dataset(folder, measuring_points=None, expected_states=None) -> Dataset
 def write_dataset(folder, modes: pd.DataFrame, shapes: pd.DataFrame | None = None,
                   frf: pd.DataFrame | None = None, *, conditions: dict,
                   measuring_points=None) -> Dataset:
-    """Write a dataset folder atomically and return it as read back.
+    """Write a dataset folder atomically and return it (as read from the files written).
 
     The files are written into a temporary sibling folder which is validated and then renamed to
     ``folder`` (an existing dataset folder is replaced: renamed aside, swapped, then deleted), so a
@@ -351,14 +351,15 @@ def write_dataset(folder, modes: pd.DataFrame, shapes: pd.DataFrame | None = Non
             _frame_to_csv(frf, COLUMNS["frf.csv"], tmp / "frf.csv")
         with open(tmp / "conditions.yaml", "w", encoding="utf-8") as fh:
             yaml.safe_dump(_plain(conditions), fh, sort_keys=False, allow_unicode=True)
-        problems = validate_dataset(tmp, measuring_points)
-        if problems:
-            raise DataError([p.replace(str(tmp), str(folder)) for p in problems])
+        found, dataset = _load(tmp, measuring_points)
+        if found:
+            raise DataError([p.replace(str(tmp), str(folder)) for p in found.condensed()])
         _swap_in(tmp, folder)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp)
-    return read_dataset(folder, measuring_points)
+    # the files checked in the temporary folder are the ones now in ``folder``: its dataset, not a second read
+    return replace(dataset, name=folder.resolve().name)
 
 
 def _frame_to_csv(df, columns, path):
