@@ -190,12 +190,53 @@ def assemble_elasticity(basis: Basis, lam_e: np.ndarray, mu_e: np.ndarray, rho_e
         rparts.append(np.broadcast_to(de[:, None, :], (nloc, nloc, de.shape[1])).reshape(-1))
         cparts.append(np.broadcast_to(de[None, :, :], (nloc, nloc, de.shape[1])).reshape(-1))
     r, cidx = np.concatenate(rparts), np.concatenate(cparts)
-    Kb = [[sp.csr_matrix((np.concatenate(parts[c][d]), (r, cidx)), shape=(n, n)) for d in range(3)]
-          for c in range(3)]
+    values = [[np.concatenate(parts[c][d]) for d in range(3)] for c in range(3)]
+    to_csr = _coo_summer(r, cidx, n, values[0][0])
+    Kb = [[to_csr(values[c][d]) for d in range(3)] for c in range(3)]
     K = _vector_from_scalar_blocks(Kb, n)
-    Ms = sp.csr_matrix((np.concatenate(mparts), (r, cidx)), shape=(n, n))
+    Ms = to_csr(np.concatenate(mparts))
     M = sp.kron(Ms, sp.eye(3), format="csr")
     return K, M
+
+
+def _coo_summer(r: np.ndarray, c: np.ndarray, n: int, first: np.ndarray):
+    """A function that turns values at the COO coordinates ``(r, c)`` into the CSR matrix
+    ``sp.csr_matrix((values, (r, c)), shape=(n, n))`` would give, bit for bit.
+
+    The blocks and the mass of one assembly share their coordinates, so the order in which scipy adds the
+    duplicates (its CSR rows in input order, each row sorted by ``csr_sort_indices``, then added from the
+    left) is found once, from a probe of positions, and replayed on each block: a gather and at most a few
+    vector additions instead of a conversion and a sort per block.  The replay is checked on ``first``
+    against scipy's own conversion; where it would differ, every block is converted by scipy."""
+    ref = sp.csr_matrix((first, (r, c)), shape=(n, n))
+    order = np.argsort(r, kind="stable")
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(r, minlength=n), out=indptr[1:])
+    probe = sp.csr_matrix((order.astype(np.float64), c[order], indptr), shape=(n, n))
+    probe.has_sorted_indices = False
+    probe.sort_indices()  # the sort scipy's sum_duplicates does, on the positions
+    src = probe.data.astype(np.int64)
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    new = np.ones(len(src), dtype=bool)
+    new[1:] = (probe.indices[1:] != probe.indices[:-1]) | (rows[1:] != rows[:-1])
+    starts = np.flatnonzero(new)
+    counts = np.diff(np.append(starts, len(src)))
+    later = [(np.flatnonzero(counts > t), starts[counts > t] + t) for t in range(1, int(counts.max(initial=1)))]
+
+    def summed(values: np.ndarray) -> sp.csr_matrix:
+        v = values[src]
+        out = v[starts]  # a copy: each sum starts from its first value, then adds the rest in turn
+        for at, pos in later:
+            out[at] += v[pos]
+        m = sp.csr_matrix((out, ref.indices.copy(), ref.indptr.copy()), shape=(n, n))
+        m.has_sorted_indices = True
+        m.has_canonical_format = True
+        return m
+
+    first_replayed = summed(first)
+    if len(starts) != ref.nnz or first_replayed.data.tobytes() != ref.data.tobytes():
+        return lambda values: sp.csr_matrix((values, (r, c)), shape=(n, n))
+    return lambda values: ref if values is first else summed(values)
 
 
 def facet_mass(mesh, elem, facets: np.ndarray, intorder: int) -> sp.csr_matrix:
