@@ -225,7 +225,8 @@ def test_mesh_check_takes_the_default_mesh_solve_from_verify(coarse_run, tmp_pat
     opts = MeshCheckOptions.from_config(sections(cfg, *keys.MESH_CHECK))
     assert not opts.extrapolate  # the default: both meshes at their base level, verify's solve used
     state, r = STATES[0], coarse_run / "results"
-    assert "rule verify's solve" in (coarse_run / f"logs/mesh_check/{state}.log").read_text()
+    assert f"mesh_check[{state}]: default mesh at the identified parameters: rule verify's solve" in (
+        coarse_run / "logs/mesh_check.log").read_text()  # one job for every state
     run_mesh_check(opts, state, str(r / f"identify/{state}/params.json"), str(r / f"identify/{state}/verify.csv"),
                    str(r / "model/matrices.npz"), str(tmp_path / "check.json"), str(tmp_path / "check.csv"),
                    log=lambda m: None)

@@ -1,6 +1,7 @@
 # Mesh check (mesh_check.enabled, on by default): each state's identified parameters re-solved on a nested
-# refinement of the mesh; the first-order change a re-identification there would give.  The default mesh's
-# solve at those parameters is rule verify's (results/identify/{state}/optimum_modes.npz): not solved again.
+# refinement of the mesh; the first-order change a re-identification there would give.  One job for every
+# state: the refined mesh is built once.  The default mesh's solve at those parameters is rule verify's
+# (results/identify/{state}/optimum_modes.npz): not solved again.
 #   results/mesh_check/{state}.json (parameters: value, refined value, change %, 95 % interval)
 #   results/mesh_check/{state}.csv  (every mode: default and refined frequency, change %, MAC)
 
@@ -11,21 +12,22 @@ CFG_MESH_CHECK = sections(config, *keys.MESH_CHECK)
 # a mesh file (model.kind mesh) is solved as it is: no refinement, so no mesh check (refine the file and compare)
 if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "rig") != "mesh":
 
-    rule mesh_check:
+    rule mesh_check:  # every state in one job: the refined mesh is built once
         input:
-            params=rules.identify.output.params,
-            verify=rules.verify.output.table,
-            modes=rules.verify.output.modes,  # the default mesh's solve at the identified parameters
+            params=expand(rules.identify.output.params, state=STATES),
+            verify=expand(rules.verify.output.table, state=STATES),
+            modes=expand(rules.verify.output.modes, state=STATES),  # the default mesh's solve at the identified parameters
             matrices=rules.mesh.output.matrices,
         output:
-            json=f"{R}/mesh_check/{{state}}.json",
-            csv=f"{R}/mesh_check/{{state}}.csv",
+            json=expand(f"{R}/mesh_check/{{state}}.json", state=STATES),
+            csv=expand(f"{R}/mesh_check/{{state}}.csv", state=STATES),
         params:
             cfg=CFG_MESH_CHECK,
+            states=STATES,
         log:
-            f"{LOGS}/mesh_check/{{state}}.log",
+            f"{LOGS}/mesh_check.log",
         benchmark:
-            f"{BENCH}/mesh_check/{{state}}.tsv"
+            f"{BENCH}/mesh_check.tsv"
         priority: PRIORITY_CHECKS  # after the chain it checks (see the Snakefile)
         threads: 1
         resources:

@@ -7,17 +7,18 @@ from jointid.config import rule_keys as keys
 CFG_RIGIDITY = sections(config, *keys.CARRIAGE)
 
 
-rule carriage_rigidity:
+rule carriage_rigidity:  # every state in one job: the test model is assembled once
     input:
-        params=rules.identify.output.params,
+        params=expand(rules.identify.output.params, state=STATES),
     output:
-        json=f"{R}/identify/{{state}}/carriage_rigidity.json",
+        json=expand(f"{R}/identify/{{state}}/carriage_rigidity.json", state=STATES),
     params:
         cfg=CFG_RIGIDITY,
+        states=STATES,
     log:
-        f"{LOGS}/carriage_rigidity/{{state}}.log",
+        f"{LOGS}/carriage_rigidity.log",
     benchmark:
-        f"{BENCH}/carriage_rigidity/{{state}}.tsv"
+        f"{BENCH}/carriage_rigidity.tsv"
     threads: 1
     resources:
         mem_mb=2000,  # 1.4-1.5 GB measured (the 41k-DOF factorisations of the default 6 mm cells)

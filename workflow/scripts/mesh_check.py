@@ -1,8 +1,8 @@
-"""Snakemake adapter: identified parameters of one state re-solved on a refined mesh (rule mesh_check)."""
+"""Snakemake adapter: every state's identified parameters re-solved on a refined mesh (rule mesh_check)."""
 from jointid.config.options import MeshCheckOptions
 from jointid.stages.runner import run_script
-from jointid.stages.meshcheck import run_mesh_check
+from jointid.stages.meshcheck import run_mesh_checks
 
-run_script(snakemake, lambda cfg, inp, out: run_mesh_check(
-    MeshCheckOptions.from_config(cfg), snakemake.wildcards.state, inp.params, inp.verify, inp.matrices, out.json, out.csv,
-    modes_npz=inp.modes), provenance=True)
+run_script(snakemake, lambda cfg, inp, out: run_mesh_checks(
+    MeshCheckOptions.from_config(cfg), list(snakemake.params.states), list(inp.params), list(inp.verify), inp.matrices,
+    list(out.json), list(out.csv), modes_npzs=list(inp.modes)), provenance=True)

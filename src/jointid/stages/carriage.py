@@ -12,7 +12,19 @@ if TYPE_CHECKING:
 
 
 
-def run_carriage_rigidity(opts: CarriageOptions, state: str, params_json: str, out_json: str, log=print) -> dict:
+def run_carriage_rigidities(opts: CarriageOptions, states: list[str], params_jsons: list[str], out_jsons: list[str],
+                            log=print) -> list[dict]:
+    """Rule ``carriage_rigidity``: :func:`run_carriage_rigidity` of every state of ``states`` (the lists aligned
+    with it) in one process, on one test model: its mesh is the same for every state, assembled once, and its
+    first factorisation's ordering serves every later one (the same bits, :class:`BlockTest`)."""
+    from jointid.response.carriage import BlockTest
+
+    test = BlockTest(opts.model, opts.cell_size_m)
+    return [run_carriage_rigidity(opts, s, p, o, log=log, test=test) for s, p, o in zip(states, params_jsons, out_jsons)]
+
+
+def run_carriage_rigidity(opts: CarriageOptions, state: str, params_json: str, out_json: str, log=print,
+                          test=None) -> dict:
     """Rule ``carriage_rigidity``: the identified joints of one state as a catalogue's block rigidity.
 
     Writes, per direction: the joint springs alone (parameter x contact area), the carriage and rail
@@ -21,7 +33,8 @@ def run_carriage_rigidity(opts: CarriageOptions, state: str, params_json: str, o
     with every spring, so this is an outer bound of its interval), and the joints' share of the
     assembly's compliance (1 - assembly / parts: the compliance they add over stiff joints).
     With a config section ``catalogue`` that has classes, ``catalogue`` holds the assembly against
-    each of them (:func:`jointid.response.carriage.catalogue_comparison`); else it is null.
+    each of them (:func:`jointid.response.carriage.catalogue_comparison`); else it is null.  ``test``: the
+    :class:`~jointid.response.carriage.BlockTest` of ``opts`` built before (:func:`run_carriage_rigidities`).
     """
     # the FE of the test (scikit-fem) is imported here, not with the rule's config keys (every Snakemake start)
     from jointid.identification.record import IdentificationRecord
@@ -29,7 +42,7 @@ def run_carriage_rigidity(opts: CarriageOptions, state: str, params_json: str, o
 
     par = IdentificationRecord.read(params_json)
     cell = opts.cell_size_m
-    test = BlockTest(opts.model, cell)
+    test = test if test is not None else BlockTest(opts.model, cell)
     res = test.rigidity(par.theta)
     low, high = test.rigidity(par.theta_low, False), test.rigidity(par.theta_high, False)
     springs = {d: 0.0 for d in DIRECTIONS}  # the identified parameters' per-carriage values, by direction

@@ -45,9 +45,10 @@ def _default_mesh(spec, theta_d, names, theta, matrices, edge_models, say):
     return f_c, modes_c.freqs_Hz, shapes_c, J_all, coarse.n_dofs
 
 
-def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
+def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say, fine=None):
     """Solve of the mesh with the ``halve`` cells halved (and its edge levels with
-    ``extrapolate``); returns ``(frequencies, its own frequencies, shapes, number of DOFs)``."""
+    ``extrapolate``); returns ``(frequencies, its own frequencies, shapes, number of DOFs)``.  ``fine``: that
+    mesh's model, built before (:func:`run_mesh_checks`: one build for every state)."""
     from jointid.fe.model import build_model
     from jointid.fe.modal import SURVEY_TOL
     from jointid.identification.polish import edge_limit_at, solve_point
@@ -56,13 +57,36 @@ def _refined_mesh(spec, theta_d, halve, extrapolate: bool, say):
         lim_f = edge_limit_at(spec, [partial(build_model, spec.with_edge_levels(k), halve=halve, progress=say)
                                     for k in (0, *spec.mesh.edge_extra_levels)], theta_d, log=say)
         return lim_f.limit_Hz, lim_f.levels_Hz[0], lim_f.shapes, lim_f.n_dofs[0]
-    fine = build_model(spec, halve=halve, progress=say)
+    fine = fine if fine is not None else build_model(spec, halve=halve, progress=say)
     _, shapes_f, _, modes_f = solve_point(spec, fine, theta_d, describe=False, tol=SURVEY_TOL)
     return modes_f.freqs_Hz, modes_f.freqs_Hz, shapes_f, fine.n_dofs
 
 
+def run_mesh_checks(opts: MeshCheckOptions, states: list[str], params_jsons: list[str], verify_csvs: list[str],
+                    matrices: str, out_jsons: list[str], out_csvs: list[str], log=print,
+                    modes_npzs: list[str] | None = None) -> list[dict]:
+    # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
+    """Rule ``mesh_check``: :func:`run_mesh_check` of every state of ``states`` (the lists aligned with it) in
+    one process.  The refined mesh is the same for every state: it is built once (without the edge
+    levels; with them each state builds its levels in turn, as they are dropped after each solve)."""
+    from jointid.fe.model import build_model
+    from jointid.fe.modal import release_heap
+
+    fine = None
+    if not opts.extrapolate:
+        log(f"mesh_check: the mesh with {', '.join(opts.halve)} cells halved, built once for "
+            f"{len(states)} state(s)")
+        fine = build_model(opts.model, halve=opts.halve, progress=lambda m: log(f"mesh_check: {m}"))
+    modes = modes_npzs or [None] * len(states)
+    docs = [run_mesh_check(opts, s, p, v, matrices, j, c, log=log, modes_npz=m, fine=fine)
+            for s, p, v, j, c, m in zip(states, params_jsons, verify_csvs, out_jsons, out_csvs, modes)]
+    del fine
+    release_heap()
+    return docs
+
+
 def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_csv: str, matrices: str,
-                   out_json: str, out_csv: str, log=print, modes_npz: str | None = None) -> dict:
+                   out_json: str, out_csv: str, log=print, modes_npz: str | None = None, fine=None) -> dict:
     # many parameters: a workflow stage: one parameter per file of its rule (the Snakefile stays as it is)
     """Rule ``mesh_check`` for one state's identified parameters (see the module doc); with
     ``mesh_check.edge_levels`` and ``mesh.extrapolate_edges`` both meshes are extrapolated over one and
@@ -103,7 +127,7 @@ def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_
         f_c, f_c_mesh, shapes_c, J_all, n_dofs_c = _default_mesh(
             spec, theta_d, names, theta, matrices, edge_level_builders(spec, progress=say) if edges else [], say)
     say(f"the mesh with {', '.join(halve)} cells halved")
-    f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(spec, theta_d, halve, edges, say)
+    f_f, f_f_mesh, shapes_f, n_dofs_f = _refined_mesh(spec, theta_d, halve, edges, say, fine)
     index, macs = pair_by_shapes(shapes_c, shapes_f, threshold=0.8)
     fe_mode = ver["fe_mode"].to_numpy(int) - 1  # paired default-mesh mode of each measured mode (-1: none)
     use = (fe_mode >= 0) & (index[np.clip(fe_mode, 0, None)] >= 0)
