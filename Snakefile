@@ -77,15 +77,19 @@ RULE_WILDCARDS = {}  # rule -> wildcard values of its own, where they are fewer 
 # first, side by side, and the short jobs fill in around them: the diagnosis and its basis (the longest
 # job), then the hypotheses (those with models of their own, then the one job of those on the run's
 # model, which ranks with them), and the chain to Tables 1-3 (mesh -> DOE -> surfaces -> identify ->
-# verify -> harmonic -> tables) in the gaps; the mesh checks after it and the carriage tests (priority 0)
-# last.  With the chain first (as before 2026-11-29) the hypotheses' one job ran alone at the end with a
-# core idle (benchmark c: 618-641 s against 456 s of 90ed90a).  The DOE's one job (rule modal, method
-# reduced) goes beside the basis, before the hypotheses: its chain then waits ready for the first core the
-# long poles free.  Started when the diagnosis ended, it ran while the hypotheses' ranking (its one
-# consumer then ready) took 11 s, and a core stood idle 9 s for it (2026-12-01, make reproduce).  The
-# hypotheses' ranking, which only the report waits for, goes with the checks.  The mesh goes before all (every
-# other job but the hypotheses with models of their own waits for it); one of those starts beside it, on the
-# core that stood idle for the mesh's 6-7 s.
+# verify -> harmonic -> tables) in the gaps.  With the chain first (as before 2026-11-29) the hypotheses'
+# one job ran alone at the end with a core idle (benchmark c: 618-641 s against 456 s of 90ed90a).  The
+# DOE's one job (rule modal, method reduced) goes beside the basis, before the hypotheses: its chain then
+# waits ready for the first core the long poles free.  Started when the diagnosis ended, it ran while the
+# hypotheses' ranking (its one consumer then ready) took 11 s, and a core stood idle 9 s for it
+# (2026-12-01, make reproduce).  Rule doe, which writes its sheet, has that priority too: a priority is not
+# passed on upstream, and at the chain's (lower than the hypotheses') the sheet waited for every hypothesis.
+# The mesh check (one job for every state, the longest of the chain's tail: 23 s) starts as soon as both
+# states are verified, beside the harmonic jobs: after them it ran 11 s alone with a core idle (2026-12-02,
+# 205 s from clean).  The carriage tests and the hypotheses' ranking, which only the report waits for, go
+# last, the longer (the carriage tests, 9 s) first: the other way round it ran alone at the end.  The mesh goes before all (every other job but the hypotheses
+# with models of their own waits for it); one of those starts beside it, on the core that stood idle for
+# the mesh's 6-7 s.
 # Priorities only order ready jobs: the results are the same, and a run of one target is unaffected.
 PRIORITY_MESH = 31
 PRIORITY_LONG = 30
@@ -142,7 +146,7 @@ rule doe:
         cfg=CFG_DOE,
     log:
         f"{LOGS}/doe.log",
-    priority: PRIORITY_TABLES
+    priority: PRIORITY_DOE  # its sheet lets rule modal start beside the basis (a priority is not passed on upstream)
     threads: 1
     resources:
         mem_mb=500,

@@ -28,7 +28,7 @@ if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "
             f"{LOGS}/mesh_check.log",
         benchmark:
             f"{BENCH}/mesh_check.tsv"
-        priority: PRIORITY_CHECKS  # after the chain it checks (see the Snakefile)
+        priority: PRIORITY_TABLES + 1  # first of the chain's tail, beside the harmonic jobs (see the Snakefile)
         threads: 1
         resources:
             mem_mb=16000,  # 15.5 GB measured with halve: [joint_zone] (7.2 GB with the default [thickness])

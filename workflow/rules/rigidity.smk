@@ -19,6 +19,7 @@ rule carriage_rigidity:  # every state in one job: the test model is assembled o
         f"{LOGS}/carriage_rigidity.log",
     benchmark:
         f"{BENCH}/carriage_rigidity.tsv"
+    priority: PRIORITY_CHECKS + 1  # before the hypotheses' ranking: at the end it ran 9 s alone (see the Snakefile)
     threads: 1
     resources:
         mem_mb=2000,  # 1.4-1.5 GB measured (the 41k-DOF factorisations of the default 6 mm cells)
