@@ -90,7 +90,7 @@ def test_solver_change_reruns_the_fanout_but_not_the_mesh(finished):
                                                       "harmonic": 1}),
     ("solver:\n  rom_tolerance: 2.0e-4\n", {"modal": 0, "fit_surface": 0, "modal_zoom": 0, "identify": 0,
                                            "verify": 0}),
-    ("carriage_rigidity:\n  cell_size_m: 0.01\n", {"carriage_rigidity": 2, "identify": 0, "verify": 0,
+    ("carriage_rigidity:\n  cell_size_m: 0.01\n", {"carriage_rigidity": 1, "identify": 0, "verify": 0,
                                                    "harmonic": 0, "mesh": 0, "report": 1}),
 ], ids=["harmonic_n_freq", "one_state", "rom_tolerance_unused", "carriage_rigidity_only"])
 def test_value_used_elsewhere_does_not_rerun_the_chain(finished, change, unaffected):
