@@ -87,9 +87,9 @@ RULE_WILDCARDS = {}  # rule -> wildcard values of its own, where they are fewer 
 # The mesh check (one job for every state, the longest of the chain's tail: 23 s) starts as soon as both
 # states are verified, beside the harmonic jobs: after them it ran 11 s alone with a core idle (2026-12-02,
 # 205 s from clean).  The carriage tests and the hypotheses' ranking, which only the report waits for, go
-# last, the longer (the carriage tests, 9 s) first: the other way round it ran alone at the end.  The mesh goes before all (every other job but the hypotheses
-# with models of their own waits for it); one of those starts beside it, on the core that stood idle for
-# the mesh's 6-7 s.
+# last, the longer (the carriage tests, 9 s) first: the other way round it ran alone at the end.  The mesh
+# goes before all (every other job but the hypotheses with models of their own waits for it); one of those
+# starts beside it, on the core that stood idle for the mesh's 6-7 s.
 # Priorities only order ready jobs: the results are the same, and a run of one target is unaffected.
 PRIORITY_MESH = 31
 PRIORITY_LONG = 30

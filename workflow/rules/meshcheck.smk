@@ -16,7 +16,8 @@ if config["mesh_check"]["enabled"] and (config.get("model") or {}).get("kind", "
         input:
             params=expand(rules.identify.output.params, state=STATES),
             verify=expand(rules.verify.output.table, state=STATES),
-            modes=expand(rules.verify.output.modes, state=STATES),  # the default mesh's solve at the identified parameters
+            # the default mesh's solve at the identified parameters
+            modes=expand(rules.verify.output.modes, state=STATES),
             matrices=rules.mesh.output.matrices,
         output:
             json=expand(f"{R}/mesh_check/{{state}}.json", state=STATES),

@@ -20,7 +20,8 @@ def run_carriage_rigidities(opts: CarriageOptions, states: list[str], params_jso
     from jointid.response.carriage import BlockTest
 
     test = BlockTest(opts.model, opts.cell_size_m)
-    return [run_carriage_rigidity(opts, s, p, o, log=log, test=test) for s, p, o in zip(states, params_jsons, out_jsons)]
+    return [run_carriage_rigidity(opts, s, p, o, log=log, test=test)
+            for s, p, o in zip(states, params_jsons, out_jsons)]
 
 
 def run_carriage_rigidity(opts: CarriageOptions, state: str, params_json: str, out_json: str, log=print,

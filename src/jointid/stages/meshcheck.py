@@ -70,7 +70,6 @@ def run_mesh_checks(opts: MeshCheckOptions, states: list[str], params_jsons: lis
     one process.  The refined mesh is the same for every state: it is built once (without the edge
     levels; with them each state builds its levels in turn, as they are dropped after each solve)."""
     from jointid.fe.model import build_model
-    from jointid.fe.modal import release_heap
 
     fine = None
     if not opts.extrapolate:
@@ -78,11 +77,8 @@ def run_mesh_checks(opts: MeshCheckOptions, states: list[str], params_jsons: lis
             f"{len(states)} state(s)")
         fine = build_model(opts.model, halve=opts.halve, progress=lambda m: log(f"mesh_check: {m}"))
     modes = modes_npzs or [None] * len(states)
-    docs = [run_mesh_check(opts, s, p, v, matrices, j, c, log=log, modes_npz=m, fine=fine)
+    return [run_mesh_check(opts, s, p, v, matrices, j, c, log=log, modes_npz=m, fine=fine)
             for s, p, v, j, c, m in zip(states, params_jsons, verify_csvs, out_jsons, out_csvs, modes)]
-    del fine
-    release_heap()
-    return docs
 
 
 def run_mesh_check(opts: MeshCheckOptions, state: str, params_json: str, verify_csv: str, matrices: str,
