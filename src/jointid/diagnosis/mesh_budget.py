@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from jointid.diagnosis.mesh_error import DEFAULT_HALVE, MeshErrors, estimate_mesh_errors, solid_share
+from jointid.diagnosis.mesh_error import DEFAULT_HALVE, ISOLATE_DOFS, MeshErrors, estimate_mesh_errors, solid_share
 
 __all__ = ["mesh_budget", "answer_mesh_error", "softened_terms", "SOFTENING"]
 
@@ -43,7 +43,8 @@ def _estimate_at(diag, variant, x, log) -> MeshErrors:
     def estimate() -> MeshErrors:
         sols = diag.solve_states(variant, x)
         index = [p.model_index for p in diag.pair(sols)]
-        diag.solver.release_factor()  # made again on use: the refined mesh's factorisation is not held beside it
+        if diag.system.n_dofs < ISOLATE_DOFS:  # the refined meshes solved in this process: their factorisation
+            diag.solver.release_factor()  # is not held beside the solver's (made again on use, 1.1 s by default)
         return estimate_mesh_errors(diag.settings.model, diag.system, diag.data, sols, index,
                                     halve, n_modes=diag.n_modes, lift=diag.lift,
                                     solid=[solid_share(diag.solver, s) for s in sols], log=log)

@@ -432,7 +432,8 @@ def certified_base(spec: ModelSpec, names: list[str], matrices, theta: np.ndarra
     model = _SESSION["model"]
     sol = rs.solve(*base_coefficients(spec, model, dict(zip(names, map(float, theta)))), spec.solver.n_modes)
     phi, jt = rs.full_phi(sol), joint_terms(spec.joints, spec.mesh_file)
-    rs.release_factor()  # the edge levels' solves need the memory (0.3 GB); a later enrichment factorises again
+    if max(spec.mesh.edge_extra_levels) > 1:  # the second level's solve needs the memory (0.3 GB): released, a
+        rs.release_factor()  # later enrichment factorises again; beside the first level's only (default), kept
     J = log_jacobian(model.stiffness, phi, sol.lam, [{t: 1.0 for t in jt[n]} for n in names], np.asarray(theta, float))
     return sol.freqs_Hz, model.probe @ phi, J
 

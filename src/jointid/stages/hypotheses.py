@@ -264,7 +264,7 @@ def linked_summary(opts: RankingOptions, rec: dict, log=print_log) -> dict:
     test = BlockTest(*opts.carriage_tests[name])
     states = {}
     for s in rec["states"]:
-        res = test.rigidity(s["joints_N_per_m3"])
+        res = test.rigidity(s["joints_N_per_m3"], parts=False)  # the assembly's only: one factorisation per state
         a = {d: res.assembly_N_per_m[d] * 1e-6 for d in res.assembly_N_per_m}
         ratio = a["lateral"] / a["normal"]
         states[s["state"]] = {"joints_N_per_m3": s["joints_N_per_m3"], "assembly_N_per_um": a,
