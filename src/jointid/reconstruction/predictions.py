@@ -91,7 +91,7 @@ def measurement_predictions(diag, fit, data) -> dict:
     P, load = None, "point"
     if solver is not None and rows:
         # the solver keeps its factorisation beside the static one: released here, the next certificate's
-        # checks made it again (three times per run of the paper's hypotheses, 1.1 s each; +115 MB at most)
+        # checks made it again (three times per run of the paper's hypotheses, 1.1 s each; +115 MB on its run model)
         P, load = _drive_rows(system, solver, point, dirs, rows, h.patch_diameter_m)
     states = []
     for si, d in enumerate(data):
